@@ -1,0 +1,311 @@
+"""Derived geometry of a scene: what the echo engine and the sensor placement need.
+
+From a :class:`~clsonar.scene.Scene`'s surfaces this builds flat arrays (float64):
+
+- **walls**: every segment of every polyline, with the unit normal of its *front* (free)
+  side. A closed polyline is a room: only its interior side reflects. An open polyline is a
+  thin wall: both sides reflect (``two_sided``).
+- **vertices**: every polyline vertex, classified as seen from the left and from the right
+  of the polyline's direction: ``corner`` (concave: the two walls enclose the observer,
+  interior angle < 180°), ``edge`` (convex, > 180°), ``flat`` (collinear to 1e-9) or
+  ``end`` (free end of an open polyline: the wall is taken to continue beyond the map, so
+  no diffraction there); the outside of a room is ``solid``.
+- **diffractors**: the vertices that a free side sees as a convex ``edge``; a point sees
+  one when it is not strictly inside the *solid cone*, the convex angle between the two
+  walls at the vertex.
+- **corner pairs**: pairs of walls meeting at a vertex that a free side sees as a concave
+  corner (multi-bounce between them is labelled ``corner``).
+- **circles** ``(cx, cy, r)``: solid cylinders.
+- **curves**: sinusoids, kept analytically ``(Fx, Fy, tx, ty, amplitude, ω, length)`` and
+  sampled into intervals of at most ``min(echo.curve_step_m, period/32)`` along the base
+  line (default ≤ 1 cm). The echo engine searches each interval for specular points; the
+  chords between samples stand in for the curve when it occludes a path (the chord sags
+  by at most ``κ·Δs²/8``, about 6 µm for the default scenes).
+- **occluders**: walls followed by all curve chords; circles occlude analytically.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .scene import Circle, Polyline, Scene, Sinusoid
+
+VERTEX_KINDS = ("flat", "corner", "edge", "end", "solid")
+FLAT, CORNER, EDGE, END, SOLID = range(5)
+
+#: Interior angles within this many radians of 180° count as ``flat``.
+FLAT_TOLERANCE = 1e-9
+
+#: A sinusoid is sampled at no fewer than this many intervals per period.
+SAMPLES_PER_PERIOD = 32
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    walls: np.ndarray  # [S, 4] x0, y0, x1, y1
+    wall_normal: np.ndarray  # [S, 2] unit normal towards the front side
+    wall_two_sided: np.ndarray  # [S] bool
+    wall_surface: np.ndarray  # [S] index into scene.surfaces
+    vertices: np.ndarray  # [V, 2]
+    vertex_walls: np.ndarray  # [V, 2] incoming and outgoing wall, -1 at a free end
+    vertex_left: np.ndarray  # [V] kind code seen from the left of the polyline direction
+    vertex_right: np.ndarray  # [V] kind code seen from the right
+    diffractors: np.ndarray  # [D, 6] vertex x, y; unit vector to previous point; to next
+    diffractor_vertex: np.ndarray  # [D] index into vertices
+    corner_pairs: np.ndarray  # [S, S] bool, symmetric
+    circles: np.ndarray  # [C, 3]
+    circle_surface: np.ndarray  # [C]
+    curves: np.ndarray  # [K, 7] Fx, Fy, tx, ty, amplitude, omega, length
+    curve_surface: np.ndarray  # [K]
+    interval_curve: np.ndarray  # [I] index into curves
+    interval_s: np.ndarray  # [I, 2] base-line parameters s0 < s1
+    chord_start: np.ndarray  # [K] index of the curve's first chord in occluders
+
+    @cached_property
+    def occluders(self) -> np.ndarray:
+        """[O, 4] segments that block paths: the walls, then every curve chord."""
+        if len(self.interval_s) == 0:
+            return self.walls
+        k = self.interval_curve
+        a = curve_point(self.curves[k], self.interval_s[:, 0])
+        b = curve_point(self.curves[k], self.interval_s[:, 1])
+        return np.concatenate([self.walls, np.concatenate([a, b], axis=1)])
+
+    @property
+    def curve_counts(self) -> np.ndarray:
+        """Number of intervals (= chords) of each curve."""
+        return np.bincount(self.interval_curve, minlength=len(self.curves))
+
+
+def build_geometry(scene: Scene) -> Geometry:
+    """Derive the :class:`Geometry` of ``scene`` (see the module docstring)."""
+    walls, normals, two_sided, owner = [], [], [], []
+    verts, vwalls, vleft, vright = [], [], [], []
+    for si, surface in enumerate(scene.surfaces):
+        if isinstance(surface, Polyline):
+            _add_polyline(surface, si, walls, normals, two_sided, owner,
+                          verts, vwalls, vleft, vright)
+    walls_a = np.asarray(walls, dtype=np.float64).reshape(-1, 4)
+    vertex_walls = np.asarray(vwalls, dtype=np.int64).reshape(-1, 2)
+    vertices = np.asarray(verts, dtype=np.float64).reshape(-1, 2)
+    left = np.asarray(vleft, dtype=np.int8)
+    right = np.asarray(vright, dtype=np.int8)
+    room = ~np.asarray(two_sided, dtype=bool)
+
+    diff_idx = np.flatnonzero((left == EDGE) | (right == EDGE))
+    corner_pairs = np.zeros((len(walls_a), len(walls_a)), dtype=bool)
+    for v in np.flatnonzero((left == CORNER) | (right == CORNER)):
+        a, b = vertex_walls[v]
+        corner_pairs[a, b] = corner_pairs[b, a] = True
+
+    diffractors = np.zeros((len(diff_idx), 6))
+    for row, v in enumerate(diff_idx):
+        a, b = vertex_walls[v]
+        p = vertices[v]
+        prev_pt = walls_a[a, :2]
+        next_pt = walls_a[b, 2:]
+        diffractors[row, :2] = p
+        diffractors[row, 2:4] = _unit(prev_pt - p)
+        diffractors[row, 4:6] = _unit(next_pt - p)
+
+    circles = [(s.center[0], s.center[1], s.radius) for s in scene.surfaces
+               if isinstance(s, Circle)]
+    circle_surface = [i for i, s in enumerate(scene.surfaces) if isinstance(s, Circle)]
+
+    curves, curve_surface, interval_curve, interval_s, chord_start = [], [], [], [], []
+    for si, s in enumerate(scene.surfaces):
+        if not isinstance(s, Sinusoid):
+            continue
+        params, s_edges = _sample_sinusoid(s, scene.echo.curve_step_m)
+        chord_start.append(len(walls_a) + len(interval_s))
+        curve_surface.append(si)
+        interval_curve.extend([len(curves)] * (len(s_edges) - 1))
+        interval_s.extend(zip(s_edges[:-1], s_edges[1:]))
+        curves.append(params)
+
+    return Geometry(
+        walls=walls_a,
+        wall_normal=np.asarray(normals, dtype=np.float64).reshape(-1, 2),
+        wall_two_sided=~room,
+        wall_surface=np.asarray(owner, dtype=np.int64),
+        vertices=vertices,
+        vertex_walls=vertex_walls,
+        vertex_left=left,
+        vertex_right=right,
+        diffractors=diffractors,
+        diffractor_vertex=diff_idx.astype(np.int64),
+        corner_pairs=corner_pairs,
+        circles=np.asarray(circles, dtype=np.float64).reshape(-1, 3),
+        circle_surface=np.asarray(circle_surface, dtype=np.int64),
+        curves=np.asarray(curves, dtype=np.float64).reshape(-1, 7),
+        curve_surface=np.asarray(curve_surface, dtype=np.int64),
+        interval_curve=np.asarray(interval_curve, dtype=np.int64),
+        interval_s=np.asarray(interval_s, dtype=np.float64).reshape(-1, 2),
+        chord_start=np.asarray(chord_start, dtype=np.int64),
+    )
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / math.hypot(v[0], v[1])
+
+
+def _cross(a, b) -> float:
+    return a[0] * b[1] - a[1] * b[0]
+
+
+def _add_polyline(p: Polyline, si, walls, normals, two_sided, owner,
+                  verts, vwalls, vleft, vright) -> None:
+    pts = np.asarray(p.points, dtype=np.float64)
+    n = len(pts)
+    ccw = p.closed and _signed_area(pts) > 0
+    first = len(walls)
+    nseg = n if p.closed else n - 1
+    for i in range(nseg):
+        a, b = pts[i], pts[(i + 1) % n]
+        d = _unit(b - a)
+        left_normal = np.array([-d[1], d[0]])
+        walls.append((*a, *b))
+        # Rooms reflect only on the interior: the left side of a counter-clockwise outline.
+        normals.append(left_normal if (ccw or not p.closed) else -left_normal)
+        two_sided.append(not p.closed)
+        owner.append(si)
+    for i in range(n):
+        has_in = p.closed or i > 0
+        has_out = p.closed or i < n - 1
+        w_in = first + (i - 1) % nseg if has_in else -1
+        w_out = first + i % nseg if has_out else -1
+        verts.append(pts[i])
+        vwalls.append((w_in, w_out))
+        if not (has_in and has_out):
+            vleft.append(END)
+            vright.append(END)
+            continue
+        d_in = _unit(pts[i] - pts[(i - 1) % n])
+        d_out = _unit(pts[(i + 1) % n] - pts[i])
+        turn = _cross(d_in, d_out)
+        if abs(turn) <= FLAT_TOLERANCE and np.dot(d_in, d_out) > 0:
+            left, right = FLAT, FLAT
+        elif turn > 0:  # left turn: the left side is inside the bend
+            left, right = CORNER, EDGE
+        else:  # right turn, or a 180° fold back (an edge seen from both sides)
+            left, right = (EDGE, CORNER) if turn < 0 else (EDGE, EDGE)
+        if p.closed:  # the outside of a room is solid
+            if ccw:
+                right = SOLID
+            else:
+                left = SOLID
+        vleft.append(left)
+        vright.append(right)
+
+
+def _signed_area(pts: np.ndarray) -> float:
+    x, y = pts[:, 0], pts[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+# --------------------------------------------------------------------------- sinusoids
+
+
+def _sample_sinusoid(s: Sinusoid, step: float) -> tuple[tuple[float, ...], np.ndarray]:
+    f = np.asarray(s.start, dtype=np.float64)
+    e = np.asarray(s.end, dtype=np.float64)
+    length = float(np.hypot(*(e - f)))
+    t = (e - f) / length
+    omega = 2.0 * math.pi / s.period
+    ds = min(step, s.period / SAMPLES_PER_PERIOD)
+    n = max(1, math.ceil(length / ds - 1e-9))
+    return (f[0], f[1], t[0], t[1], s.amplitude, omega, length), np.linspace(0.0, length, n + 1)
+
+
+def curve_point(curve: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Points ``F + s·t + A·sin(ωs)·n`` of sinusoids (``curve`` rows broadcast against ``s``)."""
+    curve = np.asarray(curve, dtype=np.float64)
+    s = np.asarray(s, dtype=np.float64)
+    fx, fy, tx, ty, amp, omega = (curve[..., i] for i in range(6))
+    h = amp * np.sin(omega * s)
+    return np.stack([fx + s * tx - h * ty, fy + s * ty + h * tx], axis=-1)
+
+
+def curve_derivatives(curve: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First and second derivatives ``P'(s)``, ``P''(s)`` of sinusoids with respect to ``s``."""
+    curve = np.asarray(curve, dtype=np.float64)
+    s = np.asarray(s, dtype=np.float64)
+    _, _, tx, ty, amp, omega = (curve[..., i] for i in range(6))
+    h1 = amp * omega * np.cos(omega * s)
+    h2 = -amp * omega * omega * np.sin(omega * s)
+    d1 = np.stack([tx - h1 * ty, ty + h1 * tx], axis=-1)
+    d2 = np.stack([-h2 * ty, h2 * tx], axis=-1)
+    return d1, d2
+
+
+# --------------------------------------------------------------------------- queries
+
+
+def nearest_surface_point(geom: Geometry, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Distance from each of ``points`` [M, 2] to the nearest surface, and that surface point.
+
+    Walls and curve chords are exact segments, circles analytic. With no surfaces the
+    distance is ``inf`` and the point is NaN.
+    """
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    best = np.full(len(p), np.inf)
+    near = np.full((len(p), 2), np.nan)
+    occ = geom.occluders
+    if len(occ):
+        a, b = occ[None, :, :2], occ[None, :, 2:]
+        ab = b - a
+        t = np.clip(np.sum((p[:, None] - a) * ab, -1) / np.sum(ab * ab, -1), 0.0, 1.0)
+        q = a + t[..., None] * ab
+        d = np.hypot(*(p[:, None] - q).transpose(2, 0, 1))
+        j = np.argmin(d, axis=1)
+        best = d[np.arange(len(p)), j]
+        near = q[np.arange(len(p)), j]
+    if len(geom.circles):
+        c, r = geom.circles[None, :, :2], geom.circles[None, :, 2]
+        v = p[:, None] - c
+        dist_c = np.hypot(v[..., 0], v[..., 1])
+        d = np.abs(dist_c - r)
+        j = np.argmin(d, axis=1)
+        rows = np.arange(len(p))
+        unit = v[rows, j] / np.maximum(dist_c[rows, j], 1e-300)[:, None]
+        q = geom.circles[j, :2] + unit * geom.circles[j, 2:3]
+        closer = d[rows, j] < best
+        best = np.where(closer, d[rows, j], best)
+        near = np.where(closer[:, None], q, near)
+    return best, near
+
+
+def ray_distance(geom: Geometry, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """Distance along each ray (unit ``directions``) to the first surface it meets (``inf``
+    if none). Rays starting on a surface do not hit it at distance 0."""
+    o = np.asarray(origins, dtype=np.float64).reshape(-1, 2)
+    u = np.asarray(directions, dtype=np.float64).reshape(-1, 2)
+    best = np.full(len(o), np.inf)
+    occ = geom.occluders
+    if len(occ):
+        a, e = occ[None, :, :2], occ[None, :, 2:] - occ[None, :, :2]
+        denom = _cross2(u[:, None], e)
+        w = a - o[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = _cross2(w, e) / denom  # along the ray
+            s = _cross2(w, u[:, None]) / denom  # along the segment
+        hit = (np.abs(denom) > 1e-15) & (t > 1e-12) & (s >= 0) & (s <= 1)
+        best = np.minimum(best, np.where(hit, t, np.inf).min(axis=1))
+    if len(geom.circles):
+        c, r = geom.circles[None, :, :2], geom.circles[None, :, 2]
+        w = o[:, None] - c
+        b = np.sum(w * u[:, None], -1)
+        disc = b * b - (np.sum(w * w, -1) - r * r)
+        root = np.sqrt(np.maximum(disc, 0.0))
+        t1, t2 = -b - root, -b + root
+        t = np.where(t1 > 1e-12, t1, np.where(t2 > 1e-12, t2, np.inf))
+        best = np.minimum(best, np.where(disc >= 0, t, np.inf).min(axis=1))
+    return best
+
+
+def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]

@@ -1,0 +1,225 @@
+"""OpenCL devices, contexts and programs.
+
+Device choice (DESIGN.md, "OpenCL conventions"): an explicit ``device`` argument (``--device``
+on the command line), else ``PYOPENCL_CTX``, else the first GPU that can build kernels, else
+the first such CPU (PoCL). A device "can build" when a tiny test kernel compiles on it: PyPI's
+``pocl-binary-distribution`` 3.0 lists the CPU but fails every build here ("unknown target
+CPU 'generic'"), so listing a device is not enough.
+
+Kernel sources live in the package ``clsonar.kernels`` (the source tree's ``kernels/``) and
+are read with :mod:`importlib.resources`, so an installed wheel finds them. ``#include "x.h"``
+lines are expanded from the same package before the build; compile options (``-D``) carry
+the constants. Programs are built once per (context, source, options) and reused.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+from functools import cache
+from importlib import resources
+
+from .errors import DeviceError
+
+KERNEL_PACKAGE = "clsonar.kernels"
+
+#: What to tell a user whose machine has no OpenCL device that can build kernels.
+INSTALL_HINT = (
+    "install an OpenCL runtime that can build kernels, e.g. on Debian/Ubuntu: "
+    "sudo apt-get install -y pocl-opencl-icd (PoCL 3.1; PyPI's pocl-binary-distribution 3.0 "
+    "cannot build kernels on many CPUs); for a GPU, its vendor's OpenCL driver"
+)
+
+_PROBE_SOURCE = "__kernel void probe(__global float *a) { a[get_global_id(0)] *= 2.0f; }"
+
+
+def _cl():
+    """Import pyopencl lazily, so ``import clsonar`` works (and says why) without it."""
+    try:
+        import pyopencl as cl
+    except ImportError as e:  # pragma: no cover - depends on the installation
+        raise DeviceError(f"pyopencl cannot be imported ({e}); pip install pyopencl") from None
+    return cl
+
+
+@dataclass(frozen=True)
+class DeviceInfo:
+    """One OpenCL device as ``clsonar devices`` lists it."""
+
+    index: str  # "platform:device", the form --device and PYOPENCL_CTX take
+    platform: str
+    name: str
+    kind: str  # "GPU", "CPU" or "other"
+    fp64: bool
+    global_mem_bytes: int
+    problem: str  # empty when the device builds kernels, else a one-line reason
+
+    @property
+    def usable(self) -> bool:
+        return not self.problem
+
+
+def _platforms():
+    cl = _cl()
+    try:
+        return cl.get_platforms()
+    except cl.Error:
+        return []
+
+
+def _kind(device) -> str:
+    cl = _cl()
+    if device.type & cl.device_type.GPU:
+        return "GPU"
+    if device.type & cl.device_type.CPU:
+        return "CPU"
+    return "other"
+
+
+@cache
+def _build_problem(device) -> str:
+    """Empty string if a test kernel builds on ``device``, else a one-line reason."""
+    cl = _cl()
+    try:
+        ctx = cl.Context([device])
+        cl.Program(ctx, _PROBE_SOURCE).build()
+    except cl.Error as e:
+        lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
+        detail = next((ln for ln in lines if "error" in ln.lower() and "build" not in ln.lower()),
+                      lines[0] if lines else type(e).__name__)
+        return f"cannot build kernels ({detail[:160]})"
+    return ""
+
+
+def list_devices() -> list[DeviceInfo]:
+    """Every OpenCL device visible, each with whether it can build kernels."""
+    out = []
+    for pi, platform in enumerate(_platforms()):
+        try:
+            devices = platform.get_devices()
+        except _cl().Error:
+            continue
+        for di, d in enumerate(devices):
+            out.append(DeviceInfo(
+                index=f"{pi}:{di}",
+                platform=platform.name.strip(),
+                name=d.name.strip(),
+                kind=_kind(d),
+                fp64="cl_khr_fp64" in d.extensions,
+                global_mem_bytes=int(d.global_mem_size),
+                problem=_build_problem(d),
+            ))
+    return out
+
+
+def _device_by_index(spec: str):
+    m = re.fullmatch(r"\s*(\d+)\s*(?::\s*(\d+)\s*)?", spec)
+    if not m:
+        return None
+    platforms = _platforms()
+    pi, di = int(m.group(1)), int(m.group(2) or 0)
+    if pi >= len(platforms):
+        raise DeviceError(f"device {spec!r}: there is no OpenCL platform {pi} "
+                          f"({len(platforms)} found; see 'clsonar devices')")
+    devices = platforms[pi].get_devices()
+    if di >= len(devices):
+        raise DeviceError(f"device {spec!r}: platform {pi} has no device {di} "
+                          f"({len(devices)} found; see 'clsonar devices')")
+    return devices[di]
+
+
+def choose_device(spec: str | None = None):
+    """The ``pyopencl.Device`` to use (see the module docstring for the order of choice).
+
+    ``spec`` is ``"P:D"`` (platform and device index, as ``clsonar devices`` prints) or a
+    case-insensitive part of the device or platform name, e.g. ``"cpu"``, ``"nvidia"``.
+    Raises :class:`DeviceError` with the fix when nothing usable is found.
+    """
+    source = "--device"
+    if spec is None and os.environ.get("PYOPENCL_CTX"):
+        spec, source = os.environ["PYOPENCL_CTX"], "PYOPENCL_CTX"
+    if spec is not None:
+        device = _device_by_index(spec)
+        if device is None:
+            needle = spec.lower()
+            matches = [d for p in _platforms() for d in p.get_devices()
+                       if needle in d.name.lower() or needle in p.name.lower()
+                       or needle == _kind(d).lower()]
+            if not matches:
+                raise DeviceError(f"{source} {spec!r} matches no OpenCL device "
+                                  "(see 'clsonar devices')")
+            usable = [d for d in matches if not _build_problem(d)]
+            device = (usable or matches)[0]
+        problem = _build_problem(device)
+        if problem:
+            raise DeviceError(f"{source} {spec!r}: {device.name.strip()} {problem}; {INSTALL_HINT}")
+        return device
+    devices = [d for p in _platforms() for d in p.get_devices()]
+    if not devices:
+        raise DeviceError(f"no OpenCL platform or device found: {INSTALL_HINT}")
+    for wanted in ("GPU", "CPU", "other"):
+        for d in devices:
+            if _kind(d) == wanted and not _build_problem(d):
+                return d
+    names = ", ".join(d.name.strip() for d in devices)
+    raise DeviceError(f"no OpenCL device here can build kernels ({names}): {INSTALL_HINT}")
+
+
+@cache
+def _context_for(device):
+    return _cl().Context([device])
+
+
+def get_context(device: str | None = None):
+    """A ``pyopencl.Context`` on the chosen device (one per device, reused)."""
+    return _context_for(choose_device(device))
+
+
+def has_fp64(context) -> bool:
+    """Whether the context's device has ``cl_khr_fp64`` (needed for ``precision="float64"``)."""
+    return "cl_khr_fp64" in context.devices[0].extensions
+
+
+def kernel_source(name: str) -> str:
+    """Text of ``kernels/<name>`` with its ``#include "x.h"`` lines expanded (one level)."""
+    pkg = resources.files(KERNEL_PACKAGE)
+    text = pkg.joinpath(name).read_text(encoding="utf-8")
+
+    def include(m: re.Match[str]) -> str:
+        return f"// ---- {m.group(1)}\n" + pkg.joinpath(m.group(1)).read_text(encoding="utf-8")
+
+    return re.sub(r'^\s*#include\s+"([^"]+)"\s*$', include, text, flags=re.MULTILINE)
+
+
+def _options(defines: dict[str, object]) -> tuple[str, ...]:
+    opts = []
+    for k, v in sorted(defines.items()):
+        if isinstance(v, float):
+            v = repr(v)  # full float64 precision; the kernel casts to its own type
+        opts.append(f"-D{k}={v}")
+    return tuple(opts)
+
+
+_PROGRAMS: dict[tuple, object] = {}
+
+
+def build_program(context, name: str, defines: dict[str, object] | None = None):
+    """Build ``kernels/<name>`` for ``context`` with ``-D`` ``defines``; memoised.
+
+    A build failure raises :class:`DeviceError` naming the source file and the first
+    compiler error; set ``PYOPENCL_COMPILER_OUTPUT=1`` for the full log.
+    """
+    options = _options(defines or {})
+    key = (context, name, options)
+    program = _PROGRAMS.get(key)
+    if program is None:
+        cl = _cl()
+        try:
+            program = cl.Program(context, kernel_source(name)).build(options=list(options))
+        except cl.Error as e:
+            first = next((ln for ln in str(e).splitlines() if "error" in ln.lower()), str(e))
+            raise DeviceError(f"kernels/{name} failed to build on "
+                              f"{context.devices[0].name.strip()}: {first.strip()[:200]}") from None
+        _PROGRAMS[key] = program
+    return program

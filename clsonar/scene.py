@@ -1,0 +1,665 @@
+"""Scene file format v1: load, validate and save (DESIGN.md, "Scene file format v1").
+
+A scene is a tree of frozen dataclasses, so scenes compare with ``==`` and hash (the
+pipeline's cache keys on them). :func:`load_scene` reads JSON and validates every key;
+any problem raises :class:`~clsonar.errors.SceneError` naming the file and the key path,
+e.g. ``room.json: surfaces[2].radius: must be > 0``. :func:`save_scene` writes the full
+normalised form (every default spelled out) atomically, so load → save → load gives an
+identical scene.
+
+Optional keys and their defaults (all units SI, angles in degrees where the key says so):
+
+``medium``      ``temperature_k`` 293.15; ``speed_of_sound`` (m/s) overrides eq. 2.1 if set.
+``transducer``  ``frequency_hz`` 50000, ``radius_m`` 0.02, ``half_beam_deg`` 12.0,
+                ``amplitude`` 5.0, ``pulse_sigma_s`` ≈ 54 µs (see physics.DEFAULT_PULSE_SIGMA_S).
+``signal``      ``noise_std`` 0.0, ``threshold`` 4.0, ``seed`` 1.
+``echo``        ``max_order`` 2 (reflections on flat walls), ``reflection_coefficient`` 0.9,
+                ``edge_coefficient`` 1.0, ``absorption_db_per_m`` 0.0, ``curve_step_m`` 0.01
+                (sampling of curved surfaces, see geometry.py).
+``sensors``     ``transducers`` [] and ``placement`` null; placements are documented with
+                their dataclasses below and implemented in sensors.py.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, Literal
+
+from .errors import SceneError
+from .physics import DEFAULT_PULSE_SIGMA_S, DEFAULT_REFLECTION_COEFFICIENT, speed_of_sound
+
+FORMAT_VERSION = 1
+
+#: Largest scene file read, in bytes: anything bigger is refused before parsing.
+MAX_FILE_BYTES = 64 * 1024 * 1024
+
+#: Deepest JSON nesting accepted (the format needs 5 levels).
+MAX_DEPTH = 16
+
+Point = tuple[float, float]
+
+
+# --------------------------------------------------------------------------- surfaces
+
+
+@dataclass(frozen=True)
+class Polyline:
+    """Flat walls through ``points``; ``closed`` makes it a room whose interior is free space."""
+
+    points: tuple[Point, ...]
+    closed: bool = False
+
+
+@dataclass(frozen=True)
+class Circle:
+    """A cylinder (solid disc in the plane)."""
+
+    center: Point
+    radius: float
+
+
+@dataclass(frozen=True)
+class Sinusoid:
+    """Base line ``start`` → ``end`` (JSON ``from``/``to``) displaced along its left normal by
+    ``amplitude·sin(2π·s/period)``, ``s`` the distance along the base line."""
+
+    start: Point
+    end: Point
+    amplitude: float
+    period: float
+
+
+Surface = Polyline | Circle | Sinusoid
+
+
+# --------------------------------------------------------------------------- settings
+
+
+@dataclass(frozen=True)
+class Medium:
+    temperature_k: float = 293.15
+    speed_of_sound: float | None = None
+
+    @property
+    def c(self) -> float:
+        """Speed of sound in m/s: the override if given, else thesis eq. 2.1."""
+        if self.speed_of_sound is not None:
+            return self.speed_of_sound
+        return speed_of_sound(self.temperature_k)
+
+
+@dataclass(frozen=True)
+class TransducerModel:
+    """The Polaroid 6500 series transducer of thesis §2.1 (50 kHz, 4 cm diameter, ±12°)."""
+
+    frequency_hz: float = 50000.0
+    radius_m: float = 0.02
+    half_beam_deg: float = 12.0
+    amplitude: float = 5.0
+    pulse_sigma_s: float = DEFAULT_PULSE_SIGMA_S
+
+
+@dataclass(frozen=True)
+class Signal:
+    noise_std: float = 0.0
+    threshold: float = 4.0
+    seed: int = 1
+
+
+@dataclass(frozen=True)
+class EchoModel:
+    """Settings of the echo engine; see physics.py for the amplitude model."""
+
+    max_order: int = 2
+    reflection_coefficient: float = DEFAULT_REFLECTION_COEFFICIENT
+    edge_coefficient: float = 1.0
+    absorption_db_per_m: float = 0.0
+    curve_step_m: float = 0.01
+
+
+# --------------------------------------------------------------------------- sensors
+
+
+@dataclass(frozen=True)
+class Transducer:
+    position: Point
+    heading_deg: float
+    group: int = 0
+
+
+@dataclass(frozen=True)
+class RandomLines:
+    """Linear arrays placed one after another along a line, thesis §2.1 and §3.1.
+
+    Arrays of ``elements`` transducers start at ``start`` (random inside the extent if
+    null) and run along ``direction_deg``; element spacing is uniform in ``spacing_m``,
+    the gap between arrays uniform in ``gap_m``; each heading is ``facing_deg`` plus a
+    uniform offset in ±``heading_spread_deg``. Placement stops after ``length_m`` or when
+    an element would come within ``clearance_m`` of a surface or leave the extent.
+    """
+
+    seed: int = 1
+    start: Point | None = None
+    direction_deg: float = 90.0
+    length_m: float = 10.0
+    elements: int = 10
+    spacing_m: tuple[float, float] = (0.05, 0.11)
+    gap_m: tuple[float, float] = (0.5, 1.65)
+    facing_deg: float = 0.0
+    heading_spread_deg: float = 90.0
+    clearance_m: float = 0.05
+    type: Literal["random-lines"] = "random-lines"
+
+
+@dataclass(frozen=True)
+class Circular:
+    """A ring of ``elements`` transducers facing outwards, thesis §2.1.2 (8 at 45°, r = 6.5 cm)."""
+
+    center: Point
+    radius_m: float = 0.065
+    elements: int = 8
+    start_deg: float = 0.0
+    type: Literal["circular"] = "circular"
+
+
+@dataclass(frozen=True)
+class WallFollowing:
+    """The circular array moved along the walls, thesis §2.1.2.
+
+    The ring's centre keeps ``clearance_m`` from the nearest surface and moves by
+    ``step_m`` (25–150 cm in the thesis) ``ccw`` or ``cw`` until it is back at ``start``;
+    each pose is a ring as in :class:`Circular` and its own pair group.
+    """
+
+    start: Point
+    step_m: float = 0.5
+    clearance_m: float = 0.5
+    radius_m: float = 0.065
+    elements: int = 8
+    start_deg: float = 0.0
+    direction: Literal["ccw", "cw"] = "ccw"
+    max_poses: int = 2000
+    type: Literal["wall-following"] = "wall-following"
+
+
+Placement = RandomLines | Circular | WallFollowing
+
+
+@dataclass(frozen=True)
+class Sensors:
+    transducers: tuple[Transducer, ...] = ()
+    placement: Placement | None = None
+
+
+# --------------------------------------------------------------------------- scene
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    extent: tuple[float, float, float, float]
+    cell: float = 0.01
+    medium: Medium = field(default_factory=Medium)
+    transducer: TransducerModel = field(default_factory=TransducerModel)
+    signal: Signal = field(default_factory=Signal)
+    echo: EchoModel = field(default_factory=EchoModel)
+    surfaces: tuple[Surface, ...] = ()
+    sensors: Sensors = field(default_factory=Sensors)
+
+    @property
+    def grid_shape(self) -> tuple[int, int]:
+        """``(ny, nx)`` of the map: cells of size ``cell`` covering the extent (last one partial)."""
+        xmin, ymin, xmax, ymax = self.extent
+        return (math.ceil((ymax - ymin) / self.cell - 1e-9), math.ceil((xmax - xmin) / self.cell - 1e-9))
+
+
+# --------------------------------------------------------------------------- reading
+
+_MISSING: Any = object()
+
+
+class _Reader:
+    """Typed access to a parsed JSON tree that fails with the key path of the bad value."""
+
+    def __init__(self, source: str) -> None:
+        self.source = source
+
+    def fail(self, key: str, message: str) -> SceneError:
+        return SceneError(message, key, self.source)
+
+    def obj(self, value: Any, key: str, allowed: tuple[str, ...], required: tuple[str, ...] = ()):
+        if not isinstance(value, dict):
+            raise self.fail(key, f"must be an object, not {_type_name(value)}")
+        for k in value:
+            if k not in allowed:
+                raise self.fail(_join(key, k), f"unknown key (allowed: {', '.join(allowed)})")
+        for k in required:
+            if k not in value:
+                raise self.fail(_join(key, k), "missing required key")
+        return value
+
+    def number(self, d: dict, name: str, key: str, default: Any = _MISSING, *,
+               gt: float | None = None, ge: float | None = None, le: float | None = None,
+               lt: float | None = None) -> float:
+        path = _join(key, name)
+        if name not in d:
+            if default is _MISSING:
+                raise self.fail(path, "missing required key")
+            return default
+        return self.check_number(d[name], path, gt=gt, ge=ge, le=le, lt=lt)
+
+    def check_number(self, v: Any, path: str, *, gt: float | None = None,
+                     ge: float | None = None, le: float | None = None,
+                     lt: float | None = None) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise self.fail(path, f"must be a number, not {_type_name(v)}")
+        v = float(v)
+        if not math.isfinite(v):
+            raise self.fail(path, "must be a finite number")
+        checks = ((gt, ">", v > (gt or 0.0)), (ge, ">=", v >= (ge or 0.0)),
+                  (lt, "<", v < (lt or 0.0)), (le, "<=", v <= (le or 0.0)))
+        for bound, word, ok in checks:
+            if bound is not None and not ok:
+                raise self.fail(path, f"must be {word} {bound:g}")
+        return v
+
+    def integer(self, d: dict, name: str, key: str, default: Any = _MISSING, *,
+                ge: int | None = None, le: int | None = None) -> int:
+        path = _join(key, name)
+        if name not in d:
+            if default is _MISSING:
+                raise self.fail(path, "missing required key")
+            return default
+        v = d[name]
+        if isinstance(v, float) and v.is_integer() and abs(v) < 2**53:
+            v = int(v)
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise self.fail(path, f"must be an integer, not {_type_name(v)}")
+        if ge is not None and v < ge:
+            raise self.fail(path, f"must be >= {ge}")
+        if le is not None and v > le:
+            raise self.fail(path, f"must be <= {le}")
+        return v
+
+    def boolean(self, d: dict, name: str, key: str, default: bool) -> bool:
+        v = d.get(name, default)
+        if not isinstance(v, bool):
+            raise self.fail(_join(key, name), f"must be true or false, not {_type_name(v)}")
+        return v
+
+    def choice(self, d: dict, name: str, key: str, options: tuple[str, ...],
+               default: Any = _MISSING) -> str:
+        path = _join(key, name)
+        if name not in d:
+            if default is _MISSING:
+                raise self.fail(path, "missing required key")
+            return default
+        v = d[name]
+        if v not in options or not isinstance(v, str):
+            raise self.fail(path, f"must be one of {', '.join(map(repr, options))}, not {v!r:.40}")
+        return v
+
+    def vector(self, v: Any, path: str, length: int) -> tuple[float, ...]:
+        if not isinstance(v, list) or len(v) != length:
+            raise self.fail(path, f"must be a list of {length} numbers")
+        return tuple(self.check_number(x, f"{path}[{i}]") for i, x in enumerate(v))
+
+    def point(self, d: dict, name: str, key: str, default: Any = _MISSING) -> Point:
+        path = _join(key, name)
+        if name not in d or (d[name] is None and default is None):
+            if default is _MISSING:
+                raise self.fail(path, "missing required key")
+            return default
+        return self.vector(d[name], path, 2)  # type: ignore[return-value]
+
+    def interval(self, d: dict, name: str, key: str, default: tuple[float, float],
+                 *, gt: float | None = None) -> tuple[float, float]:
+        path = _join(key, name)
+        if name not in d:
+            return default
+        lo, hi = self.vector(d[name], path, 2)
+        if gt is not None and lo <= gt:
+            raise self.fail(f"{path}[0]", f"must be > {gt:g}")
+        if hi < lo:
+            raise self.fail(path, "upper bound must be >= lower bound")
+        return (lo, hi)
+
+
+def _join(key: str, name: str | int) -> str:
+    if isinstance(name, int):
+        return f"{key}[{name}]"
+    return f"{key}.{name}" if key else name
+
+
+def _type_name(v: Any) -> str:
+    return {dict: "an object", list: "a list", str: "a string", bool: "a boolean",
+            type(None): "null", int: "a number", float: "a number"}.get(type(v), type(v).__name__)
+
+
+def _read_medium(r: _Reader, d: Any) -> Medium:
+    d = r.obj(d, "medium", ("temperature_k", "speed_of_sound"))
+    t = r.number(d, "temperature_k", "medium", Medium.temperature_k, gt=0)
+    c = None
+    if d.get("speed_of_sound") is not None:
+        c = r.number(d, "speed_of_sound", "medium", gt=0)
+    return Medium(t, c)
+
+
+def _read_transducer(r: _Reader, d: Any) -> TransducerModel:
+    k = "transducer"
+    d = r.obj(d, k, tuple(f.name for f in fields(TransducerModel)))
+    m = TransducerModel(
+        frequency_hz=r.number(d, "frequency_hz", k, TransducerModel.frequency_hz, gt=0),
+        radius_m=r.number(d, "radius_m", k, TransducerModel.radius_m, gt=0),
+        half_beam_deg=r.number(d, "half_beam_deg", k, TransducerModel.half_beam_deg, gt=0, le=90),
+        amplitude=r.number(d, "amplitude", k, TransducerModel.amplitude, gt=0),
+        pulse_sigma_s=r.number(d, "pulse_sigma_s", k, TransducerModel.pulse_sigma_s, gt=0),
+    )
+    return m
+
+
+def _read_signal(r: _Reader, d: Any) -> Signal:
+    k = "signal"
+    d = r.obj(d, k, ("noise_std", "threshold", "seed"))
+    return Signal(
+        noise_std=r.number(d, "noise_std", k, Signal.noise_std, ge=0),
+        threshold=r.number(d, "threshold", k, Signal.threshold, gt=0),
+        seed=r.integer(d, "seed", k, Signal.seed, ge=0, le=2**63 - 1),
+    )
+
+
+def _read_echo(r: _Reader, d: Any) -> EchoModel:
+    k = "echo"
+    d = r.obj(d, k, tuple(f.name for f in fields(EchoModel)))
+    return EchoModel(
+        max_order=r.integer(d, "max_order", k, EchoModel.max_order, ge=1, le=4),
+        reflection_coefficient=r.number(d, "reflection_coefficient", k,
+                                        EchoModel.reflection_coefficient, ge=0, le=1),
+        edge_coefficient=r.number(d, "edge_coefficient", k, EchoModel.edge_coefficient, ge=0),
+        absorption_db_per_m=r.number(d, "absorption_db_per_m", k,
+                                     EchoModel.absorption_db_per_m, ge=0),
+        curve_step_m=r.number(d, "curve_step_m", k, EchoModel.curve_step_m, gt=0),
+    )
+
+
+def _read_polyline(r: _Reader, d: dict, key: str) -> Polyline:
+    d = r.obj(d, key, ("type", "points", "closed"), ("points",))
+    raw = d["points"]
+    path = _join(key, "points")
+    closed = r.boolean(d, "closed", key, False)
+    if not isinstance(raw, list):
+        raise r.fail(path, f"must be a list of [x, y] points, not {_type_name(raw)}")
+    points = tuple(r.vector(p, f"{path}[{i}]", 2) for i, p in enumerate(raw))
+    if len(points) < (3 if closed else 2):
+        raise r.fail(path, f"needs at least {3 if closed else 2} points")
+    pairs = [(i, i + 1) for i in range(len(points) - 1)]
+    if closed:
+        pairs.append((len(points) - 1, 0))
+    for i, j in pairs:
+        if points[i] == points[j]:
+            raise r.fail(f"{path}[{j}]", f"zero-length segment (same point as points[{i}])")
+    return Polyline(points, closed)  # type: ignore[arg-type]
+
+
+def _read_circle(r: _Reader, d: dict, key: str) -> Circle:
+    d = r.obj(d, key, ("type", "center", "radius"), ("center", "radius"))
+    return Circle(r.point(d, "center", key), r.number(d, "radius", key, gt=0))
+
+
+def _read_sinusoid(r: _Reader, d: dict, key: str) -> Sinusoid:
+    d = r.obj(d, key, ("type", "from", "to", "amplitude", "period"),
+              ("from", "to", "amplitude", "period"))
+    start, end = r.point(d, "from", key), r.point(d, "to", key)
+    if start == end:
+        raise r.fail(_join(key, "to"), "zero-length base line (same point as 'from')")
+    return Sinusoid(start, end, r.number(d, "amplitude", key), r.number(d, "period", key, gt=0))
+
+
+_SURFACE_READERS = {"polyline": _read_polyline, "circle": _read_circle, "sinusoid": _read_sinusoid}
+
+
+def _read_surfaces(r: _Reader, raw: Any) -> tuple[Surface, ...]:
+    if not isinstance(raw, list):
+        raise r.fail("surfaces", f"must be a list of surfaces, not {_type_name(raw)}")
+    out = []
+    for i, s in enumerate(raw):
+        key = f"surfaces[{i}]"
+        if not isinstance(s, dict):
+            raise r.fail(key, f"must be an object, not {_type_name(s)}")
+        kind = r.choice(s, "type", key, tuple(_SURFACE_READERS))
+        out.append(_SURFACE_READERS[kind](r, s, key))
+    return tuple(out)
+
+
+def _read_transducers(r: _Reader, raw: Any, key: str) -> tuple[Transducer, ...]:
+    if not isinstance(raw, list):
+        raise r.fail(key, f"must be a list of transducers, not {_type_name(raw)}")
+    out = []
+    for i, t in enumerate(raw):
+        k = f"{key}[{i}]"
+        t = r.obj(t, k, ("position", "heading_deg", "group"), ("position", "heading_deg"))
+        out.append(Transducer(r.point(t, "position", k), r.number(t, "heading_deg", k),
+                              r.integer(t, "group", k, 0, ge=0, le=2**31 - 1)))
+    return tuple(out)
+
+
+def _read_placement(r: _Reader, d: Any) -> Placement | None:
+    if d is None:
+        return None
+    k = "sensors.placement"
+    if not isinstance(d, dict):
+        raise r.fail(k, f"must be an object, not {_type_name(d)}")
+    kind = r.choice(d, "type", k, ("random-lines", "circular", "wall-following"))
+    if kind == "random-lines":
+        d = r.obj(d, k, tuple(f.name for f in fields(RandomLines)))
+        p = RandomLines
+        return RandomLines(
+            seed=r.integer(d, "seed", k, p.seed, ge=0, le=2**63 - 1),
+            start=r.point(d, "start", k, None),
+            direction_deg=r.number(d, "direction_deg", k, p.direction_deg),
+            length_m=r.number(d, "length_m", k, p.length_m, gt=0),
+            elements=r.integer(d, "elements", k, p.elements, ge=1, le=10000),
+            spacing_m=r.interval(d, "spacing_m", k, p.spacing_m, gt=0),
+            gap_m=r.interval(d, "gap_m", k, p.gap_m, gt=0),
+            facing_deg=r.number(d, "facing_deg", k, p.facing_deg),
+            heading_spread_deg=r.number(d, "heading_spread_deg", k, p.heading_spread_deg,
+                                        ge=0, le=180),
+            clearance_m=r.number(d, "clearance_m", k, p.clearance_m, ge=0),
+        )
+    if kind == "circular":
+        d = r.obj(d, k, tuple(f.name for f in fields(Circular)), ("center",))
+        return Circular(
+            center=r.point(d, "center", k),
+            radius_m=r.number(d, "radius_m", k, Circular.radius_m, ge=0),
+            elements=r.integer(d, "elements", k, Circular.elements, ge=1, le=10000),
+            start_deg=r.number(d, "start_deg", k, Circular.start_deg),
+        )
+    d = r.obj(d, k, tuple(f.name for f in fields(WallFollowing)), ("start",))
+    w = WallFollowing
+    return WallFollowing(
+        start=r.point(d, "start", k),
+        step_m=r.number(d, "step_m", k, w.step_m, gt=0),
+        clearance_m=r.number(d, "clearance_m", k, w.clearance_m, gt=0),
+        radius_m=r.number(d, "radius_m", k, w.radius_m, ge=0),
+        elements=r.integer(d, "elements", k, w.elements, ge=1, le=10000),
+        start_deg=r.number(d, "start_deg", k, w.start_deg),
+        direction=r.choice(d, "direction", k, ("ccw", "cw"), w.direction),  # type: ignore[arg-type]
+        max_poses=r.integer(d, "max_poses", k, w.max_poses, ge=1, le=10**6),
+    )
+
+
+def _read_sensors(r: _Reader, d: Any) -> Sensors:
+    d = r.obj(d, "sensors", ("transducers", "placement"))
+    return Sensors(_read_transducers(r, d.get("transducers", []), "sensors.transducers"),
+                   _read_placement(r, d.get("placement")))
+
+
+_TOP_KEYS = ("clsonar", "name", "extent", "cell", "medium", "transducer", "signal", "echo",
+             "surfaces", "sensors")
+
+
+def scene_from_dict(data: Any, source: str = "<scene>") -> Scene:
+    """Validate a parsed scene (format v1) and build the :class:`Scene`.
+
+    Raises :class:`SceneError` naming ``source`` and the offending key.
+    """
+    r = _Reader(source)
+    d = r.obj(data, "", _TOP_KEYS)
+    if "clsonar" not in d:
+        raise r.fail("clsonar", "missing format version (expected \"clsonar\": 1)")
+    version = d["clsonar"]
+    if isinstance(version, bool) or version != FORMAT_VERSION:
+        raise r.fail("clsonar", f"unsupported format version {version!r:.20} "
+                                f"(this program reads version {FORMAT_VERSION})")
+    name = d.get("name", Path(source).stem if source != "<scene>" else "scene")
+    if not isinstance(name, str):
+        raise r.fail("name", f"must be a string, not {_type_name(name)}")
+    if "extent" not in d:
+        raise r.fail("extent", "missing required key")
+    extent = r.vector(d["extent"], "extent", 4)
+    if not (extent[2] > extent[0] and extent[3] > extent[1]):
+        raise r.fail("extent", "must be [xmin, ymin, xmax, ymax] with xmax > xmin and ymax > ymin")
+    cell = r.number(d, "cell", "", 0.01, gt=0)
+    return Scene(
+        name=name,
+        extent=extent,  # type: ignore[arg-type]
+        cell=cell,
+        medium=_read_medium(r, d.get("medium", {})),
+        transducer=_read_transducer(r, d.get("transducer", {})),
+        signal=_read_signal(r, d.get("signal", {})),
+        echo=_read_echo(r, d.get("echo", {})),
+        surfaces=_read_surfaces(r, d.get("surfaces", [])),
+        sensors=_read_sensors(r, d.get("sensors", {})),
+    )
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a valid number here (numbers must be finite)")
+
+
+def _depth(value: Any, limit: int) -> int:
+    """Nesting depth of a parsed JSON value, stopping early once ``limit`` is exceeded."""
+    stack = [(value, 1)]
+    deepest = 0
+    while stack:
+        v, level = stack.pop()
+        deepest = max(deepest, level)
+        if deepest > limit:
+            return deepest
+        children = v.values() if isinstance(v, dict) else v if isinstance(v, list) else ()
+        stack.extend((c, level + 1) for c in children if isinstance(c, (dict, list)))
+    return deepest
+
+
+def parse_scene_text(text: str, source: str = "<scene>") -> Scene:
+    """Parse JSON text of a scene; every problem is a :class:`SceneError` naming ``source``."""
+    if not text.strip():
+        raise SceneError("file is empty (expected a JSON scene object)", source=source)
+    try:
+        data = json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as e:
+        raise SceneError(f"invalid JSON at line {e.lineno} column {e.colno}: {e.msg}",
+                         source=source) from None
+    except ValueError as e:  # NaN / Infinity literals
+        raise SceneError(f"invalid JSON: {e}", source=source) from None
+    except RecursionError:
+        raise SceneError(f"JSON nested deeper than {MAX_DEPTH} levels", source=source) from None
+    if _depth(data, MAX_DEPTH) > MAX_DEPTH:
+        raise SceneError(f"JSON nested deeper than {MAX_DEPTH} levels", source=source)
+    return scene_from_dict(data, source)
+
+
+def load_scene(path: str | os.PathLike[str]) -> Scene:
+    """Read and validate a scene file (format v1). Raises :class:`SceneError` on any problem."""
+    source = os.fspath(path)
+    try:
+        size = os.path.getsize(source)
+        if size > MAX_FILE_BYTES:
+            raise SceneError(f"file is {size} bytes, larger than the {MAX_FILE_BYTES} bytes "
+                             "a scene may have", source=source)
+        with open(source, "rb") as f:
+            raw = f.read()
+    except OSError as e:
+        raise SceneError(f"cannot read file: {e.strerror or e}", source=source) from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise SceneError(f"not UTF-8 text (byte {e.start})", source=source) from None
+    return parse_scene_text(text, source)
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def _point(p: Point) -> list[float]:
+    return [float(p[0]), float(p[1])]
+
+
+def _surface_dict(s: Surface) -> dict[str, Any]:
+    if isinstance(s, Polyline):
+        return {"type": "polyline", "points": [_point(p) for p in s.points], "closed": s.closed}
+    if isinstance(s, Circle):
+        return {"type": "circle", "center": _point(s.center), "radius": s.radius}
+    return {"type": "sinusoid", "from": _point(s.start), "to": _point(s.end),
+            "amplitude": s.amplitude, "period": s.period}
+
+
+def _plain(obj: Any) -> Any:
+    """A dataclass as a JSON-ready dict (tuples → lists), ``type`` first where present."""
+    out: dict[str, Any] = {}
+    if hasattr(obj, "type"):
+        out["type"] = obj.type
+    for f in fields(obj):
+        if f.name == "type":
+            continue
+        v = getattr(obj, f.name)
+        out[f.name] = list(v) if isinstance(v, tuple) else v
+    return out
+
+
+def scene_to_dict(scene: Scene) -> dict[str, Any]:
+    """The full normalised JSON form of ``scene`` (every default written out)."""
+    sensors: dict[str, Any] = {
+        "transducers": [{"position": _point(t.position), "heading_deg": t.heading_deg,
+                         "group": t.group} for t in scene.sensors.transducers],
+        "placement": None if scene.sensors.placement is None else _plain(scene.sensors.placement),
+    }
+    return {
+        "clsonar": FORMAT_VERSION,
+        "name": scene.name,
+        "extent": list(scene.extent),
+        "cell": scene.cell,
+        "medium": _plain(scene.medium),
+        "transducer": _plain(scene.transducer),
+        "signal": _plain(scene.signal),
+        "echo": _plain(scene.echo),
+        "surfaces": [_surface_dict(s) for s in scene.surfaces],
+        "sensors": sensors,
+    }
+
+
+def write_atomic(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename,
+    so readers never see a half-written file."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def save_scene(scene: Scene, path: str | os.PathLike[str]) -> None:
+    """Write ``scene`` as format v1 JSON, atomically."""
+    text = json.dumps(scene_to_dict(scene), indent=2, allow_nan=False) + "\n"
+    write_atomic(path, text.encode("utf-8"))
