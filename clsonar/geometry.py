@@ -26,6 +26,7 @@ From a :class:`~clsonar.scene.Scene`'s surfaces this builds flat arrays (float64
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -124,7 +125,7 @@ def build_geometry(scene: Scene) -> Geometry:
         chord_start.append(len(walls_a) + len(interval_s))
         curve_surface.append(si)
         interval_curve.extend([len(curves)] * (len(s_edges) - 1))
-        interval_s.extend(zip(s_edges[:-1], s_edges[1:]))
+        interval_s.extend(itertools.pairwise(s_edges))
         curves.append(params)
 
     return Geometry(

@@ -213,9 +213,11 @@ class Scene:
 
     @property
     def grid_shape(self) -> tuple[int, int]:
-        """``(ny, nx)`` of the map: cells of size ``cell`` covering the extent (last one partial)."""
+        """``(ny, nx)``: cells of ``cell`` covering the extent (the last may be partial)."""
         xmin, ymin, xmax, ymax = self.extent
-        return (math.ceil((ymax - ymin) / self.cell - 1e-9), math.ceil((xmax - xmin) / self.cell - 1e-9))
+        ny = math.ceil((ymax - ymin) / self.cell - 1e-9)
+        nx = math.ceil((xmax - xmin) / self.cell - 1e-9)
+        return (ny, nx)
 
 
 # --------------------------------------------------------------------------- reading

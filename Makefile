@@ -1,0 +1,43 @@
+# Set-up and the two Quick-start commands (README): `make demo` runs the main job on a bundled
+# scene, `make test` runs the tests. Both create the virtual environment and install an OpenCL
+# runtime that can build kernels when the machine has none (Debian's pocl-opencl-icd).
+
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+SCENE  ?= scenes/room.json
+OUT    ?= out
+
+.PHONY: demo test lint opencl setup clean
+
+setup: opencl
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q -e '.[test]'
+	touch $(STAMP)
+
+# Install PoCL from Debian when no OpenCL device can build kernels (PyPI's PoCL cannot here).
+opencl: $(STAMP)
+	@$(BIN)/clsonar devices >/dev/null 2>&1 || { \
+	  echo "No OpenCL device can build kernels: installing Debian's pocl-opencl-icd"; \
+	  if [ "$$(id -u)" -eq 0 ]; then SUDO=; else SUDO=sudo; fi; \
+	  $$SUDO apt-get update -qq && $$SUDO apt-get install -y -qq pocl-opencl-icd >/dev/null; }
+	@$(BIN)/clsonar devices
+
+demo: opencl
+	@mkdir -p $(OUT)
+	$(BIN)/clsonar echoes $(SCENE) -o $(OUT)/echoes.csv
+	@echo "Echo table of $(SCENE): $(OUT)/echoes.csv ($$(($$(wc -l < $(OUT)/echoes.csv) - 1)) echoes); first rows:"
+	@head -n 8 $(OUT)/echoes.csv
+
+test: opencl
+	$(BIN)/python -m pytest
+
+lint: $(STAMP)
+	$(BIN)/ruff check clsonar kernels tests
+
+clean:
+	rm -rf $(VENV) $(OUT) build dist *.egg-info

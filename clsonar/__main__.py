@@ -1,0 +1,5 @@
+"""``python -m clsonar`` is the ``clsonar`` command."""
+
+from .cli import main
+
+raise SystemExit(main())

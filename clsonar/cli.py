@@ -1,0 +1,112 @@
+"""The ``clsonar`` command line (DESIGN.md, "Command line — a contract").
+
+- ``clsonar echoes SCENE.json`` prints the echo table as CSV:
+  ``tx,rx,tof_s,amplitude,kind,order``.
+- ``clsonar devices`` lists the OpenCL devices, whether each can build kernels, and which one
+  would be used.
+
+Errors a user can fix (a bad scene file, no usable OpenCL device) print one line on stderr
+and exit with status 2; nothing is written to an output file that is not complete.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import os
+import sys
+from collections.abc import Sequence
+
+from . import __version__
+from .errors import ClsonarError
+
+EXIT_USAGE = 2
+
+
+def _device_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--device", metavar="DEV",
+                   help="OpenCL device: 'P:D' as 'clsonar devices' lists, or part of its name "
+                        "(default: PYOPENCL_CTX, else the first GPU, else the CPU)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="clsonar",
+        description="Ultrasonic sonar simulator and map builder for 2-D indoor scenes (OpenCL).")
+    parser.add_argument("--version", action="version", version=f"clsonar {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("echoes", help="print the echo table of a scene as CSV",
+                       description="Compute every echo return of every transmitter→receiver "
+                                   "pair and print tx,rx,tof_s,amplitude,kind,order.")
+    p.add_argument("scene", metavar="SCENE.json")
+    _device_args(p)
+    p.add_argument("--precision", choices=("float32", "float64"), default="float32",
+                   help="kernel arithmetic (float64 needs cl_khr_fp64; default float32)")
+    p.add_argument("--reference", action="store_true",
+                   help="use the NumPy float64 reference instead of OpenCL")
+    p.add_argument("-o", "--output", metavar="FILE",
+                   help="write the CSV to FILE (atomically) instead of standard output")
+    p.set_defaults(func=_cmd_echoes)
+
+    p = sub.add_parser("devices", help="list OpenCL devices and the one clsonar would use")
+    _device_args(p)
+    p.set_defaults(func=_cmd_devices)
+    return parser
+
+
+def _cmd_echoes(args: argparse.Namespace) -> int:
+    from .scene import load_scene, write_atomic
+
+    scene = load_scene(args.scene)  # a bad scene fails here, before OpenCL is touched
+    from .echoes import compute_echoes, reference_echoes
+
+    if args.reference:
+        table = reference_echoes(scene)
+    else:
+        table = compute_echoes(scene, device=args.device, precision=args.precision)
+    if args.output:
+        buf = io.StringIO()
+        table.write_csv(buf)
+        write_atomic(args.output, buf.getvalue().encode("utf-8"))
+    else:
+        table.write_csv(sys.stdout)
+    return 0
+
+
+def _cmd_devices(args: argparse.Namespace) -> int:
+    from .opencl import INSTALL_HINT, choose_device, list_devices
+
+    devices = list_devices()
+    if not devices:
+        print(f"No OpenCL device found: {INSTALL_HINT}.")
+        return 1
+    print(f"{'index':6} {'kind':5} {'fp64':4} {'memory':>9}  device")
+    for d in devices:
+        status = "ok" if d.usable else d.problem
+        print(f"{d.index:6} {d.kind:5} {'yes' if d.fp64 else 'no':4} "
+              f"{d.global_mem_bytes / 2**30:7.1f} G  {d.name} ({d.platform}): {status}")
+    if not any(d.usable for d in devices):
+        print(f"No device can build kernels: {INSTALL_HINT}.")
+        return 1
+    chosen = choose_device(args.device)
+    index = next(d.index for d in devices if d.name == chosen.name.strip())
+    print(f"clsonar would use {index}: {chosen.name.strip()}")
+    return 0
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except ClsonarError as e:
+        print(f"clsonar: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("clsonar: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:  # e.g. `clsonar echoes x.json | head`
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0

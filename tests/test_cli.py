@@ -1,0 +1,92 @@
+"""Command-line contract: bad input gives one line naming file and key, exit 2, no output."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from clsonar.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _clsonar(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "clsonar", *args], capture_output=True,
+                          text=True, cwd=cwd, timeout=120)
+
+
+BAD_SCENES = {
+    "invalid.json": '{"clsonar": 1, "extent": [0, 0, 1',
+    "empty.json": "",
+    "unknown.json": json.dumps({"clsonar": 1, "extent": [0, 0, 1, 1], "colour": 1}),
+    "type.json": json.dumps({"clsonar": 1, "extent": [0, 0, 1, 1], "cell": "1cm"}),
+    "nan.json": '{"clsonar": 1, "extent": [0, 0, 1, NaN]}',
+    "inf.json": '{"clsonar": 1, "extent": [0, 0, 1, Infinity]}',
+    "radius.json": json.dumps({"clsonar": 1, "extent": [0, 0, 1, 1], "surfaces": [
+        {"type": "circle", "center": [0, 0], "radius": -1}]}),
+    "cell.json": json.dumps({"clsonar": 1, "extent": [0, 0, 1, 1], "cell": 0}),
+    "segment.json": json.dumps({"clsonar": 1, "extent": [0, 0, 1, 1], "surfaces": [
+        {"type": "polyline", "points": [[0, 0], [0, 0]]}]}),
+    "version.json": json.dumps({"clsonar": 7, "extent": [0, 0, 1, 1]}),
+}
+EXPECTED_KEY = {"invalid.json": "invalid JSON", "empty.json": "file is empty",
+                "unknown.json": "colour", "type.json": "cell", "nan.json": "NaN",
+                "inf.json": "Infinity", "radius.json": "surfaces[0].radius",
+                "cell.json": "cell", "segment.json": "surfaces[0].points[1]",
+                "version.json": "clsonar"}
+
+
+@pytest.mark.parametrize("name", sorted(BAD_SCENES))
+def test_bad_scene_in_process(tmp_path, capsys, name):
+    f = tmp_path / name
+    f.write_text(BAD_SCENES[name])
+    out = tmp_path / "echoes.csv"
+    assert main(["echoes", str(f), "-o", str(out)]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    lines = captured.err.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"clsonar: error: {f}: ")
+    assert EXPECTED_KEY[name] in lines[0]
+    assert list(tmp_path.iterdir()) == [f]  # nothing written
+
+
+def test_bad_scene_subprocess_has_no_traceback(tmp_path):
+    f = tmp_path / "radius.json"
+    f.write_text(BAD_SCENES["radius.json"])
+    r = _clsonar("echoes", str(f))
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.strip() == f"clsonar: error: {f}: surfaces[0].radius: must be > 0"
+
+
+def test_missing_file(tmp_path, capsys):
+    assert main(["echoes", str(tmp_path / "nope.json")]) == 2
+    assert "nope.json: cannot read file" in capsys.readouterr().err
+
+
+def test_devices_lists_the_cpu_and_the_choice():
+    r = _clsonar("devices")
+    assert r.returncode == 0, r.stderr
+    assert "CPU" in r.stdout and "clsonar would use 0:0" in r.stdout
+
+
+def test_unknown_device_is_one_line(capsys):
+    assert main(["devices", "--device", "no-such-gpu"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == "clsonar: error: --device 'no-such-gpu' matches no OpenCL device " \
+                  "(see 'clsonar devices')"
+
+
+def test_echoes_prints_the_csv_contract(tmp_path):
+    r = _clsonar("echoes", str(ROOT / "scenes" / "plane-2m.json"))
+    assert r.returncode == 0, r.stderr
+    rows = r.stdout.splitlines()
+    assert rows[0] == "tx,rx,tof_s,amplitude,kind,order"
+    assert len(rows) > 1
+    tx, rx, tof, amp, kind, order = rows[1].split(",")
+    assert int(tx) >= 0 and int(rx) >= 0 and float(tof) > 0 and float(amp) > 0
+    assert kind in {"specular", "corner", "edge", "curved"} and int(order) >= 1
+    out = tmp_path / "e.csv"
+    assert main(["echoes", str(ROOT / "scenes" / "plane-2m.json"), "-o", str(out)]) == 0
+    assert out.read_text().splitlines() == rows

@@ -1,0 +1,85 @@
+"""Derived geometry: walls' front sides, vertex classification, curve sampling, queries."""
+
+import math
+
+import numpy as np
+import pytest
+
+from clsonar.geometry import (CORNER, EDGE, END, FLAT, SOLID, build_geometry, curve_derivatives,
+                              curve_point, nearest_surface_point, ray_distance)
+from clsonar.scene import Circle, EchoModel, Polyline, Scene, Sinusoid
+
+L_ROOM = ((0, 0), (6, 0), (6, 3), (3, 3), (3, 6), (0, 6))  # counter-clockwise, one convex edge
+
+
+def _geom(*surfaces, **kw):
+    return build_geometry(Scene("t", (-10, -10, 10, 10), surfaces=surfaces, **kw))
+
+
+@pytest.mark.parametrize("points", [L_ROOM, L_ROOM[::-1]], ids=["ccw", "cw"])
+def test_room_interior_is_the_front_and_the_reflex_vertex_is_an_edge(points):
+    g = _geom(Polyline(points, closed=True))
+    assert len(g.walls) == 6 and not g.wall_two_sided.any()
+    mid = (g.walls[:, :2] + g.walls[:, 2:]) / 2
+    # a step along the front normal from each wall's midpoint lands inside the L
+    inside = mid + 0.01 * g.wall_normal
+    x, y = inside[:, 0], inside[:, 1]
+    assert np.all((x > 0) & (y > 0) & ((x < 3) | (y < 3)) & (x < 6) & (y < 6))
+    interior = g.vertex_left if points == L_ROOM else g.vertex_right
+    outside = g.vertex_right if points == L_ROOM else g.vertex_left
+    idx = [tuple(v) for v in g.vertices].index((3.0, 3.0))
+    assert interior[idx] == EDGE
+    assert sorted(interior.tolist()) == [CORNER] * 5 + [EDGE]
+    assert set(outside.tolist()) == {SOLID}
+    assert g.diffractors.shape == (1, 6) and tuple(g.diffractors[0, :2]) == (3.0, 3.0)
+    assert g.corner_pairs.sum() == 2 * 5
+
+
+def test_open_polyline_vertices_from_both_sides():
+    # a corner opening to -x: from the left of the direction of travel it is an edge
+    g = _geom(Polyline(((5, 0), (10, 5), (5, 10))))
+    assert g.wall_two_sided.all()
+    assert g.vertex_left.tolist() == [END, CORNER, END]
+    assert g.vertex_right.tolist() == [END, EDGE, END]
+    assert len(g.diffractors) == 1  # seen as an edge from behind
+    assert g.corner_pairs[0, 1] and g.corner_pairs[1, 0]
+
+
+def test_collinear_vertex_is_flat():
+    g = _geom(Polyline(((0, 0), (1, 0), (2, 0))))
+    assert g.vertex_left[1] == FLAT and g.vertex_right[1] == FLAT
+    assert len(g.diffractors) == 0 and not g.corner_pairs.any()
+
+
+def test_sinusoid_sampling_density_and_analytic_curve():
+    s = Sinusoid((8, 0), (8, 10), 0.3, 5.0)
+    g = _geom(s)
+    steps = np.diff(g.interval_s, axis=1)
+    assert len(g.interval_s) == 1000 and np.allclose(steps, 0.01)
+    # displaced along the left normal of the base direction (+y → left is -x)
+    p = curve_point(g.curves[0], np.array([1.25]))  # quarter period: crest
+    assert p[0] == pytest.approx([7.7, 1.25])
+    d1, _ = curve_derivatives(g.curves[0], np.array([0.0]))
+    assert d1[0] == pytest.approx([-0.3 * 2 * math.pi / 5, 1.0])
+    # chords follow walls in the occluders
+    assert g.occluders.shape == (1000, 4) and g.chord_start.tolist() == [0]
+    short = _geom(Sinusoid((0, 0), (1, 0), 0.01, 0.1), echo=EchoModel(curve_step_m=0.05))
+    assert np.max(np.diff(short.interval_s, axis=1)) <= 0.1 / 32 + 1e-12
+
+
+def test_nearest_point_and_ray_distance():
+    g = _geom(Polyline(((9, 0), (9, 10))), Circle((0, 0), 1.0))
+    d, q = nearest_surface_point(g, np.array([[8.0, 5.0], [3.0, 0.0], [9.0, 20.0]]))
+    assert d == pytest.approx([1.0, 2.0, 10.0])
+    assert q == pytest.approx(np.array([[9, 5], [1, 0], [9, 10]]))
+    r = ray_distance(g, np.array([[5.0, 5.0], [5.0, 0.0], [5.0, 0.0], [0.0, 0.0]]),
+                     np.array([[1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [1.0, 0.0]]))
+    assert r[0] == pytest.approx(4.0) and r[1] == pytest.approx(4.0)
+    assert math.isinf(r[2]) and r[3] == pytest.approx(1.0)  # from inside the circle
+
+
+def test_empty_scene():
+    g = _geom()
+    d, _ = nearest_surface_point(g, np.zeros((2, 2)))
+    assert np.isinf(d).all()
+    assert g.occluders.shape == (0, 4) and g.circles.shape == (0, 3)

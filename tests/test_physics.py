@@ -1,0 +1,67 @@
+"""Physical models of chapter 2: eq. 2.1, eq. 2.2, the piston beam, eq. 2.3."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import special
+
+from clsonar import physics
+
+
+def test_speed_of_sound_eq_2_1():
+    assert physics.speed_of_sound(273.0) == pytest.approx(331.4)
+    assert physics.speed_of_sound(293.15) == pytest.approx(343.4, abs=0.05)
+
+
+def test_half_beam_angle_eq_2_2_is_about_12_degrees():
+    c = physics.speed_of_sound(293.15)
+    theta = math.degrees(physics.half_beam_angle(50e3, 0.02, c))
+    assert theta == pytest.approx(12.1, abs=0.05)
+    # ... and it is the piston pattern's first null (0.61·2π ≈ j1)
+    ka = physics.wavenumber(50e3, c) * 0.02
+    assert ka * math.sin(math.radians(theta)) == pytest.approx(physics.J1_FIRST_ZERO, rel=2e-3)
+
+
+def test_beam_pattern_and_hard_cut():
+    c = physics.speed_of_sound(293.15)
+    ka = physics.wavenumber(50e3, c) * 0.02
+    cut = physics.beam_cut_sin2(50e3, 0.02, 12.0, c)
+    th = np.radians([0.0, 5.0, 11.9, 12.1, 30.0, 180.0])
+    b = physics.beam_pattern(np.cos(th), np.sin(th), ka, cut)
+    assert b[0] == 1.0
+    assert b[1] == pytest.approx(2 * special.j1(ka * np.sin(th[1])) / (ka * np.sin(th[1])))
+    assert 0 < b[2] < 0.05
+    assert list(b[3:]) == [0.0, 0.0, 0.0]
+
+
+def test_beam_series_matches_bessel_near_the_null():
+    coeffs = physics.beam_series_coefficients()
+    u = np.linspace(0, 1, 1001)
+    series = (1 - u) * np.polynomial.polynomial.polyval(u, coeffs)
+    exact = physics.piston_pattern(physics.J1_FIRST_ZERO * np.sqrt(u))
+    assert np.max(np.abs(series - exact)) < 1e-12
+    near = (u > 0.98) & (u < 1)  # relative accuracy holds right up to the null
+    assert np.max(np.abs(series[near] / exact[near] - 1)) < 1e-9
+
+
+def test_pulse_eq_2_3():
+    sigma = physics.DEFAULT_PULSE_SIGMA_S
+    assert 6 * sigma == pytest.approx(320e-6, rel=0.02)  # the Polaroid burst length
+    t = np.linspace(-1e-4, 7 * sigma, 200001)
+    p = physics.pulse(t, sigma, 50e3, 5.0)
+    assert np.max(np.abs(p)) == pytest.approx(5.0, rel=1e-5)
+    assert np.all(p[(t < 0) | (t > 6 * sigma)] == 0)
+
+
+def test_curved_gain_is_one_for_a_plane_and_below_one_for_a_cylinder():
+    assert physics.curved_gain(2.0, 3.0, 0.0, 0.7) == pytest.approx(1.0)
+    g = physics.curved_gain(2.0, 2.0, 0.5, 1.0)  # 2 m cylinder seen from 2 m: L_eff = 8
+    assert g == pytest.approx(math.sqrt(4 / 8))
+    assert physics.curved_gain(1.0, 1.0, -1.0, 1.0) == pytest.approx(physics.MAX_FOCUS_GAIN)
+
+
+def test_edge_gain_order_of_magnitude():
+    k = physics.wavenumber(50e3, 343.4)
+    g = physics.edge_gain(1.0, 1.0, k, 1.0)
+    assert 0.005 < g < 0.02

@@ -1,0 +1,173 @@
+"""Scene format v1: validation errors name the file and key; load → save → load is identity."""
+
+import json
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from clsonar import SceneError, load_scene, save_scene
+from clsonar.scene import (Circle, Polyline, Scene, Sinusoid, WallFollowing, parse_scene_text,
+                           scene_from_dict, scene_to_dict)
+
+DESIGN_EXAMPLE = {
+    "clsonar": 1,
+    "name": "plane-2m",
+    "extent": [0.0, 0.0, 10.0, 10.0],
+    "cell": 0.01,
+    "medium": {"temperature_k": 293.15},
+    "transducer": {"frequency_hz": 50000, "radius_m": 0.02, "half_beam_deg": 12.0,
+                   "amplitude": 5.0},
+    "signal": {"noise_std": 0.0, "threshold": 4.0, "seed": 1},
+    "surfaces": [
+        {"type": "polyline", "points": [[9.0, 0.0], [9.0, 10.0]], "closed": False},
+        {"type": "circle", "center": [5.0, 5.0], "radius": 2.0},
+        {"type": "sinusoid", "from": [8.0, 0.0], "to": [8.0, 10.0], "amplitude": 0.3,
+         "period": 5.0},
+    ],
+    "sensors": {
+        "transducers": [{"position": [7.0, 5.0], "heading_deg": 0.0, "group": 0}],
+        "placement": {"type": "random-lines", "seed": 3},
+    },
+}
+
+
+def test_design_example_loads():
+    s = scene_from_dict(DESIGN_EXAMPLE, "x.json")
+    assert s.name == "plane-2m"
+    assert s.surfaces[0] == Polyline(((9.0, 0.0), (9.0, 10.0)), False)
+    assert s.surfaces[1] == Circle((5.0, 5.0), 2.0)
+    assert s.surfaces[2] == Sinusoid((8.0, 0.0), (8.0, 10.0), 0.3, 5.0)
+    assert s.grid_shape == (1000, 1000)
+    assert s.medium.c == pytest.approx(331.4 * math.sqrt(293.15 / 273))
+
+
+def test_minimal_scene_has_documented_defaults():
+    s = scene_from_dict({"clsonar": 1, "extent": [0, 0, 1, 2]}, "min.json")
+    assert s.name == "min" and s.cell == 0.01 and s.grid_shape == (200, 100)
+    assert s.transducer.half_beam_deg == 12.0 and s.transducer.amplitude == 5.0
+    assert s.signal.threshold == 4.0 and s.echo.max_order == 2
+    assert s.surfaces == () and s.sensors.transducers == ()
+
+
+def test_round_trip(tmp_path):
+    s1 = scene_from_dict(DESIGN_EXAMPLE, "x.json")
+    save_scene(s1, tmp_path / "a.json")
+    s2 = load_scene(tmp_path / "a.json")
+    save_scene(s2, tmp_path / "b.json")
+    assert s1 == s2 == load_scene(tmp_path / "b.json")
+    assert (tmp_path / "a.json").read_text() == (tmp_path / "b.json").read_text()
+    assert [p.name for p in tmp_path.iterdir()] != []  # no temporary files left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json"]
+
+
+def _with(path: str, value):
+    """DESIGN_EXAMPLE with the value at dotted/indexed ``path`` replaced (or deleted)."""
+    data = json.loads(json.dumps(DESIGN_EXAMPLE))
+    keys = [int(k) if k.isdigit() else k for k in path.replace("[", ".").replace("]", "")
+            .split(".")]
+    node = data
+    for k in keys[:-1]:
+        node = node[k]
+    if value is _DELETE:
+        del node[keys[-1]]
+    else:
+        node[keys[-1]] = value
+    return json.dumps(data)
+
+
+_DELETE = object()
+
+BAD = [
+    # (description, file text, expected "key: message" fragment)
+    ("empty file", "", "file is empty"),
+    ("blank file", "  \n", "file is empty"),
+    ("invalid JSON", '{"clsonar": 1,', "invalid JSON at line 1"),
+    ("not an object", "[1, 2]", "must be an object"),
+    ("unknown top key", _with("colour", "red"), "colour: unknown key"),
+    ("unknown nested key", _with("surfaces[1].radiu", 2.0), "surfaces[1].radiu: unknown key"),
+    ("wrong type", _with("cell", "0.01"), "cell: must be a number, not a string"),
+    ("bool as number", _with("surfaces[1].radius", True), "surfaces[1].radius: must be a number"),
+    ("wrong type list", _with("extent", [0, 0, 10]), "extent: must be a list of 4 numbers"),
+    ("NaN literal", _with("cell", 0.01).replace("0.01", "NaN", 1), "NaN is not a valid number"),
+    ("Infinity literal", _with("cell", 0.01).replace("0.01", "Infinity", 1),
+     "Infinity is not a valid number"),
+    ("huge number", _with("cell", 0.01).replace("0.01", "1e999", 1), "cell: must be a finite"),
+    ("negative radius", _with("surfaces[1].radius", -2.0), "surfaces[1].radius: must be > 0"),
+    ("zero radius", _with("surfaces[1].radius", 0), "surfaces[1].radius: must be > 0"),
+    ("zero cell", _with("cell", 0), "cell: must be > 0"),
+    ("negative cell", _with("cell", -0.01), "cell: must be > 0"),
+    ("zero-length segment", _with("surfaces[0].points", [[9, 0], [9, 0]]),
+     "surfaces[0].points[1]: zero-length segment"),
+    ("unsupported version", _with("clsonar", 2), "clsonar: unsupported format version 2"),
+    ("missing version", _with("clsonar", _DELETE), "clsonar: missing format version"),
+    ("bad surface type", _with("surfaces[0].type", "blob"), "surfaces[0].type: must be one of"),
+    ("inverted extent", _with("extent", [10, 0, 0, 10]), "extent: must be [xmin"),
+    ("negative noise", _with("signal.noise_std", -1), "signal.noise_std: must be >= 0"),
+    ("fractional seed", _with("signal.seed", 1.5), "signal.seed: must be an integer"),
+    ("bad placement", _with("sensors.placement.type", "grid"), "sensors.placement.type"),
+    ("missing radius", _with("surfaces[1].radius", _DELETE), "surfaces[1].radius: missing"),
+    ("deep nesting", "[" * 100000 + "]" * 100000, "nested deeper"),
+]
+
+
+@pytest.mark.parametrize(("text", "expected"), [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_input_is_one_clear_line(tmp_path, text, expected):
+    f = tmp_path / "bad.json"
+    f.write_text(text)
+    with pytest.raises(SceneError) as info:
+        load_scene(f)
+    message = str(info.value)
+    assert message.startswith(f"{f}: "), message
+    assert expected in message, message
+    assert "\n" not in message
+
+
+def test_unreadable_file_names_it(tmp_path):
+    with pytest.raises(SceneError, match="missing.json: cannot read file"):
+        load_scene(tmp_path / "missing.json")
+
+
+def test_not_utf8(tmp_path):
+    f = tmp_path / "bin.json"
+    f.write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(SceneError, match="not UTF-8"):
+        load_scene(f)
+
+
+def test_wall_following_keys():
+    d = json.loads(_with("sensors.placement", {"type": "wall-following", "start": [1, 5],
+                                               "step_m": 0.75}))
+    p = scene_from_dict(d).sensors.placement
+    assert p == WallFollowing(start=(1.0, 5.0), step_m=0.75)
+
+
+finite = st.floats(-1e3, 1e3, allow_nan=False)
+points = st.tuples(finite, finite)
+
+
+@st.composite
+def scenes(draw):
+    surfaces = []
+    for _ in range(draw(st.integers(0, 4))):
+        kind = draw(st.sampled_from(["polyline", "circle", "sinusoid"]))
+        if kind == "polyline":
+            pts = draw(st.lists(points, min_size=3, max_size=6, unique=True))
+            surfaces.append(Polyline(tuple(pts), draw(st.booleans()) and len(pts) >= 3))
+        elif kind == "circle":
+            surfaces.append(Circle(draw(points), draw(st.floats(1e-3, 1e3))))
+        else:
+            a, b = draw(st.lists(points, min_size=2, max_size=2, unique=True))
+            surfaces.append(Sinusoid(a, b, draw(finite), draw(st.floats(1e-3, 1e3))))
+    x0, y0 = draw(points)
+    return Scene(name=draw(st.text(max_size=10)),
+                 extent=(x0, y0, x0 + draw(st.floats(0.1, 100)), y0 + draw(st.floats(0.1, 100))),
+                 cell=draw(st.floats(1e-3, 1.0)), surfaces=tuple(surfaces))
+
+
+@settings(max_examples=100)
+@given(scenes())
+def test_round_trip_property(scene):
+    text = json.dumps(scene_to_dict(scene), allow_nan=False)
+    assert parse_scene_text(text) == scene
