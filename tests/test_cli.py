@@ -90,3 +90,24 @@ def test_echoes_prints_the_csv_contract(tmp_path):
     out = tmp_path / "e.csv"
     assert main(["echoes", str(ROOT / "scenes" / "plane-2m.json"), "-o", str(out)]) == 0
     assert out.read_text().splitlines() == rows
+
+
+def test_no_opencl_device_says_what_to_install(tmp_path):
+    env = {**__import__("os").environ, "OCL_ICD_VENDORS": str(tmp_path)}  # no ICD files
+    r = subprocess.run([sys.executable, "-m", "clsonar", "devices"], capture_output=True,
+                       text=True, env=env, timeout=120)
+    assert r.returncode == 1
+    assert "No OpenCL device found" in r.stdout and "pocl-opencl-icd" in r.stdout
+    assert "Traceback" not in r.stderr
+
+
+def test_device_that_cannot_build_is_reported_not_used(monkeypatch, capsys):
+    import clsonar.opencl as ocl
+
+    monkeypatch.setattr(ocl, "_build_problem",
+                        lambda d: "cannot build kernels (unknown target CPU 'generic')")
+    assert main(["devices"]) == 1
+    out = capsys.readouterr().out
+    assert "unknown target CPU 'generic'" in out and "No device can build kernels" in out
+    with pytest.raises(ocl.DeviceError, match="pocl-opencl-icd"):
+        ocl.choose_device()
