@@ -12,16 +12,26 @@ included (the line-of-sight echo of thesis §2.1.1 part 1; T ≠ R the elliptica
 part 2). Transducers of different groups never pair: the arrays and the ring poses fire at
 different times. (T, R) and (R, T) travel the same paths, but their received signals carry
 independent noise, so both are kept.
+
+Placements (each returns ``(positions [n, 2], headings_deg [n], group per element [n] int64
+from 0, poses [G, 2])``): :func:`place_random_lines` (thesis §2.1, §3.1),
+:func:`place_circular` and :func:`place_wall_following` (§2.1.2, traced by
+:func:`wall_following_path`). They are deterministic: random numbers come only from the
+placement's ``seed``. A placement that cannot be made raises
+:class:`~clsonar.errors.SceneError` with key ``sensors.placement`` and the scene's name as
+source.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import Geometry, build_geometry
-from .scene import Circular, RandomLines, Scene, WallFollowing
+from .errors import SceneError
+from .geometry import Geometry, build_geometry, nearest_surface_point, ray_distance
+from .scene import Circular, Polyline, RandomLines, Scene, WallFollowing
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,14 +69,313 @@ def place_circular(p: Circular) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return pos, head, np.zeros(p.elements, dtype=np.int64), np.asarray([p.center], float)
 
 
+def _extent_contains(scene: Scene, pts: np.ndarray) -> np.ndarray:
+    xmin, ymin, xmax, ymax = scene.extent
+    p = np.asarray(pts, dtype=np.float64).reshape(-1, 2)
+    return (p[:, 0] >= xmin) & (p[:, 0] <= xmax) & (p[:, 1] >= ymin) & (p[:, 1] <= ymax)
+
+
+def in_free_space(scene: Scene, geom: Geometry, points: np.ndarray) -> np.ndarray:
+    """[M] bool: which ``points`` lie in free space (not inside a cylinder, and inside a
+    closed polyline when the scene has any: a room's outside is solid). Points exactly on a
+    surface count as free; callers keep a clearance anyway."""
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    free = np.ones(len(p), dtype=bool)
+    if len(geom.circles):
+        v = p[:, None] - geom.circles[None, :, :2]
+        free &= ~np.any(np.hypot(v[..., 0], v[..., 1]) < geom.circles[None, :, 2], axis=1)
+    rooms = [np.asarray(s.points, dtype=np.float64) for s in scene.surfaces
+             if isinstance(s, Polyline) and s.closed]
+    if rooms:
+        free &= np.any([_inside_polygon(r, p) for r in rooms], axis=0)
+    return free
+
+
+def _inside_polygon(poly: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Even-odd rule: [M] bool, ``p`` [M, 2] strictly inside the closed polygon [K, 2]."""
+    a = poly[None, :, :]
+    b = np.roll(poly, -1, axis=0)[None, :, :]
+    x, y = p[:, None, 0], p[:, None, 1]
+    straddle = (a[..., 1] > y) != (b[..., 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = a[..., 0] + (y - a[..., 1]) * (b[..., 0] - a[..., 0]) / (b[..., 1] - a[..., 1])
+    return (np.count_nonzero(straddle & (x < xc), axis=1) % 2) == 1
+
+
+def _crosses(geom: Geometry, a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether the segment ``a``→``b`` meets a surface."""
+    d = b - a
+    length = math.hypot(d[0], d[1])
+    if length == 0.0:
+        return False
+    return bool(ray_distance(geom, a[None], (d / length)[None])[0] <= length)
+
+
+def _placement_error(scene: Scene, message: str, key: str = "sensors.placement") -> SceneError:
+    return SceneError(message, key=key, source=scene.name)
+
+
+# --------------------------------------------------------------------------- random lines
+
+
 def place_random_lines(p: RandomLines, scene: Scene, geom: Geometry):
-    """Linear arrays of thesis §2.1 (see :class:`~clsonar.scene.RandomLines`)."""
-    raise NotImplementedError
+    """Linear arrays of thesis §2.1 and §3.1 (see :class:`~clsonar.scene.RandomLines`).
+
+    Elements are placed one after another along the line from ``p.start`` in direction
+    ``p.direction_deg``: the first element at the start, each next element of an array
+    ``uniform(spacing_m)`` further on, the first element of the next array ``uniform(gap_m)``
+    beyond the last one of the previous array. Each heading is ``facing_deg +
+    uniform(±heading_spread_deg)`` (the thesis' "random orientations between 0° and 180°" is
+    ``facing ± 90°``). Placement ends for good ("the localization process is terminated",
+    §2.1) at the first element that would lie beyond ``length_m`` along the line, outside the
+    extent, outside free space, within ``clearance_m`` of a surface, or behind a surface as
+    seen from the previous element; what was placed is kept, a partly filled last array
+    included. Each array is one pair group (0, 1, …).
+
+    With ``start`` null the start is drawn inside the extent, retrying (up to 1000 draws)
+    until it is in free space and at least ``clearance_m`` from every surface. All random
+    numbers come from ``numpy.random.default_rng(p.seed)``, so a scene always gives the
+    same placement.
+
+    Returns ``(positions [n, 2], headings_deg [n], groups [n] int64, poses [0, 2])``.
+    Raises :class:`SceneError` (key ``sensors.placement``) if nothing could be placed.
+    """
+    rng = np.random.default_rng(p.seed)
+    if p.start is None:
+        start = _random_start(p, scene, geom, rng)
+    else:
+        start = np.asarray(p.start, dtype=np.float64)
+    angle = math.radians(p.direction_deg)
+    u = np.array([math.cos(angle), math.sin(angle)])
+
+    positions: list[np.ndarray] = []
+    headings: list[float] = []
+    groups: list[int] = []
+    s = 0.0
+    prev: np.ndarray | None = None
+    reason = ""
+    array = 0
+    while not reason:
+        for k in range(p.elements):
+            if positions:
+                s += rng.uniform(*(p.spacing_m if k > 0 else p.gap_m))
+            point = start + s * u
+            reason = _random_lines_stop(p, scene, geom, point, prev, s)
+            if reason:
+                break
+            positions.append(point)
+            headings.append(p.facing_deg + rng.uniform(-p.heading_spread_deg,
+                                                       p.heading_spread_deg))
+            groups.append(array)
+            prev = point
+        array += 1
+    if not positions:
+        raise _placement_error(scene, f"placement placed no transducer: the first element at "
+                                      f"({start[0]:.3f}, {start[1]:.3f}) is {reason}")
+    return (np.asarray(positions).reshape(-1, 2), np.asarray(headings, dtype=np.float64),
+            np.asarray(groups, dtype=np.int64), np.zeros((0, 2)))
+
+
+def _random_lines_stop(p: RandomLines, scene: Scene, geom: Geometry, point: np.ndarray,
+                       prev: np.ndarray | None, s: float) -> str:
+    """Why an element at ``point`` (``s`` along the line) ends the placement, or ``""``."""
+    if s > p.length_m:
+        return f"beyond length_m = {p.length_m:g} along the line"
+    if not _extent_contains(scene, point)[0]:
+        return "outside the extent"
+    if not in_free_space(scene, geom, point)[0]:
+        return "inside a solid (outside the room or inside a cylinder)"
+    dist, _ = nearest_surface_point(geom, point[None])
+    if dist[0] < p.clearance_m:
+        return f"within clearance_m = {p.clearance_m:g} of a surface"
+    if prev is not None and _crosses(geom, prev, point):
+        return "behind a surface"
+    return ""
+
+
+def _random_start(p: RandomLines, scene: Scene, geom: Geometry,
+                  rng: np.random.Generator) -> np.ndarray:
+    xmin, ymin, xmax, ymax = scene.extent
+    for _ in range(1000):
+        point = np.array([rng.uniform(xmin, xmax), rng.uniform(ymin, ymax)])
+        if (in_free_space(scene, geom, point)[0]
+                and nearest_surface_point(geom, point[None])[0][0] >= p.clearance_m):
+            return point
+    raise _placement_error(scene, "placement placed no transducer: no random start in free "
+                                  f"space at least clearance_m = {p.clearance_m:g} from every "
+                                  "surface was found in 1000 draws; give sensors.placement.start")
+
+
+# --------------------------------------------------------------------------- wall following
+
+#: Angular samples of the circle searched for the next point of the wall-following trace.
+_SWEEP_SAMPLES = 72
+
+#: A traced point counts as on the offset curve within this distance (metres).
+_ON_CURVE_TOL = 1e-6
+
+
+def wall_following_substep(p: WallFollowing) -> float:
+    """Length of one trace sub-step: ``min(clearance/4, step/4, 2 cm)``."""
+    return min(p.clearance_m / 4.0, p.step_m / 4.0, 0.02)
+
+
+def _project(geom: Geometry, point: np.ndarray, c: float) -> tuple[np.ndarray, float]:
+    """Move ``point`` to distance ``c`` from the nearest surface, along the line from the
+    nearest surface point; repeat while another surface becomes the nearest (concave
+    corners). Returns the point and its final distance error."""
+    err = math.inf
+    for _ in range(16):
+        dist, near = nearest_surface_point(geom, point[None])
+        d, q = float(dist[0]), near[0]
+        err = abs(d - c)
+        if err <= _ON_CURVE_TOL * 0.01 or not math.isfinite(d) or d <= 1e-12:
+            break
+        point = q + (point - q) * (c / d)
+    return point, err
+
+
+def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
+                        ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Trace the curve the ring centre follows (thesis §2.1.2, generalised).
+
+    The curve is the set of free points at distance ``p.clearance_m`` from the nearest
+    surface, on the side of ``p.start``. The start is projected onto it (from the nearest
+    surface point Q, along Q→start, to distance ``clearance_m``). From each traced point P
+    the next is the first point at distance h (one sub-step, :func:`wall_following_substep`)
+    from P that is back at the clearance, found by sweeping the circle of radius h around P
+    from the direction of the nearest surface: counter-clockwise for ``ccw``, which keeps the
+    nearest surface on the right of the motion (a room outline is then run counter-clockwise
+    and an obstacle clockwise), clockwise for ``cw`` (surface on the left). The found point
+    is re-projected onto the curve. Along a straight wall this moves parallel to it, at a
+    concave corner the nearest wall changes and the path turns, around a convex edge or a
+    cylinder the nearest point is the vertex (the circle) and the path arcs around it. (The
+    thesis picks the moving direction "by comparing the vertical and horizontal distances";
+    following the nearest surface does the same in axis-aligned rooms and also works along
+    oblique walls, edges and cylinders.)
+
+    The trace stops when a sub-step passes within h/2 of the start after having been more
+    than 2h away from it.
+
+    Returns ``(path [M, 2], arc [M], length)``: the traced points (the start first), their
+    arc length from the start (sum of sub-step chords), and the length of the closed curve.
+    Raises :class:`SceneError` (key ``sensors.placement``) when the start is not in free
+    space, the curve cannot be followed (no room for the clearance, stuck), it would leave
+    the extent or cross a surface, or it does not close within ``max_poses`` poses.
+    """
+    c = p.clearance_m
+    h = wall_following_substep(p)
+    start = np.asarray(p.start, dtype=np.float64)
+
+    def fail(message: str) -> SceneError:
+        return _placement_error(scene, "wall-following: " + message)
+
+    if len(geom.occluders) == 0 and len(geom.circles) == 0:
+        raise fail("the scene has no surface to follow")
+    if not (_extent_contains(scene, start)[0] and in_free_space(scene, geom, start)[0]):
+        raise fail(f"start ({start[0]:g}, {start[1]:g}) is not in free space inside the extent")
+    dist, near = nearest_surface_point(geom, start[None])
+    if dist[0] <= 1e-9:
+        raise fail(f"start ({start[0]:g}, {start[1]:g}) lies on a surface")
+    p0, err = _project(geom, near[0] + (start - near[0]) * (c / dist[0]), c)
+    if err > _ON_CURVE_TOL:
+        raise fail(f"no place at clearance_m = {c:g} from the surfaces near the start "
+                   f"({start[0]:g}, {start[1]:g})")
+    if _crosses(geom, start, p0) or not in_free_space(scene, geom, p0)[0]:
+        raise fail(f"the start ({start[0]:g}, {start[1]:g}) cannot reach the curve at "
+                   f"clearance_m = {c:g} without crossing a surface")
+    if not _extent_contains(scene, p0)[0]:
+        raise fail(f"the trace start ({p0[0]:.3f}, {p0[1]:.3f}) is outside the extent")
+
+    sign = 1.0 if p.direction == "ccw" else -1.0
+    sweep = sign * 2.0 * math.pi * np.arange(1, _SWEEP_SAMPLES + 1) / _SWEEP_SAMPLES
+    max_length = (p.max_poses + 1) * p.step_m
+    max_substeps = int(max_length / (0.25 * h)) + 100
+    path = [p0]
+    arc = [0.0]
+    left = False
+    point = p0
+    for _ in range(max_substeps):
+        _, near = nearest_surface_point(geom, point[None])
+        to_wall = near[0] - point
+        phi0 = math.atan2(to_wall[1], to_wall[0])
+        angles = phi0 + sweep
+        ring_pts = point + h * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+        g = nearest_surface_point(geom, ring_pts)[0] - c
+        hit = np.flatnonzero(g >= 0.0)
+        if len(hit) == 0:
+            raise fail(f"stuck at ({point[0]:.3f}, {point[1]:.3f}): no way on at "
+                       f"clearance_m = {c:g}")
+        k = int(hit[0])
+        g_prev = g[k - 1] if k > 0 else -h
+        a_prev = angles[k - 1] if k > 0 else phi0
+        frac = g_prev / (g_prev - g[k]) if g[k] != g_prev else 1.0
+        a = a_prev + frac * (angles[k] - a_prev)
+        nxt, err = _project(geom, point + h * np.array([math.cos(a), math.sin(a)]), c)
+        step = float(np.hypot(*(nxt - point)))
+        if err > _ON_CURVE_TOL or step < 0.25 * h:
+            raise fail(f"stuck at ({point[0]:.3f}, {point[1]:.3f}): the curve at "
+                       f"clearance_m = {c:g} cannot be followed there")
+        if _crosses(geom, point, nxt):
+            raise fail(f"the trace would cross a surface near ({point[0]:.3f}, "
+                       f"{point[1]:.3f})")
+        if not _extent_contains(scene, nxt)[0]:
+            raise fail(f"the trace left the extent at ({nxt[0]:.3f}, {nxt[1]:.3f}) before "
+                       "closing: wall-following needs a closed room or an obstacle inside "
+                       "the extent")
+        if left:
+            t = float(np.clip(np.dot(p0 - point, nxt - point) / (step * step), 0.0, 1.0))
+            if np.hypot(*(point + t * (nxt - point) - p0)) <= 0.5 * h:
+                length = arc[-1] + t * step
+                return np.asarray(path), np.asarray(arc), length
+        elif np.hypot(*(nxt - p0)) > 2.0 * h:
+            left = True
+        path.append(nxt)
+        arc.append(arc[-1] + step)
+        point = nxt
+        if arc[-1] > max_length:
+            break
+    raise fail(f"the trace did not return to its start within max_poses = {p.max_poses} "
+               f"poses (step_m = {p.step_m:g}); raise max_poses or check the start")
 
 
 def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry):
-    """Ring poses along the walls, thesis §2.1.2 (see :class:`~clsonar.scene.WallFollowing`)."""
-    raise NotImplementedError
+    """Ring poses along the walls, thesis §2.1.2 (see :class:`~clsonar.scene.WallFollowing`).
+
+    The ring centre runs along :func:`wall_following_path`; a pose every ``step_m`` of arc
+    length, the first at the projected start, the last the last one before the trace is back
+    at the start (a pose closer than half a sub-step to the start is dropped). Each pose is
+    a :func:`ring` and its own pair group.
+
+    Returns ``(positions [G·n, 2], headings_deg, groups, poses [G, 2])``.
+    """
+    if p.radius_m >= p.clearance_m:
+        raise _placement_error(scene, f"ring radius_m = {p.radius_m:g} must be smaller than "
+                                      f"clearance_m = {p.clearance_m:g}",
+                               "sensors.placement.radius_m")
+    path, arc, length = wall_following_path(p, scene, geom)
+    h = wall_following_substep(p)
+    targets = np.arange(0.0, length - 0.5 * h, p.step_m)
+    if len(targets) > p.max_poses:
+        raise _placement_error(scene, f"wall-following: {len(targets)} poses needed, more than "
+                                      f"max_poses = {p.max_poses}")
+    closed_path = np.concatenate([path, path[:1]])
+    closed_arc = np.append(arc, length)
+    centres = []
+    for s in targets:
+        i = min(int(np.searchsorted(closed_arc, s, side="right")) - 1, len(path) - 1)
+        seg = closed_arc[i + 1] - closed_arc[i]
+        t = (s - closed_arc[i]) / seg if seg > 0 else 0.0
+        guess = closed_path[i] + t * (closed_path[i + 1] - closed_path[i])
+        centres.append(_project(geom, guess, p.clearance_m)[0])
+    poses = np.asarray(centres).reshape(-1, 2)
+    pos, head = [], []
+    for centre in poses:
+        rp, rh = ring(tuple(centre), p.radius_m, p.elements, p.start_deg)
+        pos.append(rp)
+        head.append(rh)
+    groups = np.repeat(np.arange(len(poses), dtype=np.int64), p.elements)
+    return (np.concatenate(pos), np.concatenate(head), groups, poses)
 
 
 def place_sensors(scene: Scene, geom: Geometry | None = None) -> SensorArray:
@@ -114,4 +423,6 @@ def heading_deg(v: np.ndarray) -> np.ndarray:
     return np.degrees(np.arctan2(v[..., 1], v[..., 0]))
 
 
-__all__ = ["SensorArray", "heading_deg", "pairs", "place_sensors", "ring"]
+__all__ = ["SensorArray", "heading_deg", "in_free_space", "pairs", "place_circular",
+           "place_random_lines", "place_sensors", "place_wall_following", "ring",
+           "wall_following_path", "wall_following_substep"]

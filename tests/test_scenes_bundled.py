@@ -1,0 +1,106 @@
+"""The thesis scenes shipped in scenes/: they load, place transducers as in the thesis
+figures, and survive load → save → load unchanged."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import clsonar
+from clsonar.geometry import build_geometry, nearest_surface_point
+from clsonar.scene import RandomLines, WallFollowing
+from clsonar.sensors import in_free_space, place_sensors
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENES = sorted((ROOT / "scenes").glob("*.json"))
+
+#: Scene name → x of the random-lines array (thesis chapter 3: surface position − distance).
+ARRAY_X = {
+    "plane-2m": 7.0, "plane-4m": 5.0, "plane-8m": 1.0,
+    "corner-4m": 6.0, "corner-7m": 3.0, "corner-9m": 1.0,
+    "edge-1m": 5.5, "edge-3m": 3.5, "edge-5m": 1.5,
+    "cylinder-2.1m": 5.4, "cylinder-3m": 4.5, "cylinder-4m": 3.5,
+    "sinusoid-1m": 6.7, "sinusoid-4m": 3.7, "sinusoid-6m": 1.7,
+}
+WALL_FOLLOWING = {"room": 0.5, "room-step70": 0.7, "room-step75": 0.75, "room-cylinder": 0.5}
+
+
+def test_every_thesis_scene_is_bundled():
+    names = {p.stem for p in SCENES}
+    assert set(ARRAY_X) | set(WALL_FOLLOWING) <= names
+
+
+def test_docs_list_every_bundled_scene():
+    text = (ROOT / "docs" / "scenes.md").read_text(encoding="utf-8")
+    for path in SCENES:
+        assert f"`{path.name}`" in text
+
+
+@pytest.fixture(scope="module")
+def placed():
+    """Each bundled scene with its geometry and placement, computed once."""
+    out = {}
+    for path in SCENES:
+        scene = clsonar.load_scene(path)
+        geom = build_geometry(scene)
+        out[path.stem] = (scene, geom, place_sensors(scene, geom))
+    return out
+
+
+@pytest.mark.parametrize("path", SCENES, ids=lambda p: p.stem)
+def test_bundled_scene_loads_places_and_round_trips(path, tmp_path, placed):
+    scene, geom, sensors = placed[path.stem]
+    assert scene.name == path.stem
+    assert scene.extent == (0.0, 0.0, 10.0, 10.0) and scene.cell == 0.01
+    assert scene.transducer.half_beam_deg == 12.0 and scene.transducer.amplitude == 5.0
+    assert scene.signal.noise_std == 0.0 and scene.signal.threshold == 4.0
+    assert len(sensors) >= 1
+    xmin, ymin, xmax, ymax = scene.extent
+    assert np.all((sensors.positions >= [xmin, ymin]) & (sensors.positions <= [xmax, ymax]))
+    assert np.all(in_free_space(scene, geom, sensors.positions))
+
+    out = tmp_path / path.name
+    clsonar.save_scene(scene, out)
+    again = clsonar.load_scene(out)
+    assert again == scene
+    clsonar.save_scene(again, out)
+    assert clsonar.load_scene(out) == scene
+    # and the file as shipped is the same data as its normalised form, defaults aside
+    shipped = json.loads(path.read_text(encoding="utf-8"))
+    assert shipped["clsonar"] == 1 and shipped["name"] == path.stem
+
+
+@pytest.mark.parametrize("name", sorted(ARRAY_X))
+def test_random_lines_scenes_match_the_thesis(name, placed):
+    scene, geom, sensors = placed[name]
+    p = scene.sensors.placement
+    assert isinstance(p, RandomLines)
+    assert p.elements == 10 and p.facing_deg == 0.0 and p.heading_spread_deg == 90.0
+    np.testing.assert_allclose(sensors.positions[:, 0], ARRAY_X[name])
+    assert len(sensors) >= 40  # arrays over most of the 10 m, as in the figures
+    assert np.all(nearest_surface_point(geom, sensors.positions)[0] >= p.clearance_m)
+    assert np.all(np.abs(sensors.headings_deg) <= 90.0)  # facing the surface (+x)
+
+
+def test_random_lines_seeds_are_distinct():
+    seeds = [clsonar.load_scene(ROOT / "scenes" / f"{n}.json").sensors.placement.seed
+             for n in ARRAY_X]
+    assert len(set(seeds)) == len(seeds)
+
+
+@pytest.mark.parametrize("name", sorted(WALL_FOLLOWING))
+def test_wall_following_scenes_match_the_thesis(name, placed):
+    scene, geom, sensors = placed[name]
+    p = scene.sensors.placement
+    assert isinstance(p, WallFollowing)
+    assert p.step_m == WALL_FOLLOWING[name] and p.clearance_m == 0.5
+    assert p.elements == 8 and p.radius_m == 0.065
+    np.testing.assert_allclose(nearest_surface_point(geom, sensors.poses)[0], 0.5, atol=0.01)
+    # the ring runs round the whole outline: 36 m of walls, less 2·0.5 m at each of the six
+    # concave corners, plus a quarter circle of radius 0.5 m round each of the two edges
+    perimeter = 36.0 - 6 * 1.0 + 2 * (np.pi / 2 * 0.5)
+    assert len(sensors.poses) == int(np.ceil(perimeter / p.step_m - 0.05))
+    assert len(sensors) == 8 * len(sensors.poses)

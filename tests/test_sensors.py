@@ -1,0 +1,384 @@
+"""Transducer placement (thesis §2.1 random linear arrays, §2.1.2 circular and wall-following
+arrays) and the transmitter→receiver pairs."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from clsonar.errors import SceneError
+from clsonar.geometry import build_geometry, nearest_surface_point, ray_distance
+from clsonar.scene import Circular, RandomLines, WallFollowing, scene_from_dict
+from clsonar.sensors import (
+    SensorArray,
+    in_free_space,
+    pairs,
+    place_circular,
+    place_random_lines,
+    place_sensors,
+    place_wall_following,
+    ring,
+    wall_following_path,
+    wall_following_substep,
+)
+
+TOL = 1e-9
+
+
+def make_scene(surfaces, placement=None, transducers=(), extent=(0.0, 0.0, 10.0, 10.0)):
+    return scene_from_dict({
+        "clsonar": 1, "name": "test", "extent": list(extent), "surfaces": list(surfaces),
+        "sensors": {"transducers": list(transducers), "placement": placement},
+    })
+
+
+def wall(a, b):
+    return {"type": "polyline", "points": [list(a), list(b)], "closed": False}
+
+
+def room(points):
+    return {"type": "polyline", "points": [list(p) for p in points], "closed": True}
+
+
+def circle(c, r):
+    return {"type": "circle", "center": list(c), "radius": r}
+
+
+PLANE = [wall((9.0, 0.0), (9.0, 10.0))]
+
+
+def lines(**kw):
+    return {"type": "random-lines", **kw}
+
+
+def place(scene):
+    return place_sensors(scene, build_geometry(scene))
+
+
+def segments_cross(geom, a, b):
+    """[M] bool: segments a[i]→b[i] meet a surface."""
+    d = b - a
+    length = np.hypot(d[:, 0], d[:, 1])
+    return ray_distance(geom, a, d / length[:, None]) <= length
+
+
+# --------------------------------------------------------------------------- ring / circular
+
+
+def test_ring_is_thesis_circular_array():
+    pos, head = ring((2.0, 3.0), 0.065, 8, 0.0)
+    np.testing.assert_allclose(head, np.arange(8) * 45.0)
+    np.testing.assert_allclose(np.hypot(*(pos - [2.0, 3.0]).T), 0.065)
+    # every transducer faces straight outwards
+    outward = np.degrees(np.arctan2(pos[:, 1] - 3.0, pos[:, 0] - 2.0)) % 360.0
+    np.testing.assert_allclose(outward, head % 360.0, atol=1e-9)
+    np.testing.assert_allclose(pos[0], [2.065, 3.0])
+    np.testing.assert_allclose(pos[2], [2.0, 3.065])
+
+
+def test_place_circular_defaults_to_thesis_ring():
+    pos, head, groups, poses = place_circular(Circular(center=(5.0, 5.0)))
+    assert pos.shape == (8, 2) and head.shape == (8,)
+    assert groups.dtype == np.int64 and np.all(groups == 0)
+    np.testing.assert_allclose(poses, [[5.0, 5.0]])
+    np.testing.assert_allclose(np.hypot(*(pos - 5.0).T), 0.065)
+
+
+# --------------------------------------------------------------------------- random lines
+
+
+def _check_random_lines(p: RandomLines, pos, head, groups):
+    """Spacing, gaps, headings, group sizes and collinearity of a random-lines placement."""
+    u = np.array([math.cos(math.radians(p.direction_deg)), math.sin(math.radians(p.direction_deg))])
+    start = np.asarray(p.start)
+    rel = pos - start
+    s = rel @ u
+    np.testing.assert_allclose(rel[:, 0] * u[1] - rel[:, 1] * u[0], 0.0, atol=1e-9)  # on line
+    assert s[0] == pytest.approx(0.0, abs=1e-12)
+    assert np.all(s <= p.length_m + TOL)
+    steps = np.diff(s)
+    same = np.diff(groups) == 0
+    assert np.all(np.diff(groups) >= 0) and np.all(np.diff(groups) <= 1)
+    assert groups[0] == 0 and groups.dtype == np.int64
+    lo, hi = p.spacing_m
+    assert np.all((steps[same] >= lo - TOL) & (steps[same] <= hi + TOL))
+    lo, hi = p.gap_m
+    assert np.all((steps[~same] >= lo - TOL) & (steps[~same] <= hi + TOL))
+    sizes = np.bincount(groups)
+    assert np.all(sizes[:-1] == p.elements) and 1 <= sizes[-1] <= p.elements
+    offset = (head - p.facing_deg + 180.0) % 360.0 - 180.0
+    assert np.all(np.abs(offset) <= p.heading_spread_deg + TOL)
+    return s
+
+
+def test_random_lines_thesis_ranges_in_front_of_a_plane():
+    scene = make_scene(PLANE, lines(seed=5, start=[7.0, 0.1], length_m=9.8))
+    p = scene.sensors.placement
+    pos, head, groups, poses = place_random_lines(p, scene, build_geometry(scene))
+    assert poses.shape == (0, 2)
+    assert len(pos) >= 30
+    _check_random_lines(p, pos, head, groups)
+    # facing the wall ±90°: the thesis' "orientations between 0° and 180°"
+    assert np.all(np.abs(head) <= 90.0)
+    assert len(np.unique(np.round(head, 6))) == len(head)  # really random
+
+
+@settings(max_examples=25)
+@given(seed=st.integers(0, 2**32), direction=st.floats(-180, 180),
+       elements=st.integers(1, 12), spread=st.floats(0, 180), facing=st.floats(-360, 360))
+def test_random_lines_ranges_property(seed, direction, elements, spread, facing):
+    scene = make_scene(PLANE, lines(seed=seed, start=[5.0, 5.0], direction_deg=direction,
+                                    elements=elements, heading_spread_deg=spread,
+                                    facing_deg=facing, length_m=20.0))
+    p = scene.sensors.placement
+    geom = build_geometry(scene)
+    pos, head, groups, _ = place_random_lines(p, scene, geom)
+    _check_random_lines(p, pos, head, groups)
+    assert np.all(nearest_surface_point(geom, pos)[0] >= p.clearance_m)
+    assert np.all((pos >= 0.0) & (pos <= 10.0))
+
+
+def test_random_lines_deterministic_for_a_seed():
+    a = make_scene(PLANE, lines(seed=42, start=[6.0, 0.5]))
+    b = make_scene(PLANE, lines(seed=42, start=[6.0, 0.5]))
+    c = make_scene(PLANE, lines(seed=43, start=[6.0, 0.5]))
+    pa, pb, pc = place(a), place(b), place(c)
+    np.testing.assert_array_equal(pa.positions, pb.positions)
+    np.testing.assert_array_equal(pa.headings_deg, pb.headings_deg)
+    np.testing.assert_array_equal(pa.groups, pb.groups)
+    assert not np.array_equal(pa.headings_deg, pc.headings_deg)
+
+
+def test_random_lines_random_start_is_seeded_and_in_free_space():
+    scene = make_scene([room([(1, 1), (9, 1), (9, 9), (1, 9)]), circle((5, 5), 1.0)],
+                       lines(seed=7, length_m=3.0))
+    first, second = place(scene), place(scene)
+    np.testing.assert_array_equal(first.positions, second.positions)
+    geom = build_geometry(scene)
+    assert len(first) >= 1
+    assert np.all(in_free_space(scene, geom, first.positions))
+    assert np.all(nearest_surface_point(geom, first.positions)[0] >= 0.05)
+
+
+def test_random_lines_stop_before_a_surface_across_the_line():
+    # wall across the line at y = 6: placement ends there for good
+    scene = make_scene([wall((0.0, 6.0), (10.0, 6.0))],
+                       lines(seed=3, start=[5.0, 0.2], length_m=9.0, clearance_m=0.3))
+    s = place(scene)
+    y = s.positions[:, 1]
+    assert np.all(y <= 6.0 - 0.3 + TOL)
+    # it stopped because of the wall, not the length: the next element would have been
+    # closer than the clearance, at most one gap (1.65 m) further on
+    assert y.max() > 6.0 - 0.3 - 1.65
+
+
+def test_random_lines_stop_at_the_extent():
+    scene = make_scene(PLANE, lines(seed=4, start=[5.0, 8.0], length_m=50.0))
+    s = place(scene)
+    assert np.all(s.positions[:, 1] <= 10.0)
+    assert s.positions[:, 1].max() > 10.0 - 1.65
+
+
+def test_random_lines_stop_at_length():
+    scene = make_scene(PLANE, lines(seed=4, start=[5.0, 0.0], length_m=2.0))
+    s = place(scene)
+    assert s.positions[:, 1].max() <= 2.0
+    assert s.positions[:, 1].max() > 2.0 - 1.65
+
+
+def test_random_lines_never_jump_over_a_thin_wall():
+    # no clearance, so only the crossing test can stop it at the wall y = 3
+    scene = make_scene([wall((0.0, 3.0), (10.0, 3.0))],
+                       lines(seed=9, start=[5.0, 0.1], length_m=9.0, clearance_m=0.0))
+    s = place(scene)
+    assert np.all(s.positions[:, 1] < 3.0)
+
+
+def test_random_lines_inside_a_room_stay_inside():
+    scene = make_scene([room([(1, 1), (9, 1), (9, 9), (1, 9)])],
+                       lines(seed=2, start=[2.0, 1.5], length_m=20.0))
+    s = place(scene)
+    assert np.all((s.positions[:, 1] > 1.0) & (s.positions[:, 1] < 9.0 - 0.05))
+
+
+@pytest.mark.parametrize("start, why", [
+    ([9.02, 5.0], "clearance"),  # too near the wall
+    ([11.0, 5.0], "extent"),  # outside the map
+    ([5.0, 5.0], "solid"),  # inside the cylinder
+])
+def test_random_lines_that_place_nothing_raise(start, why):
+    scene = make_scene([*PLANE, circle((5.0, 5.0), 1.0)], lines(seed=1, start=start))
+    with pytest.raises(SceneError, match="placed no transducer") as e:
+        place(scene)
+    assert e.value.key == "sensors.placement"
+    assert e.value.source == "test"
+    assert why in str(e.value)
+
+
+# --------------------------------------------------------------------------- wall following
+
+RECT = [(1, 1), (9, 1), (9, 6), (1, 6)]
+L_ROOM = [(1, 1), (9, 1), (9, 4), (4, 4), (4, 9), (1, 9)]  # convex edge at (4, 4)
+
+
+def _wall_following(surfaces, **kw):
+    scene = make_scene(surfaces, {"type": "wall-following", **kw})
+    geom = build_geometry(scene)
+    p = scene.sensors.placement
+    return scene, geom, p, place_wall_following(p, scene, geom)
+
+
+def _check_wall_following(scene, geom, p: WallFollowing, result):
+    pos, head, groups, poses = result
+    g = len(poses)
+    assert g >= 3
+    assert pos.shape == (g * p.elements, 2) and head.shape == (g * p.elements,)
+    np.testing.assert_array_equal(groups, np.repeat(np.arange(g), p.elements))
+    # each pose a thesis ring around its centre
+    for k in (0, g // 2, g - 1):
+        rp, rh = ring(tuple(poses[k]), p.radius_m, p.elements, p.start_deg)
+        np.testing.assert_allclose(pos[groups == k], rp)
+        np.testing.assert_allclose(head[groups == k], rh)
+    # at the clearance, in free space, never behind a wall
+    dist = nearest_surface_point(geom, poses)[0]
+    np.testing.assert_allclose(dist, p.clearance_m, atol=0.01)
+    assert np.all(in_free_space(scene, geom, poses))
+    assert np.all(in_free_space(scene, geom, pos))
+    assert np.all(nearest_surface_point(geom, pos)[0] > p.clearance_m - p.radius_m - 0.01)
+    closed = np.concatenate([poses, poses[:1]])
+    assert not np.any(segments_cross(geom, closed[:-1], closed[1:]))
+    # consecutive poses step_m apart along the traced path, which closes on itself
+    path, arc, length = wall_following_path(p, scene, geom)
+    h = wall_following_substep(p)
+    assert not np.any(segments_cross(geom, path[:-1], path[1:]))
+    assert np.all(np.diff(arc) <= 1.01 * h) and np.all(np.diff(arc) > 0.25 * h)
+    assert np.hypot(*(path[-1] - path[0])) <= 1.5 * h
+    np.testing.assert_allclose(poses[0], path[0], atol=1e-9)
+    nearest = np.argmin(np.hypot(*(poses[:, None] - path[None]).transpose(2, 0, 1)), axis=1)
+    pose_arc = arc[nearest]
+    np.testing.assert_allclose(np.diff(pose_arc), p.step_m, atol=h)
+    assert length - pose_arc[-1] <= p.step_m + h  # last pose is the last one before the start
+    assert g == math.ceil((length - 0.5 * h) / p.step_m)
+    chords = np.hypot(*np.diff(poses, axis=0).T)
+    assert np.all(chords <= p.step_m + 1e-6) and np.all(chords >= p.step_m / 3)
+    return path, length
+
+
+def test_wall_following_rectangle():
+    scene, geom, p, result = _wall_following([room(RECT)], start=[3.0, 3.0])
+    _path, length = _check_wall_following(scene, geom, p, result)
+    # offset rectangle 7 × 4 with clearance 0.5: perimeter 22, start projected to (3, 1.5)
+    assert length == pytest.approx(22.0, abs=0.01)
+    np.testing.assert_allclose(result[3][0], [3.0, 1.5])
+    assert len(result[3]) == 44
+
+
+@pytest.mark.parametrize("direction, sign", [("ccw", 1.0), ("cw", -1.0)])
+def test_wall_following_direction(direction, sign):
+    """ccw keeps the wall on the right (runs a room counter-clockwise), cw on the left."""
+    _scene, _geom, _p, result = _wall_following([room(RECT)], start=[3.0, 3.0],
+                                             direction=direction)
+    poses = result[3]
+    x, y = poses[:, 0], poses[:, 1]
+    area = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    assert np.sign(area) == sign
+    assert abs(area) == pytest.approx(7.0 * 4.0, rel=0.02)
+    assert poses[1][0] == pytest.approx(3.0 + 0.5 * sign)
+
+
+def test_wall_following_l_room_arcs_around_the_convex_edge():
+    scene, geom, p, result = _wall_following([room(L_ROOM)], start=[2.0, 2.0],
+                                             step_m=0.3, clearance_m=0.4)
+    path, length = _check_wall_following(scene, geom, p, result)
+    # around the edge (4, 4) the path is a quarter circle of radius 0.4
+    near_edge = path[np.all(path <= 4.0, axis=1) & (np.hypot(*(path - [4.0, 4.0]).T) < 0.45)]
+    assert len(near_edge) > 5
+    np.testing.assert_allclose(np.hypot(*(near_edge - [4.0, 4.0]).T), 0.4, atol=1e-6)
+    # offset outline: the straight runs of the six walls shortened at the five concave
+    # corners, plus the quarter circle round the edge
+    straight = (8 - 0.8) + (3 - 0.8) + (5 - 0.4) + (5 - 0.4) + (8 - 0.8) + (3 - 0.8)
+    assert length == pytest.approx(straight + 0.5 * math.pi * 0.4, abs=0.01)
+
+
+def test_wall_following_around_a_cylinder_near_a_wall():
+    # gap of 0.5 m between the cylinder and the bottom wall: too narrow for the ring, so
+    # the path leaves the wall, goes round the cylinder and comes back to the wall
+    scene, geom, p, result = _wall_following([room(RECT), circle((5.0, 2.3), 0.8)],
+                                             start=[2.0, 3.0])
+    path, _ = _check_wall_following(scene, geom, p, result)
+    around = np.hypot(*(path - [5.0, 2.3]).T)
+    assert np.any(np.abs(around - 1.3) < 1e-6) and np.all(around > 1.3 - 1e-6)
+    assert np.any(path[:, 1] > 3.5)  # over the top of the cylinder
+
+
+def test_wall_following_around_a_free_cylinder():
+    scene, geom, p, result = _wall_following([room(RECT), circle((5.0, 3.5), 1.0)],
+                                             start=[5.0, 4.8], step_m=0.4, clearance_m=0.3)
+    _path, length = _check_wall_following(scene, geom, p, result)
+    assert length == pytest.approx(2 * math.pi * 1.3, rel=1e-3)
+    assert len(result[3]) == math.ceil(2 * math.pi * 1.3 / 0.4)
+    np.testing.assert_allclose(np.hypot(*(result[3] - [5.0, 3.5]).T), 1.3, atol=1e-6)
+
+
+@pytest.mark.parametrize("surfaces, kw, message", [
+    ([wall((9.0, 0.0), (9.0, 10.0))], {"start": [8.0, 5.0]}, "left the extent"),
+    ([room(RECT)], {"start": [3.0, 3.0], "clearance_m": 3.0}, "no place at clearance"),
+    ([room(RECT)], {"start": [3.0, 3.0], "max_poses": 10}, "max_poses"),
+    ([room(RECT)], {"start": [0.5, 3.0]}, "not in free space"),
+    ([room(RECT), circle((5, 3), 1)], {"start": [5.0, 3.0]}, "not in free space"),
+    ([room(RECT)], {"start": [3.0, 1.0]}, "on a surface"),
+    ([], {"start": [3.0, 3.0]}, "no surface"),
+    ([room(RECT)], {"start": [3.0, 3.0], "radius_m": 0.6}, "smaller than clearance"),
+    # corridor 0.8 m wide, clearance 0.5: no curve to follow
+    ([room([(1, 1), (9, 1), (9, 1.8), (1, 1.8)])], {"start": [3.0, 1.4]}, "clearance"),
+])
+def test_wall_following_errors_name_the_placement(surfaces, kw, message):
+    scene = make_scene(surfaces, {"type": "wall-following", **kw})
+    with pytest.raises(SceneError, match=message) as e:
+        place(scene)
+    assert e.value.key.startswith("sensors.placement")
+
+
+# --------------------------------------------------------------------------- place_sensors, pairs
+
+
+def test_place_sensors_explicit_first_then_placed_groups():
+    explicit = [{"position": [1.0, 1.0], "heading_deg": 0.0, "group": 0},
+                {"position": [1.0, 2.0], "heading_deg": 0.0, "group": 3}]
+    scene = make_scene([room(RECT)], {"type": "circular", "center": [5.0, 3.0]}, explicit)
+    s = place(scene)
+    assert len(s) == 10
+    np.testing.assert_array_equal(s.groups, [0, 3] + [4] * 8)
+    np.testing.assert_allclose(s.positions[:2], [[1, 1], [1, 2]])
+    np.testing.assert_allclose(s.poses, [[5.0, 3.0]])
+    np.testing.assert_allclose(np.hypot(*s.axes.T), 1.0)
+
+
+def test_place_sensors_without_placement():
+    scene = make_scene(PLANE, None, [{"position": [1.0, 1.0], "heading_deg": 30.0}])
+    s = place(scene)
+    assert len(s) == 1 and s.poses.shape == (0, 2)
+
+
+def test_pairs_n_squared_per_group_including_t_equals_r():
+    groups = np.array([0, 0, 0, 1, 1, 2, 0], dtype=np.int64)
+    s = SensorArray(np.zeros((7, 2)), np.zeros(7), groups, np.zeros((0, 2)))
+    pr = pairs(s)
+    assert len(pr) == 4 * 4 + 2 * 2 + 1
+    assert np.all(groups[pr[:, 0]] == groups[pr[:, 1]])
+    assert {(i, i) for i in range(7)} <= set(map(tuple, pr.tolist()))
+    assert len(set(map(tuple, pr.tolist()))) == len(pr)
+    assert np.all(np.diff(pr[:, 0] * 7 + pr[:, 1]) > 0)  # sorted by tx, then rx
+    empty = SensorArray(np.zeros((0, 2)), np.zeros(0), np.zeros(0, np.int64), np.zeros((0, 2)))
+    assert pairs(empty).shape == (0, 2)
+
+
+def test_pairs_of_a_placement():
+    scene = make_scene(PLANE, lines(seed=1, start=[7.0, 0.1], length_m=9.8))
+    s = place(scene)
+    sizes = np.bincount(s.groups)
+    assert len(pairs(s)) == int(np.sum(sizes**2))
