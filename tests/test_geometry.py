@@ -5,8 +5,18 @@ import math
 import numpy as np
 import pytest
 
-from clsonar.geometry import (CORNER, EDGE, END, FLAT, SOLID, build_geometry, curve_derivatives,
-                              curve_point, nearest_surface_point, ray_distance)
+from clsonar.geometry import (
+    CORNER,
+    EDGE,
+    END,
+    FLAT,
+    SOLID,
+    build_geometry,
+    curve_derivatives,
+    curve_point,
+    nearest_surface_point,
+    ray_distance,
+)
 from clsonar.scene import Circle, EchoModel, Polyline, Scene, Sinusoid
 
 L_ROOM = ((0, 0), (6, 0), (6, 3), (3, 3), (3, 6), (0, 6))  # counter-clockwise, one convex edge

@@ -8,8 +8,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clsonar import SceneError, load_scene, save_scene
-from clsonar.scene import (Circle, Polyline, Scene, Sinusoid, WallFollowing, parse_scene_text,
-                           scene_from_dict, scene_to_dict)
+from clsonar.scene import (
+    Circle,
+    Polyline,
+    Scene,
+    Sinusoid,
+    WallFollowing,
+    parse_scene_text,
+    scene_from_dict,
+    scene_to_dict,
+)
 
 DESIGN_EXAMPLE = {
     "clsonar": 1,
@@ -125,7 +133,7 @@ def test_bad_input_is_one_clear_line(tmp_path, text, expected):
 
 
 def test_unreadable_file_names_it(tmp_path):
-    with pytest.raises(SceneError, match="missing.json: cannot read file"):
+    with pytest.raises(SceneError, match=r"missing\.json: cannot read file"):
         load_scene(tmp_path / "missing.json")
 
 
