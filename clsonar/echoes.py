@@ -3,7 +3,7 @@
 Two implementations of one model: :func:`compute_echoes` runs the OpenCL kernels of
 ``kernels/echoes.cl`` (float32 by default, float64 where the device has ``cl_khr_fp64``) and
 :func:`reference_echoes` evaluates the same formulas in NumPy float64. Both start from the
-same :class:`EchoProblem` (:func:`prepare_problem`) and end in the same :class:`EchoTable`.
+same :class:`EchoProblem` (:func:`_prepare_problem`) and end in the same :class:`EchoTable`.
 
 The model, for every fired pair (T, R) of :func:`clsonar.sensors.pairs`:
 
@@ -76,7 +76,7 @@ class EchoTable:
     """One row per echo return, sorted by (tx, rx, tof_s, kind, element).
 
     ``element`` identifies the surface element so echoes can be matched one to one: for
-    ``specular``/``corner`` the index of the wall sequence in :attr:`EchoProblem.sequences`,
+    ``specular``/``corner`` the row of :func:`wall_sequences` (geometry walls, max_order),
     for ``edge`` the row of ``geometry.diffractors``, for ``curved`` the circle index, or
     ``len(circles)`` + the index of the sinusoid's sampling interval. ``point`` is the last
     reflection point before the receiver (the vertex for edges), in scene coordinates.
@@ -168,8 +168,8 @@ def wall_sequences(n_walls: int, max_order: int) -> np.ndarray:
     return np.concatenate(out)
 
 
-def prepare_problem(scene: Scene, sensors: SensorArray | None = None,
-                    geom: Geometry | None = None) -> EchoProblem:
+def _prepare_problem(scene: Scene, sensors: SensorArray | None = None,
+                     geom: Geometry | None = None) -> EchoProblem:
     """Build the :class:`EchoProblem` of ``scene`` (``sensors`` default: place_sensors)."""
     geom = geom if geom is not None else build_geometry(scene)
     sensors = sensors if sensors is not None else place_sensors(scene, geom)
@@ -294,7 +294,7 @@ def _solve(pb: EchoProblem, run: Callable[[str, slice], tuple]) -> EchoTable:
 
 def reference_echoes(scene: Scene, sensors: SensorArray | None = None) -> EchoTable:
     """The echo table computed in NumPy float64: the reference of :func:`compute_echoes`."""
-    pb = prepare_problem(scene, sensors)
+    pb = _prepare_problem(scene, sensors)
     families = {"mirror": _ref_mirror, "edge": _ref_edge, "circle": _ref_circle,
                 "curve": _ref_curve}
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -687,7 +687,7 @@ def compute_echoes(scene: Scene, sensors: SensorArray | None = None, *, context=
     if precision == "float64" and not has_fp64(ctx):
         raise DeviceError(f"{ctx.devices[0].name.strip()} has no cl_khr_fp64: "
                           "use precision='float32'")
-    pb = prepare_problem(scene, sensors)
+    pb = _prepare_problem(scene, sensors)
     real = PRECISIONS[precision]
     queue = _queue(ctx)
     program = _program(ctx, precision, pb.max_order)
@@ -746,5 +746,5 @@ def compute_echoes(scene: Scene, sensors: SensorArray | None = None, *, context=
     return _solve(pb, run)
 
 
-__all__ = ["KINDS", "EchoProblem", "EchoTable", "compute_echoes", "prepare_problem",
-           "reference_echoes", "wall_sequences"]
+__all__ = ["KINDS", "EchoProblem", "EchoTable", "compute_echoes", "reference_echoes",
+           "wall_sequences"]

@@ -38,7 +38,8 @@ inline size_t clear_slot(int width, __global real *tof, __global real *amp,
 // P(k−1) where Pk→I(k−1) crosses s(k−1), and so on. Valid iff each crossing is strictly
 // between its two points and on the wall (u in [0, 1]), and each bounce's incoming and
 // outgoing points are strictly on the wall's front (two-sided walls: strictly on one side),
-// and every leg is longer than EPS_M (as in all kernels here). Path length |R − Ik|, amplitude factor ρ^k.
+// and every leg is longer than EPS_M (as in all kernels here). Path length |R − Ik|,
+// amplitude factor ρ^k. (The receiver is R_ in code: R() is the literal macro.)
 __kernel void mirror_paths(PAIR_ARGS,
                            __global const real4 *walls, __global const real2 *normals,
                            __global const int *two_sided, __global const int *seq,
