@@ -13,7 +13,13 @@ The model, for every fired pair (T, R) of :func:`clsonar.sensors.pairs`:
   between its two points and on its wall, and every bounce has its incoming and outgoing
   points strictly on the wall's front (two-sided walls: strictly on one side). Path length
   ``|R − Ik|``; ``corner`` if k ≥ 2 and each consecutive pair of walls meets at a concave
-  corner, else ``specular``; amplitude factor ρ^k.
+  corner, else ``specular``; amplitude factor ρ^k. Legs shorter than
+  :data:`OCCLUSION_EPS_M` are rejected, so a path through a corner's vertex is left to:
+- **corner vertex**: the double bounce T→V→R through the vertex V of a concave corner, the
+  retro-reflection of a right-angled corner (for T = R the image method's middle leg has
+  zero length). Valid iff T and R are strictly inside the corner and R lies within
+  :data:`OCCLUSION_EPS_M` of the ray from V away from T's second-order image; ``corner``,
+  order 2, factor ρ².
 - **edge**: diffraction at each convex vertex V, path T→V→R, valid iff neither T nor R is
   strictly inside the solid cone; factor :func:`~clsonar.physics.edge_gain`.
 - **curved**: the specular point on a cylinder (bisection on the shorter arc between the
@@ -77,9 +83,11 @@ class EchoTable:
 
     ``element`` identifies the surface element so echoes can be matched one to one: for
     ``specular``/``corner`` the row of :func:`wall_sequences` (geometry walls, max_order),
-    for ``edge`` the row of ``geometry.diffractors``, for ``curved`` the circle index, or
-    ``len(circles)`` + the index of the sinusoid's sampling interval. ``point`` is the last
-    reflection point before the receiver (the vertex for edges), in scene coordinates.
+    for a path through a corner's vertex ``len(wall_sequences)`` + the row of
+    ``geometry.corners``, for ``edge`` the row of ``geometry.diffractors``, for ``curved``
+    the circle index, or ``len(circles)`` + the index of the sinusoid's sampling interval.
+    ``point`` is the last reflection point before the receiver (the vertex for corner-vertex
+    and edge paths), in scene coordinates.
     """
 
     tx: np.ndarray  # int64 index into SensorArray
@@ -124,6 +132,7 @@ class EchoProblem:
     sequences: np.ndarray  # [M, max_order] int64 wall indices, -1 padded; orders ascending
     sequence_order: np.ndarray  # [M] int64
     sequence_corner: np.ndarray  # [M] bool: order ≥ 2 and all consecutive walls corner pairs
+    corners: np.ndarray  # [Q, 6] concave vertex, unit normals of its walls to the concave side
     diffractors: np.ndarray  # [D, 6] V, unit to previous point, unit to next point
     circles: np.ndarray  # [C, 3] cx, cy, r
     curves: np.ndarray  # [K, 7] Fx, Fy, tx, ty, amplitude, ω, length
@@ -145,7 +154,8 @@ class EchoProblem:
     @property
     def widths(self) -> dict[str, int]:
         """Number of surface elements of each kernel family (work items per pair)."""
-        return {"mirror": len(self.sequences), "edge": len(self.diffractors),
+        return {"mirror": len(self.sequences), "vertex": len(self.corners),
+                "edge": len(self.diffractors),
                 "circle": len(self.circles), "curve": len(self.interval_s)}
 
 
@@ -195,6 +205,8 @@ def _prepare_problem(scene: Scene, sensors: SensorArray | None = None,
 
     diffractors = geom.diffractors.copy()
     diffractors[:, :2] -= origin
+    corners = geom.corners.copy()
+    corners[:, :2] -= origin
     circles = geom.circles.copy()
     circles[:, :2] -= origin
     curves = geom.curves.copy()
@@ -214,6 +226,7 @@ def _prepare_problem(scene: Scene, sensors: SensorArray | None = None,
         sequences=seq,
         sequence_order=order.astype(np.int64),
         sequence_corner=corner,
+        corners=corners,
         diffractors=diffractors,
         circles=circles,
         curves=curves,
@@ -254,6 +267,10 @@ def _rows(pb: EchoProblem, family: str, first_pair: int, tof: np.ndarray, amp: n
         kind = np.where(pb.sequence_corner[e], CORNER, SPECULAR)
         order = pb.sequence_order[e]
         element = e
+    elif family == "vertex":
+        kind = np.full(n, CORNER)
+        order = np.full(n, 2)
+        element = e + len(pb.sequences)
     else:
         kind = np.full(n, EDGE if family == "edge" else CURVED)
         order = np.ones(n, dtype=np.int64)
@@ -295,8 +312,8 @@ def _solve(pb: EchoProblem, run: Callable[[str, slice], tuple]) -> EchoTable:
 def reference_echoes(scene: Scene, sensors: SensorArray | None = None) -> EchoTable:
     """The echo table computed in NumPy float64: the reference of :func:`compute_echoes`."""
     pb = _prepare_problem(scene, sensors)
-    families = {"mirror": _ref_mirror, "edge": _ref_edge, "circle": _ref_circle,
-                "curve": _ref_curve}
+    families = {"mirror": _ref_mirror, "vertex": _ref_vertex, "edge": _ref_edge,
+                "circle": _ref_circle, "curve": _ref_curve}
     with np.errstate(divide="ignore", invalid="ignore"):
         return _solve(pb, lambda family, chunk: families[family](pb, pb.pairs[chunk]))
 
@@ -443,6 +460,40 @@ def _ref_mirror(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
 
     _unblock(pb, amp, legs)
     return path / pb.c, amp, last
+
+
+def _ref_mirror_at(x: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """x mirrored across the line through the origin with unit normal n."""
+    return x - (2.0 * _dot(x, n))[..., None] * n
+
+
+def _ref_vertex(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Double bounce through the vertex of a concave corner (kernel ``vertex_paths``)."""
+    V = pb.corners[None, :, :2]
+    na, nb = pb.corners[None, :, 2:4], pb.corners[None, :, 4:6]
+    T = pb.positions[pr[:, 0]][:, None, :]
+    R = pb.positions[pr[:, 1]][:, None, :]
+    t, r = T - V, R - V
+    valid = (_dot(t, na) > 0) & (_dot(t, nb) > 0) & (_dot(r, na) > 0) & (_dot(r, nb) > 0)
+    d1, d2 = _norm(t), _norm(r)
+    valid &= (d1 > OCCLUSION_EPS_M) & (d2 > OCCLUSION_EPS_M)
+
+    def on_return_ray(image):
+        return ((_dot(r, image) < 0)
+                & (np.abs(_cross(r, image)) <= OCCLUSION_EPS_M * _norm(image)))
+
+    valid &= (on_return_ray(_ref_mirror_at(_ref_mirror_at(t, na), nb))
+              | on_return_ray(_ref_mirror_at(_ref_mirror_at(t, nb), na)))
+    path = d1 + d2
+    amp = pb.amplitude * _ref_beam(pb, pb.axes[pr[:, 0]][:, None], V - T)
+    amp = amp * _ref_beam(pb, pb.axes[pr[:, 1]][:, None], V - R)
+    amp = np.where(valid, amp, 0.0) * pb.rho**2
+    amp = amp * physics.absorption_factor(path, pb.absorption_db_per_m)
+    vb_ = np.broadcast_to(V, (*amp.shape, 2))
+    tb = np.broadcast_to(T, vb_.shape)
+    rb = np.broadcast_to(R, vb_.shape)
+    _unblock(pb, amp, lambda ix: [(tb[ix], vb_[ix], True, {}), (vb_[ix], rb[ix], True, {})])
+    return path / pb.c, amp, vb_
 
 
 def _ref_in_solid_cone(x: np.ndarray, v: np.ndarray, va: np.ndarray, vb: np.ndarray):
@@ -641,8 +692,8 @@ def _kernels(program) -> dict[str, object]:
     """The kernel objects of a built program, one per family (retrieved once)."""
     import pyopencl as cl
 
-    names = {"mirror": "mirror_paths", "edge": "edge_paths", "circle": "circle_paths",
-             "curve": "curve_paths"}
+    names = {"mirror": "mirror_paths", "vertex": "vertex_paths", "edge": "edge_paths",
+             "circle": "circle_paths", "curve": "curve_paths"}
     return {family: cl.Kernel(program, name) for family, name in names.items()}
 
 
@@ -713,6 +764,7 @@ def compute_echoes(scene: Scene, sensors: SensorArray | None = None, *, context=
     family_args = {
         "mirror": lambda: [buf(pb.walls, real, 4), buf(pb.normals, real, 2),
                            buf(pb.two_sided, np.int32), buf(pb.sequences, np.int32)],
+        "vertex": lambda: [buf(pb.corners, real, 6)],
         "edge": lambda: [buf(pb.diffractors, real, 6)],
         "circle": lambda: [],
         "curve": lambda: [buf(pb.curves, real, 7), buf(pb.interval_curve, np.int32),

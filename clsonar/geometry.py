@@ -15,6 +15,8 @@ From a :class:`~clsonar.scene.Scene`'s surfaces this builds flat arrays (float64
   walls at the vertex.
 - **corner pairs**: pairs of walls meeting at a vertex that a free side sees as a concave
   corner (multi-bounce between them is labelled ``corner``).
+- **corners**: those concave vertices with the unit normals of their two walls towards the
+  concave side (the echo engine's double bounce through the vertex itself).
 - **circles** ``(cx, cy, r)``: solid cylinders.
 - **curves**: sinusoids, kept analytically ``(Fx, Fy, tx, ty, amplitude, ω, length)`` and
   sampled into intervals of at most ``min(echo.curve_step_m, period/32)`` along the base
@@ -58,6 +60,8 @@ class Geometry:
     diffractors: np.ndarray  # [D, 6] vertex x, y; unit vector to previous point; to next
     diffractor_vertex: np.ndarray  # [D] index into vertices
     corner_pairs: np.ndarray  # [S, S] bool, symmetric
+    corners: np.ndarray  # [Q, 6] vertex x, y; unit normals of both walls to the concave side
+    corner_vertex: np.ndarray  # [Q] index into vertices
     circles: np.ndarray  # [C, 3]
     circle_surface: np.ndarray  # [C]
     curves: np.ndarray  # [K, 7] Fx, Fy, tx, ty, amplitude, omega, length
@@ -99,9 +103,16 @@ def build_geometry(scene: Scene) -> Geometry:
 
     diff_idx = np.flatnonzero((left == EDGE) | (right == EDGE))
     corner_pairs = np.zeros((len(walls_a), len(walls_a)), dtype=bool)
-    for v in np.flatnonzero((left == CORNER) | (right == CORNER)):
+    corner_idx = np.flatnonzero((left == CORNER) | (right == CORNER))
+    corners = np.zeros((len(corner_idx), 6))
+    for row, v in enumerate(corner_idx):
         a, b = vertex_walls[v]
         corner_pairs[a, b] = corner_pairs[b, a] = True
+        side = 1.0 if left[v] == CORNER else -1.0  # left normals point to the concave side?
+        corners[row, :2] = vertices[v]
+        for col, w in ((2, a), (4, b)):
+            d = _unit(walls_a[w, 2:] - walls_a[w, :2])
+            corners[row, col:col + 2] = side * np.array([-d[1], d[0]])
 
     diffractors = np.zeros((len(diff_idx), 6))
     for row, v in enumerate(diff_idx):
@@ -140,6 +151,8 @@ def build_geometry(scene: Scene) -> Geometry:
         diffractors=diffractors,
         diffractor_vertex=diff_idx.astype(np.int64),
         corner_pairs=corner_pairs,
+        corners=corners,
+        corner_vertex=corner_idx.astype(np.int64),
         circles=np.asarray(circles, dtype=np.float64).reshape(-1, 3),
         circle_surface=np.asarray(circle_surface, dtype=np.int64),
         curves=np.asarray(curves, dtype=np.float64).reshape(-1, 7),

@@ -93,8 +93,9 @@ __kernel void mirror_paths(PAIR_ARGS,
         if (!ok) return;
     }
     // Every leg must be longer than EPS_M: this excludes a transducer on a wall and the
-    // degenerate double bounce through the vertex of a right-angled corner (T = R), whose
-    // zero-length middle leg rounding would otherwise turn into an echo or not at random.
+    // degenerate double bounce through the vertex of a corner (T = R at a right angle), whose
+    // zero-length middle leg rounding would otherwise turn into an echo or not at random;
+    // vertex_paths computes those paths exactly.
     for (int j = 0; j <= order; ++j)
         if (!(norm2(pts[j + 1] - pts[j]) > R(EPS_M))) return;
 
@@ -112,6 +113,52 @@ __kernel void mirror_paths(PAIR_ARGS,
     tof[slot] = path * k[K_INV_C];
     amp[slot] = a;
     point[slot] = pts[order];
+}
+
+// ----------------------------------------------------------------------------------------
+// Double bounce through the vertex V of a concave corner. The image method's path T→P1→P2→R
+// degenerates to T→V→R when it runs through the vertex: a right-angled corner reflects every
+// ray back parallel to itself (the strong corner echo of sonar), so for T = R the only double
+// bounce is T→V→T, whose zero-length middle leg mirror_paths rejects. Valid iff T and R are
+// strictly on the concave side of both walls and R lies within EPS_M of the ray from V away
+// from T's second-order image (for either order of the walls). Amplitude factor ρ², as for
+// any double bounce.
+inline bool on_return_ray(real2 r, real2 image) {
+    // r and image relative to V: r must point away from the image, within EPS_M of its line.
+    return dot2(r, image) < R(0.0) && fabs(cross2(r, image)) <= R(EPS_M) * norm2(image);
+}
+
+__kernel void vertex_paths(PAIR_ARGS, __global const real *corners, OCCLUDER_ARGS,
+                           OUTPUT_ARGS) {
+    if (get_global_id(0) >= (size_t)width) return;
+    size_t slot = clear_slot(width, tof, amp, point);
+    int2 pr = pairs[get_global_id(1)];
+    __global const real *cv = corners + 6 * get_global_id(0);
+    real2 V = (real2)(cv[0], cv[1]);
+    real2 na = (real2)(cv[2], cv[3]);
+    real2 nb = (real2)(cv[4], cv[5]);
+    real2 T = pos[pr.x], R_ = pos[pr.y];
+    real2 t = T - V, r = R_ - V;
+    if (!(dot2(t, na) > R(0.0) && dot2(t, nb) > R(0.0) && dot2(r, na) > R(0.0) &&
+          dot2(r, nb) > R(0.0)))
+        return;
+    real d1 = norm2(t), d2 = norm2(r);
+    if (!(d1 > R(EPS_M) && d2 > R(EPS_M))) return;
+    real2 origin = (real2)(R(0.0), R(0.0));
+    real2 image_ab = mirror(mirror(t, origin, na), origin, nb);
+    real2 image_ba = mirror(mirror(t, origin, nb), origin, na);
+    if (!(on_return_ray(r, image_ab) || on_return_ray(r, image_ba))) return;
+
+    real path = d1 + d2;
+    real a = k[K_AMPLITUDE] * beam(axis[pr.x], V - T, k) * beam(axis[pr.y], V - R_, k);
+    a = a * k[K_RHO] * k[K_RHO] * absorption(path, k);
+    if (!(a > R(0.0))) return;
+    if (leg_blocked(T, V, occ, n_occ, -1, -1, circles, n_circles, -1) ||
+        leg_blocked(V, R_, occ, n_occ, -1, -1, circles, n_circles, -1))
+        return;
+    tof[slot] = path * k[K_INV_C];
+    amp[slot] = a;
+    point[slot] = V;
 }
 
 // ----------------------------------------------------------------------------------------

@@ -179,6 +179,19 @@ def image_source_echoes(w: float, h: float, transducers, scene: Scene) -> dict[t
                 kind = "specular" if k == 1 or frozenset(walls) in parallel else "corner"
                 length = math.dist(rs[:2], images[-1])
                 out[(i, j, kind, k, walls)] = (length / c, amp)
+        # A right-angled corner returns every ray parallel to itself; the ray through the
+        # vertex V comes back along itself, so R on the ray from V through T (T = R in
+        # particular) hears T→V→R.
+        for vertex in ((0.0, 0.0), (w, 0.0), (w, h), (0.0, h)):
+            vt = (ts[0] - vertex[0], ts[1] - vertex[1])
+            vr = (rs[0] - vertex[0], rs[1] - vertex[1])
+            if abs(vt[0] * vr[1] - vt[1] * vr[0]) > 1e-12 or vt[0] * vr[0] + vt[1] * vr[1] <= 0:
+                continue
+            amp = t.amplitude * beam(ts, vertex) * beam(rs, vertex)
+            if amp > 0:
+                length = math.dist(ts[:2], vertex) + math.dist(rs[:2], vertex)
+                out[(i, j, "corner", 2, ("vertex", vertex))] = (
+                    length / c, amp * scene.echo.reflection_coefficient**2)
     return out
 
 
@@ -558,3 +571,23 @@ def test_kernels_match_reference_on_random_scenes(scene):
     problems = match_tables(ref, f32, n_circles=n_circles, tof_tol=1e-6, amp_rtol=2e-3,
                             loose_below=0.05 * a0)
     assert not problems, ("float32", problems)
+
+
+@pytest.mark.parametrize("impl", ["reference", "float32", "float64"])
+def test_right_angled_corner_returns_the_monostatic_echo_through_its_vertex(impl):
+    """T = R facing a 90° corner hears it (the retro-reflection through the vertex); a 60°
+    corner, which does not send rays back along themselves, gives no such echo."""
+    def echoes(points):
+        scene = make_scene([Polyline(points)], [(8.0, 5.0, 0.0, 0)], extent=(0, 0, 12, 10))
+        return (reference_echoes(scene) if impl == "reference" else kernel(scene, impl)), scene
+
+    right, scene = echoes(((7.0, 2.0), (10.0, 5.0), (7.0, 8.0)))
+    corner = np.flatnonzero(right.kind_names() == "corner")
+    assert len(corner) == 1
+    i = int(corner[0])
+    assert right.order[i] == 2 and np.allclose(right.point[i], (10.0, 5.0), atol=1e-5)
+    assert right.tof_s[i] == pytest.approx(2 * 2.0 / scene.medium.c, abs=1e-9)
+    assert right.amplitude[i] == pytest.approx(5.0 * 0.9**2, rel=1e-4)  # on axis: b = 1
+    half = 3.0 * math.tan(math.radians(30))
+    sixty, _ = echoes(((7.0, 5.0 - half), (10.0, 5.0), (7.0, 5.0 + half)))
+    assert not np.any(sixty.kind_names() == "corner")

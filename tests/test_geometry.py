@@ -93,3 +93,13 @@ def test_empty_scene():
     d, _ = nearest_surface_point(g, np.zeros((2, 2)))
     assert np.isinf(d).all()
     assert g.occluders.shape == (0, 4) and g.circles.shape == (0, 3)
+
+
+def test_corner_normals_point_into_the_concave_side():
+    for points in (((5, 0), (10, 5), (5, 10)), ((5, 10), (10, 5), (5, 0))):
+        g = _geom(Polyline(points))
+        assert g.corners.shape == (1, 6) and tuple(g.corners[0, :2]) == (10.0, 5.0)
+        inside = np.array([8.0, 5.0]) - g.corners[0, :2]  # a point inside the corner
+        assert np.dot(inside, g.corners[0, 2:4]) > 0 and np.dot(inside, g.corners[0, 4:6]) > 0
+    room = _geom(Polyline(L_ROOM, closed=True))
+    assert len(room.corners) == 5
