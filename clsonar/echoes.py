@@ -681,7 +681,8 @@ def _program(context, precision: str, max_order: int):
         "BISECT_ITERATIONS": BISECT_ITERATIONS[precision],
     }
     coeffs = physics.beam_series_coefficients(14)
-    defines.update({f"BEAM_C{i}": float(v) for i, v in enumerate(coeffs)})
+    defines["BEAM_TERMS"] = len(coeffs)
+    defines["BEAM_SERIES"] = "{" + ",".join(repr(float(v)) for v in coeffs) + "}"
     if precision == "float64":
         defines["REAL_DOUBLE"] = 1
     return build_program(context, "echoes.cl", defines)

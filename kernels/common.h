@@ -47,6 +47,10 @@ typedef float4 real4;
 #define K_INV_C 6        // 1 / speed of sound (eq. 2.1 unless the scene overrides it)
 #define K_COUNT 7
 
+// Coefficients c_k of the beam series (physics.beam_series_coefficients), from the host:
+// -DBEAM_TERMS=14 -DBEAM_SERIES={c0,c1,...}.
+__constant real beam_series[BEAM_TERMS] = BEAM_SERIES;
+
 inline real dot2(real2 a, real2 b) { return a.x * b.x + a.y * b.y; }
 
 // z component of the 3-D cross product: > 0 when b is counter-clockwise from a.
@@ -72,20 +76,8 @@ inline real beam(real2 axis, real2 d, __global const real *k) {
     real sin2 = (s * s) / dot2(d, d);
     if (sin2 > k[K_CUT_SIN2]) return R(0.0);
     real u = k[K_BEAM_U] * sin2;
-    real sum = R(BEAM_C13);
-    sum = sum * u + R(BEAM_C12);
-    sum = sum * u + R(BEAM_C11);
-    sum = sum * u + R(BEAM_C10);
-    sum = sum * u + R(BEAM_C9);
-    sum = sum * u + R(BEAM_C8);
-    sum = sum * u + R(BEAM_C7);
-    sum = sum * u + R(BEAM_C6);
-    sum = sum * u + R(BEAM_C5);
-    sum = sum * u + R(BEAM_C4);
-    sum = sum * u + R(BEAM_C3);
-    sum = sum * u + R(BEAM_C2);
-    sum = sum * u + R(BEAM_C1);
-    sum = sum * u + R(BEAM_C0);
+    real sum = R(0.0);
+    for (int i = BEAM_TERMS - 1; i >= 0; --i) sum = sum * u + beam_series[i];
     return (R(1.0) - u) * sum;
 }
 

@@ -8,7 +8,8 @@
 // size), so items with element ≥ width do nothing.
 //
 // Compile-time constants from the host: MAX_ORDER (longest wall sequence), EPS_M (occlusion
-// tolerance), BEAM_C0..BEAM_C13 (beam series), MAX_FOCUS_GAIN, and REAL_DOUBLE for float64.
+// tolerance), BEAM_TERMS and BEAM_SERIES (beam series), MAX_FOCUS_GAIN, and REAL_DOUBLE for
+// float64.
 
 #include "common.h"
 
@@ -115,6 +116,22 @@ __kernel void mirror_paths(PAIR_ARGS,
     point[slot] = pts[order];
 }
 
+// Write the echo T→V→R through the point V (a corner's vertex or a convex edge) whose
+// amplitude factor before the beams is `factor`, unless a beam or an occluder stops it.
+inline void emit_via_point(size_t slot, int2 pr, real2 T, real2 R_, real2 V, real factor,
+                           __global const real2 *axis, OCCLUDER_ARGS, OUTPUT_ARGS) {
+    real path = norm2(V - T) + norm2(R_ - V);
+    real a = k[K_AMPLITUDE] * beam(axis[pr.x], V - T, k) * beam(axis[pr.y], V - R_, k);
+    a = a * factor * absorption(path, k);
+    if (!(a > R(0.0))) return;
+    if (leg_blocked(T, V, occ, n_occ, -1, -1, circles, n_circles, -1) ||
+        leg_blocked(V, R_, occ, n_occ, -1, -1, circles, n_circles, -1))
+        return;
+    tof[slot] = path * k[K_INV_C];
+    amp[slot] = a;
+    point[slot] = V;
+}
+
 // ----------------------------------------------------------------------------------------
 // Double bounce through the vertex V of a concave corner. The image method's path T→P1→P2→R
 // degenerates to T→V→R when it runs through the vertex: a right-angled corner reflects every
@@ -142,23 +159,13 @@ __kernel void vertex_paths(PAIR_ARGS, __global const real *corners, OCCLUDER_ARG
     if (!(dot2(t, na) > R(0.0) && dot2(t, nb) > R(0.0) && dot2(r, na) > R(0.0) &&
           dot2(r, nb) > R(0.0)))
         return;
-    real d1 = norm2(t), d2 = norm2(r);
-    if (!(d1 > R(EPS_M) && d2 > R(EPS_M))) return;
+    if (!(norm2(t) > R(EPS_M) && norm2(r) > R(EPS_M))) return;
     real2 origin = (real2)(R(0.0), R(0.0));
     real2 image_ab = mirror(mirror(t, origin, na), origin, nb);
     real2 image_ba = mirror(mirror(t, origin, nb), origin, na);
     if (!(on_return_ray(r, image_ab) || on_return_ray(r, image_ba))) return;
-
-    real path = d1 + d2;
-    real a = k[K_AMPLITUDE] * beam(axis[pr.x], V - T, k) * beam(axis[pr.y], V - R_, k);
-    a = a * k[K_RHO] * k[K_RHO] * absorption(path, k);
-    if (!(a > R(0.0))) return;
-    if (leg_blocked(T, V, occ, n_occ, -1, -1, circles, n_circles, -1) ||
-        leg_blocked(V, R_, occ, n_occ, -1, -1, circles, n_circles, -1))
-        return;
-    tof[slot] = path * k[K_INV_C];
-    amp[slot] = a;
-    point[slot] = V;
+    emit_via_point(slot, pr, T, R_, V, k[K_RHO] * k[K_RHO], axis, occ, n_occ, circles,
+                   n_circles, k, tof, amp, point);
 }
 
 // ----------------------------------------------------------------------------------------
@@ -190,16 +197,8 @@ __kernel void edge_paths(PAIR_ARGS, __global const real *diffractors, OCCLUDER_A
     real d1 = norm2(V - T);
     real d2 = norm2(R_ - V);
     if (!(d1 > R(EPS_M) && d2 > R(EPS_M))) return;
-    real path = d1 + d2;
-    real a = k[K_AMPLITUDE] * beam(axis[pr.x], V - T, k) * beam(axis[pr.y], V - R_, k);
-    if (!(a > R(0.0))) return;
-    a = a * (k[K_EDGE] * sqrt(path / (d1 * d2))) * absorption(path, k);
-    if (!(a > R(0.0))) return;
-    if (leg_blocked(T, V, occ, n_occ, -1, -1, circles, n_circles, -1)) return;
-    if (leg_blocked(V, R_, occ, n_occ, -1, -1, circles, n_circles, -1)) return;
-    tof[slot] = path * k[K_INV_C];
-    amp[slot] = a;
-    point[slot] = V;
+    emit_via_point(slot, pr, T, R_, V, k[K_EDGE] * sqrt((d1 + d2) / (d1 * d2)), axis, occ,
+                   n_occ, circles, n_circles, k, tof, amp, point);
 }
 
 // ----------------------------------------------------------------------------------------
