@@ -16,6 +16,8 @@ Optional keys and their defaults (all units SI, angles in degrees where the key 
 ``echo``        ``max_order`` 2 (reflections on flat walls), ``reflection_coefficient`` 0.9,
                 ``edge_coefficient`` 1.0, ``absorption_db_per_m`` 0.0, ``curve_step_m`` 0.01
                 (sampling of curved surfaces, see geometry.py).
+``detection``, ``mapping``, ``post``: see :class:`DetectionSettings`,
+                :class:`MappingSettings`, :class:`PostSettings`.
 ``sensors``     ``transducers`` [] and ``placement`` null; placements are documented with
                 their dataclasses below and implemented in sensors.py.
 """
@@ -122,6 +124,61 @@ class EchoModel:
     curve_step_m: float = 0.01
 
 
+@dataclass(frozen=True)
+class DetectionSettings:
+    """How times of flight are found in each pair's received signal (thesis §2.1.1, 3–4).
+
+    ``threshold``: as the thesis: the first sample above ``signal.threshold`` gives the time
+    of flight; for T = R only that first crossing (the line-of-sight arc), for T ≠ R every
+    crossing (after a hold-off of one pulse length, 6σ). ``envelope``: quadrature
+    demodulation and a matched low-pass give the envelope, whose peaks above a
+    noise-adaptive threshold (``false_alarm_sigmas`` times the estimated envelope noise, at
+    least ``min_envelope`` units) give the time of flight as peak − 3σ (no threshold bias).
+    """
+
+    mode: Literal["threshold", "envelope"] = "envelope"
+    sample_rate_hz: float = 1.0e6
+    false_alarm_sigmas: float = 6.0
+    min_envelope: float = 1.0
+
+
+@dataclass(frozen=True)
+class MappingSettings:
+    """How detections become a map (thesis §2.1.1, 3–4).
+
+    ``loci``: every pixel p gets a vote from each detection whose time of flight τ puts p on
+    its locus, ``| |p−T| + |p−R| − c·τ | ≤ band_m/2``, inside both beams (a circle for T = R,
+    an ellipse otherwise). ``band_m`` null means √2·cell. ``weight``: ``unit`` (the thesis),
+    ``amplitude`` (the detected amplitude) or ``beam`` (b(θ_T)·b(θ_R) at the pixel).
+    ``backprojection``: the sum over pairs of each pair's envelope at the pixel's delay
+    (delay-and-sum, "total focusing"). ``precision``: the kernel's arithmetic.
+    """
+
+    mode: Literal["loci", "backprojection"] = "loci"
+    weight: Literal["unit", "amplitude", "beam"] = "unit"
+    band_m: float | None = None
+    precision: Literal["float32", "float64"] = "float32"
+
+
+@dataclass(frozen=True)
+class PostSettings:
+    """Post-processing of the map (thesis §2.1.1, 5): low-pass, thinning, profile fit.
+
+    ``filter``: ``mean3`` (eq. 2.4) or ``none``; ``level``: occupied cells of the filtered
+    map, as a fraction of its maximum (null: automatic); ``thinning``: ``thesis`` (eq. 2.5
+    as written) or ``guo-hall`` (one-pixel 8-connected curves); ``fit``: ``polynomial`` of
+    ``poly_order`` along a single wall (the thesis: 5–8), ``spline`` along each linked curve
+    (rooms too) or ``none``; curves closer than ``max_gap_m`` are bridged.
+    """
+
+    filter: Literal["mean3", "none"] = "mean3"
+    level: float | None = None
+    thinning: Literal["thesis", "guo-hall"] = "guo-hall"
+    fit: Literal["polynomial", "spline", "none"] = "spline"
+    poly_order: int = 7
+    max_gap_m: float = 0.3
+
+
 # --------------------------------------------------------------------------- sensors
 
 
@@ -208,6 +265,9 @@ class Scene:
     transducer: TransducerModel = field(default_factory=TransducerModel)
     signal: Signal = field(default_factory=Signal)
     echo: EchoModel = field(default_factory=EchoModel)
+    detection: DetectionSettings = field(default_factory=DetectionSettings)
+    mapping: MappingSettings = field(default_factory=MappingSettings)
+    post: PostSettings = field(default_factory=PostSettings)
     surfaces: tuple[Surface, ...] = ()
     sensors: Sensors = field(default_factory=Sensors)
 
@@ -389,6 +449,43 @@ def _read_echo(r: _Reader, d: Any) -> EchoModel:
     )
 
 
+def _read_detection(r: _Reader, d: Any) -> DetectionSettings:
+    k, ds = "detection", DetectionSettings
+    d = r.obj(d, k, tuple(f.name for f in fields(ds)))
+    return DetectionSettings(
+        mode=r.choice(d, "mode", k, ("threshold", "envelope"), ds.mode),  # type: ignore[arg-type]
+        sample_rate_hz=r.number(d, "sample_rate_hz", k, ds.sample_rate_hz, gt=0),
+        false_alarm_sigmas=r.number(d, "false_alarm_sigmas", k, ds.false_alarm_sigmas, gt=0),
+        min_envelope=r.number(d, "min_envelope", k, ds.min_envelope, ge=0),
+    )
+
+
+def _read_mapping(r: _Reader, d: Any) -> MappingSettings:
+    k, ms = "mapping", MappingSettings
+    d = r.obj(d, k, tuple(f.name for f in fields(ms)))
+    band = None if d.get("band_m") is None else r.number(d, "band_m", k, gt=0)
+    return MappingSettings(
+        mode=r.choice(d, "mode", k, ("loci", "backprojection"), ms.mode),  # type: ignore[arg-type]
+        weight=r.choice(d, "weight", k, ("unit", "amplitude", "beam"), ms.weight),  # type: ignore[arg-type]
+        band_m=band,
+        precision=r.choice(d, "precision", k, ("float32", "float64"), ms.precision),  # type: ignore[arg-type]
+    )
+
+
+def _read_post(r: _Reader, d: Any) -> PostSettings:
+    k, ps = "post", PostSettings
+    d = r.obj(d, k, tuple(f.name for f in fields(ps)))
+    level = None if d.get("level") is None else r.number(d, "level", k, gt=0, le=1)
+    return PostSettings(
+        filter=r.choice(d, "filter", k, ("mean3", "none"), ps.filter),  # type: ignore[arg-type]
+        level=level,
+        thinning=r.choice(d, "thinning", k, ("thesis", "guo-hall"), ps.thinning),  # type: ignore[arg-type]
+        fit=r.choice(d, "fit", k, ("polynomial", "spline", "none"), ps.fit),  # type: ignore[arg-type]
+        poly_order=r.integer(d, "poly_order", k, ps.poly_order, ge=1, le=12),
+        max_gap_m=r.number(d, "max_gap_m", k, ps.max_gap_m, ge=0),
+    )
+
+
 def _read_polyline(r: _Reader, d: dict, key: str) -> Polyline:
     d = r.obj(d, key, ("type", "points", "closed"), ("points",))
     raw = d["points"]
@@ -502,7 +599,7 @@ def _read_sensors(r: _Reader, d: Any) -> Sensors:
 
 
 _TOP_KEYS = ("clsonar", "name", "extent", "cell", "medium", "transducer", "signal", "echo",
-             "surfaces", "sensors")
+             "detection", "mapping", "post", "surfaces", "sensors")
 
 
 def scene_from_dict(data: Any, source: str = "<scene>") -> Scene:
@@ -535,6 +632,9 @@ def scene_from_dict(data: Any, source: str = "<scene>") -> Scene:
         transducer=_read_transducer(r, d.get("transducer", {})),
         signal=_read_signal(r, d.get("signal", {})),
         echo=_read_echo(r, d.get("echo", {})),
+        detection=_read_detection(r, d.get("detection", {})),
+        mapping=_read_mapping(r, d.get("mapping", {})),
+        post=_read_post(r, d.get("post", {})),
         surfaces=_read_surfaces(r, d.get("surfaces", [])),
         sensors=_read_sensors(r, d.get("sensors", {})),
     )
@@ -640,6 +740,9 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
         "transducer": _plain(scene.transducer),
         "signal": _plain(scene.signal),
         "echo": _plain(scene.echo),
+        "detection": _plain(scene.detection),
+        "mapping": _plain(scene.mapping),
+        "post": _plain(scene.post),
         "surfaces": [_surface_dict(s) for s in scene.surfaces],
         "sensors": sensors,
     }
