@@ -6,14 +6,17 @@
 - :func:`thin`: a proper thinning (Guo and Hall's parallel algorithm) that leaves one-pixel
   wide, 8-connected curves and keeps every curve's connectivity.
 
-Maps are indexed ``[iy, ix]`` with ``iy`` growing with y (DESIGN.md). The thesis draws its
-maps as images, row 0 at the top, so "the row above" in eq. 2.5 is ``iy + 1`` here.
+Maps are indexed ``[iy, ix]`` with ``iy`` growing with y (DESIGN.md).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy import ndimage
+
+from .scene import PostSettings
 
 #: Correlation weights giving each pixel an 8-bit code of its neighbours: bit k−1 is
 #: neighbour x_k of Guo and Hall, counted counter-clockwise from x1 = east (array rows grow
@@ -32,7 +35,7 @@ def binarize(filtered: np.ndarray, level: float) -> np.ndarray:
     return np.asarray(filtered) >= level
 
 
-def thin_thesis(binary: np.ndarray) -> np.ndarray:
+def thin_thesis(binary: np.ndarray, up: tuple[int, int] = (0, -1)) -> np.ndarray:
     """Thinning as thesis eq. 2.5 is written: keep a cell that matches
 
     ::
@@ -41,14 +44,29 @@ def thin_thesis(binary: np.ndarray) -> np.ndarray:
         X 1 X      (X: don't care)
         1 1 1
 
-    i.e. the three cells above it are empty and the three below it are occupied; every
-    other cell is zeroed. This keeps the upper boundary of each thick band, one pixel wide
-    where the band is at least two pixels tall; cells outside the map count as empty.
+    i.e. the three cells "above" it are empty and the three "below" it are occupied; every
+    other cell is zeroed. This keeps one edge of each thick band, one pixel wide where the
+    band is at least two pixels deep; cells outside the map count as empty.
+
+    ``up`` is the array step ``(diy, dix)`` to the row above. The thesis' MATLAB maps index
+    their rows by x ("a wall located 9 m away from the origin along the x direction" is a
+    row of the image), so by default the row above a cell is the one at smaller x, and the
+    template keeps the edge of a band that faces the sensors of the thesis' scenes.
     """
     b = np.pad(np.asarray(binary, dtype=bool), 1)
-    centre = b[1:-1, 1:-1]
-    above = b[2:, :-2] | b[2:, 1:-1] | b[2:, 2:]  # iy + 1 is the row above
-    below = b[:-2, :-2] & b[:-2, 1:-1] & b[:-2, 2:]
+    ny, nx = binary.shape
+    side = (up[1], up[0])  # perpendicular to up
+
+    def shifted(dy: int, dx: int) -> np.ndarray:
+        return b[1 + dy:1 + dy + ny, 1 + dx:1 + dx + nx]
+
+    centre = shifted(0, 0)
+    above = np.zeros_like(centre)
+    below = np.ones_like(centre)
+    for k in (-1, 0, 1):
+        oy, ox = k * side[0], k * side[1]
+        above |= shifted(up[0] + oy, up[1] + ox)
+        below &= shifted(-up[0] + oy, -up[1] + ox)
     return centre & ~above & below
 
 
@@ -135,3 +153,187 @@ def thin(binary: np.ndarray, max_iterations: int = 10_000) -> np.ndarray:
         if np.count_nonzero(skeleton) == before:
             break
     return skeleton
+
+
+# --------------------------------------------------------------------------- profile
+
+
+def cell_centres(mask: np.ndarray, extent: tuple[float, ...], cell: float) -> np.ndarray:
+    """[n, 2] metres: centres of the set cells of ``mask`` (``[iy, ix]``, DESIGN.md)."""
+    iy, ix = np.nonzero(mask)
+    return np.stack([extent[0] + (ix + 0.5) * cell, extent[1] + (iy + 0.5) * cell], axis=-1)
+
+
+_EIGHT = np.ones((3, 3), dtype=bool)
+_STEPS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx]
+
+
+def trace_curves(thin_map: np.ndarray, min_cells: int = 5) -> list[np.ndarray]:
+    """Link the cells of a thinned map into ordered curves ([n, 2] ``(iy, ix)`` each).
+
+    Cells with one neighbour are curve ends, cells with three or more are junctions; each
+    run between ends and junctions becomes a curve (a closed loop without junctions is one
+    curve, its first cell repeated at its end). Curves of fewer than ``min_cells`` cells
+    (spurs, specks) are dropped.
+    """
+    t = np.asarray(thin_map, dtype=bool)
+    degree = ndimage.correlate(t.astype(np.uint8), _EIGHT.astype(np.uint8), mode="constant") - 1
+    cells = set(zip(*np.nonzero(t), strict=True))
+    node = {c for c in cells if degree[c] != 2}
+    used_edges: set[tuple] = set()
+    curves = []
+
+    def walk(start, first):
+        path = [start, first]
+        used_edges.add((start, first))
+        used_edges.add((first, start))
+        prev, here = start, first
+        while here not in node and here != start:
+            nxt = [n for n in _neighbours(here, cells) if n != prev and (here, n) not in used_edges]
+            if not nxt:
+                break
+            # prefer the 4-neighbour, which is the curve's next cell at a staircase
+            nxt.sort(key=lambda n: abs(n[0] - here[0]) + abs(n[1] - here[1]))
+            prev, here = here, nxt[0]
+            used_edges.add((prev, here))
+            used_edges.add((here, prev))
+            path.append(here)
+        return path
+
+    for start in sorted(node):
+        for first in _neighbours(start, cells):
+            if (start, first) not in used_edges:
+                curves.append(walk(start, first))
+    visited = {c for curve in curves for c in curve}
+    for start in sorted(cells - visited - node):  # closed loops without junctions
+        if start in visited:
+            continue
+        first = _neighbours(start, cells)[0]
+        loop = walk(start, first)
+        visited.update(loop)
+        curves.append(loop)
+    return [np.asarray(c) for c in curves if len(c) >= min_cells]
+
+
+def _neighbours(c: tuple[int, int], cells: set) -> list[tuple[int, int]]:
+    return [(c[0] + dy, c[1] + dx) for dy, dx in _STEPS if (c[0] + dy, c[1] + dx) in cells]
+
+
+def bridge_gaps(curves: list[np.ndarray], max_gap: float) -> list[np.ndarray]:
+    """Join curves whose ends are within ``max_gap`` (same units as the points), nearest ends
+    first, reversing curves as needed: gaps left by unscanned parts of a surface."""
+    curves = [np.asarray(c, dtype=np.float64) for c in curves]
+    while len(curves) > 1:
+        best = None
+        for i in range(len(curves)):
+            for j in range(i + 1, len(curves)):
+                for ei, ej in ((0, 0), (0, -1), (-1, 0), (-1, -1)):
+                    d = float(np.hypot(*(curves[i][ei] - curves[j][ej])))
+                    if d <= max_gap and (best is None or d < best[0]):
+                        best = (d, i, j, ei, ej)
+        if best is None:
+            break
+        _, i, j, ei, ej = best
+        a = curves[i] if ei == -1 else curves[i][::-1]  # a ends at the joined end
+        b = curves[j] if ej == 0 else curves[j][::-1]  # b starts at it
+        curves = [c for k, c in enumerate(curves) if k not in (i, j)] + [np.concatenate([a, b])]
+    return curves
+
+
+def fit_polynomial(points: np.ndarray, order: int, spacing: float) -> np.ndarray:
+    """The thesis' polynomial fit (§2.1.1, part 5; order 5–8 in chapter 3): in the frame of
+    the points' principal axis u, fit v = P(u) by least squares and sample it every
+    ``spacing`` over the points' span of u. Returns [n, 2] points."""
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) <= order:
+        return p
+    centre = p.mean(axis=0)
+    _, _, vt = np.linalg.svd(p - centre, full_matrices=False)
+    u_axis, v_axis = vt[0], vt[1]
+    u = (p - centre) @ u_axis
+    v = (p - centre) @ v_axis
+    poly = np.polynomial.Polynomial.fit(u, v, order)
+    us = np.arange(u.min(), u.max() + 0.5 * spacing, spacing)
+    return centre + us[:, None] * u_axis + poly(us)[:, None] * v_axis
+
+
+def fit_spline(curve: np.ndarray, spacing: float, noise: float) -> np.ndarray:
+    """A smoothing spline through an ordered curve of points (scipy's parametric spline,
+    smoothing chosen so the residual RMS is about ``noise``), sampled every ``spacing`` of
+    arc length. Short or degenerate curves come back unchanged."""
+    from scipy import interpolate
+
+    p = np.asarray(curve, dtype=np.float64)
+    keep = np.r_[True, np.any(np.diff(p, axis=0) != 0, axis=1)]
+    p = p[keep]
+    if len(p) < 4:
+        return p
+    steps = np.hypot(*np.diff(p, axis=0).T)
+    closed = len(p) > 8 and np.hypot(*(p[0] - p[-1])) <= 2 * np.median(steps)
+    if closed and np.any(p[0] != p[-1]):
+        p = np.concatenate([p, p[:1]])
+        steps = np.r_[steps, np.hypot(*(p[-1] - p[-2]))]
+    arc = np.r_[0.0, np.cumsum(steps)]
+    try:
+        tck, _ = interpolate.splprep(p.T, u=arc, s=len(p) * noise**2, k=3, per=int(closed))
+    except (ValueError, TypeError):
+        return p
+    samples = np.arange(0.0, arc[-1] + 0.5 * spacing, spacing)
+    return np.stack(interpolate.splev(samples, tck), axis=-1)
+
+
+# --------------------------------------------------------------------------- the stages
+
+
+@dataclass(frozen=True, eq=False)
+class Profile:
+    """The estimated surfaces: curves of points in metres (the fitted profile)."""
+
+    curves: tuple[np.ndarray, ...]
+
+    @property
+    def points(self) -> np.ndarray:
+        """[n, 2] all curves' points (``profile.csv``)."""
+        if not self.curves:
+            return np.zeros((0, 2))
+        return np.concatenate(self.curves)
+
+
+#: Occupied cells need at least this many coincident votes after the low-pass (automatic
+#: level): one locus band alone (√2 cells wide) averages to about 0.5 there, two to 1.
+AUTO_LEVEL_VOTES = 0.75
+
+#: Linked curves shorter than this many cells are dropped as specks.
+MIN_CURVE_CELLS = 5
+
+
+def occupancy_level(filtered: np.ndarray, settings: PostSettings) -> float:
+    """The value above which a filtered cell is occupied: ``settings.level`` × the map's
+    maximum, or (automatic) :data:`AUTO_LEVEL_VOTES`, so cells where loci coincide stay and
+    lone arcs go."""
+    peak = float(np.max(filtered)) if np.size(filtered) else 0.0
+    if settings.level is not None:
+        return settings.level * peak
+    return AUTO_LEVEL_VOTES
+
+
+def thin_map(occupied: np.ndarray, settings: PostSettings) -> np.ndarray:
+    """The thinning stage: eq. 2.5 as written (``thesis``) or :func:`thin` (``guo-hall``)."""
+    return thin_thesis(occupied) if settings.thinning == "thesis" else thin(occupied)
+
+
+def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float,
+                    settings: PostSettings) -> Profile:
+    """Link the thin cells into curves, bridge gaps up to ``settings.max_gap_m`` and fit:
+    one polynomial along the principal axis (``polynomial``, the thesis), a smoothing
+    spline per curve (``spline``) or the cell centres as linked (``none``)."""
+    curves = [np.stack([extent[0] + (c[:, 1] + 0.5) * cell, extent[1] + (c[:, 0] + 0.5) * cell],
+                       axis=-1) for c in trace_curves(thin_map, MIN_CURVE_CELLS)]
+    if settings.fit == "polynomial":
+        if not curves:
+            return Profile(())
+        return Profile((fit_polynomial(np.concatenate(curves), settings.poly_order, cell),))
+    curves = bridge_gaps(curves, settings.max_gap_m)
+    if settings.fit == "spline":
+        curves = [fit_spline(c, cell, cell / 2) for c in curves]
+    return Profile(tuple(curves))

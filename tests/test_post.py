@@ -1,6 +1,7 @@
 """Post-processing: eq. 2.4 low-pass, eq. 2.5 thinning as written, proper thinning."""
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
@@ -21,12 +22,20 @@ def test_low_pass_eq_2_4():
 def test_thin_thesis_keeps_cells_with_empty_row_above_and_full_row_below():
     b = np.zeros((6, 7), dtype=bool)
     b[1:4, 1:6] = True  # a band 3 rows tall, rows iy = 1..3
-    kept = thin_thesis(b)
-    # only the top row of the band (iy = 3) with a full row below and empty row above,
-    # away from the band's ends (the row below must be full across the 3 columns)
+    kept = thin_thesis(b, up=(1, 0))  # the row above is iy + 1
+    # only the top row of the band (iy = 3), away from the band's ends (the row below must
+    # be full across the 3 columns)
     expected = np.zeros_like(b)
     expected[3, 2:5] = True
     assert np.array_equal(kept, expected)
+
+
+def test_thin_thesis_default_keeps_the_edge_at_smaller_x():
+    b = np.zeros((8, 8), dtype=bool)
+    b[:, 3:6] = True  # a wall along y, three cells thick
+    kept = thin_thesis(b)
+    assert np.array_equal(np.unique(np.nonzero(kept)[1]), [3])
+    assert kept[1:-1, 3].all()
 
 
 def _topology(b):
@@ -73,3 +82,71 @@ def test_thin_preserves_components_and_is_idempotent(seed, density):
 
 def test_binarize():
     assert binarize(np.array([0.1, 0.5, 0.6]), 0.5).tolist() == [False, True, True]
+
+
+# --------------------------------------------------------------------------- profile
+
+from clsonar.post import bridge_gaps, extract_profile, fit_polynomial, fit_spline, trace_curves  # noqa: E402
+from clsonar.scene import PostSettings  # noqa: E402
+
+
+def _ring(n=60, r=20):
+    yy, xx = np.mgrid[0:n, 0:n]
+    return thin(np.abs(np.hypot(yy - n / 2, xx - n / 2) - r) < 1.5)
+
+
+def test_trace_closed_ring_open_line_and_junction():
+    curves = trace_curves(_ring())
+    assert len(curves) == 1 and len(curves[0]) > 100
+    line = np.zeros((10, 30), dtype=bool)
+    line[5, 2:28] = True
+    (c,) = trace_curves(line)
+    assert len(c) == 26 and {tuple(c[0]), tuple(c[-1])} == {(5, 2), (5, 27)}
+    tee = line.copy()
+    tee[0:5, 15] = True
+    branches = trace_curves(tee)  # the stem and both arms, meeting at the junction
+    assert len(branches) == 3
+    covered = {tuple(c) for b in branches for c in b}
+    near_junction = {(y, x) for y in (4, 5, 6) for x in (14, 15, 16)}
+    assert set(zip(*np.nonzero(tee), strict=True)) - covered <= near_junction
+    specks = np.zeros((10, 10), dtype=bool)
+    specks[2, 2] = specks[5, 5:7] = True
+    assert trace_curves(specks) == []
+
+
+def test_bridge_gaps_joins_nearest_ends():
+    a = np.array([[0.0, 0.0], [1.0, 0.0]])
+    b = np.array([[3.0, 0.0], [1.2, 0.0]])  # reversed, its near end last
+    far = np.array([[10.0, 0.0], [11.0, 0.0]])
+    joined = bridge_gaps([a, b, far], max_gap=0.5)
+    assert len(joined) == 2
+    long = max(joined, key=len)
+    assert np.allclose(long[:, 0], [0.0, 1.0, 1.2, 3.0]) or np.allclose(
+        long[:, 0], [3.0, 1.2, 1.0, 0.0])
+
+
+def test_fit_polynomial_along_principal_axis():
+    rng = np.random.default_rng(1)
+    y = np.linspace(0, 10, 500)
+    x = 9.0 + 0.002 * rng.standard_normal(500)  # a wall along y
+    fitted = fit_polynomial(np.stack([x, y], axis=-1), 7, 0.01)
+    assert np.max(np.abs(fitted[:, 0] - 9.0)) < 0.003
+    assert fitted[:, 1].min() == pytest.approx(0, abs=0.01)
+    assert len(fitted) == pytest.approx(1001, abs=2)
+
+
+def test_fit_spline_follows_a_circle():
+    a = np.linspace(0, 2 * np.pi, 400, endpoint=False)
+    pts = np.stack([np.cos(a), np.sin(a)], axis=-1) * 2.0
+    fitted = fit_spline(np.concatenate([pts, pts[:1]]), 0.01, 0.001)  # closed, as traced
+    assert np.max(np.abs(np.hypot(*fitted.T) - 2.0)) < 0.003  # smoothing allows ~1 mm RMS
+
+
+def test_extract_profile_from_a_thin_map():
+    t = _ring()
+    prof = extract_profile(t, (0.0, 0.0, 0.6, 0.6), 0.01, PostSettings(fit="spline"))
+    assert len(prof.curves) == 1
+    r = np.hypot(*(prof.points - 0.3).T)
+    assert abs(np.median(r) - 0.2) < 0.01
+    none = extract_profile(t, (0.0, 0.0, 0.6, 0.6), 0.01, PostSettings(fit="none"))
+    assert len(none.points) == np.count_nonzero(t) + 1  # closed loop repeats its start

@@ -1,0 +1,148 @@
+"""Error of an estimated profile against the true geometry (thesis eq. 2.6, and more).
+
+- :func:`rms_along_wall`: thesis eq. 2.6, ``sqrt(mean |C_actual(x_i) − C_estimated(x_i)|²)``,
+  where the scene is one surface that is a function along a wall: one straight open wall
+  (a plane) or one sinusoid. ``x_i`` are the estimated points' positions along the wall,
+  ``C`` the displacement across it.
+- accuracy: RMS and 95th percentile of the distance from each estimated point to the
+  nearest true surface;
+- completeness: the share of the *insonified* true geometry that has an estimated point
+  within 1, 2 and 5 cm. A point of a true surface is insonified when some transducer sees it
+  inside its beam (the hard cut) with a clear line of sight: the parts of the scene the
+  sensors could possibly map;
+- spurious share: the share of estimated points farther than 5 cm from every true surface.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import physics
+from .geometry import Geometry, curve_point, nearest_surface_point, ray_distance
+from .scene import Polyline, Scene, Sinusoid
+from .sensors import SensorArray
+
+#: Distances at which completeness is reported, metres.
+COMPLETENESS_RADII = (0.01, 0.02, 0.05)
+
+#: An estimated point farther than this from every surface is spurious, metres.
+SPURIOUS_M = 0.05
+
+#: A line of sight may end this close to (or start on) a surface and still be clear, metres.
+SIGHT_EPS = 1e-4
+
+
+def truth_points(scene: Scene, geom: Geometry, spacing: float) -> np.ndarray:
+    """[M, 2] points every ``spacing`` along every true surface, inside the extent."""
+    out = []
+    for x0, y0, x1, y1 in geom.walls:
+        n = max(1, math.ceil(math.hypot(x1 - x0, y1 - y0) / spacing))
+        t = (np.arange(n) + 0.5) / n
+        out.append(np.stack([x0 + t * (x1 - x0), y0 + t * (y1 - y0)], axis=-1))
+    for cx, cy, r in geom.circles:
+        n = max(8, math.ceil(2 * math.pi * r / spacing))
+        a = 2 * math.pi * (np.arange(n) + 0.5) / n
+        out.append(np.stack([cx + r * np.cos(a), cy + r * np.sin(a)], axis=-1))
+    for k, curve in enumerate(geom.curves):
+        s_all = geom.interval_s[geom.interval_curve == k]
+        s = np.arange(s_all[0, 0], s_all[-1, 1], spacing / 4)  # dense in s, then thinned
+        p = curve_point(curve, s)
+        arc = np.r_[0.0, np.cumsum(np.hypot(*np.diff(p, axis=0).T))]
+        keep = np.searchsorted(arc, np.arange(0.0, arc[-1], spacing))
+        out.append(p[keep])
+    if not out:
+        return np.zeros((0, 2))
+    pts = np.concatenate(out)
+    xmin, ymin, xmax, ymax = scene.extent
+    inside = (pts[:, 0] >= xmin) & (pts[:, 0] <= xmax) & (pts[:, 1] >= ymin) & (pts[:, 1] <= ymax)
+    return pts[inside]
+
+
+def insonified(scene: Scene, geom: Geometry, sensors: SensorArray,
+               points: np.ndarray) -> np.ndarray:
+    """[M] bool: which ``points`` some transducer sees inside its beam with a clear line of
+    sight (the transducer's axis within the hard cut, nothing in between)."""
+    t = scene.transducer
+    cut_sin2 = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg,
+                                     scene.medium.c)
+    seen = np.zeros(len(points), dtype=bool)
+    axes = sensors.axes
+    for pos, axis in zip(sensors.positions, axes, strict=True):
+        d = points - pos
+        dist = np.hypot(d[:, 0], d[:, 1])
+        cos = d @ axis
+        cross = axis[0] * d[:, 1] - axis[1] * d[:, 0]
+        candidates = np.flatnonzero(~seen & (cos > 0) & (cross * cross <= cut_sin2 * dist * dist))
+        if len(candidates) == 0:
+            continue
+        u = d[candidates] / dist[candidates, None]
+        first_hit = ray_distance(geom, np.broadcast_to(pos, (len(candidates), 2)), u)
+        seen[candidates[first_hit >= dist[candidates] - SIGHT_EPS]] = True
+    return seen
+
+
+def single_wall(scene: Scene) -> tuple[np.ndarray, np.ndarray, Sinusoid | None] | None:
+    """``(origin, unit direction, sinusoid or None)`` when the scene's only surface is one
+    straight open wall or one sinusoid (the profile is then a function along the wall)."""
+    if len(scene.surfaces) != 1:
+        return None
+    s = scene.surfaces[0]
+    if isinstance(s, Sinusoid):
+        a, b = np.asarray(s.start, float), np.asarray(s.end, float)
+        return a, (b - a) / np.hypot(*(b - a)), s
+    if isinstance(s, Polyline) and not s.closed and len(s.points) == 2:
+        a, b = np.asarray(s.points[0], float), np.asarray(s.points[1], float)
+        return a, (b - a) / np.hypot(*(b - a)), None
+    return None
+
+
+def rms_along_wall(scene: Scene, points: np.ndarray) -> float | None:
+    """Thesis eq. 2.6 over the estimated ``points``: each point's position x along the wall
+    and displacement C across it, against the true displacement at the same x (0 for a
+    plane, ``A·sin(2πx/P)`` for a sinusoid). None when the scene is not a single wall or
+    there are no points."""
+    wall = single_wall(scene)
+    if wall is None or len(points) == 0:
+        return None
+    origin, u, sinusoid = wall
+    normal = np.array([-u[1], u[0]])
+    rel = np.asarray(points, dtype=np.float64) - origin
+    x, c_est = rel @ u, rel @ normal
+    c_true = (np.zeros_like(x) if sinusoid is None
+              else sinusoid.amplitude * np.sin(2 * math.pi * x / sinusoid.period))
+    return float(np.sqrt(np.mean((c_true - c_est) ** 2)))
+
+
+def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray,
+             points: np.ndarray) -> dict[str, object]:
+    """All metrics of the estimated profile ``points`` [n, 2] (module docstring), as a
+    JSON-ready dict: ``rms_m`` (eq. 2.6 or None), ``accuracy_m`` {rms, p95},
+    ``completeness`` {"1cm", "2cm", "5cm"}, ``spurious_share``, ``insonified_m`` (length of
+    the insonified true geometry) and ``points``."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    spacing = min(scene.cell, 0.005)
+    truth = truth_points(scene, geom, spacing)
+    lit = truth[insonified(scene, geom, sensors, truth)] if len(truth) else truth
+    out: dict[str, object] = {"points": len(points), "rms_m": rms_along_wall(scene, points),
+                              "insonified_m": len(lit) * spacing}
+    if len(points) and len(truth):
+        dist, _ = nearest_surface_point(geom, points)
+        out["accuracy_m"] = {"rms": float(np.sqrt(np.mean(dist**2))),
+                             "p95": float(np.percentile(dist, 95))}
+        out["spurious_share"] = float(np.mean(dist > SPURIOUS_M))
+    else:
+        out["accuracy_m"] = {"rms": None, "p95": None}
+        out["spurious_share"] = None
+    if len(lit):
+        if len(points):
+            gap, _ = cKDTree(points).query(lit)
+        else:
+            gap = np.full(len(lit), np.inf)
+        out["completeness"] = {f"{round(r * 100)}cm": float(np.mean(gap <= r))
+                               for r in COMPLETENESS_RADII}
+    else:
+        out["completeness"] = {f"{round(r * 100)}cm": None for r in COMPLETENESS_RADII}
+    return out
