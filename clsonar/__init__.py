@@ -3,5 +3,19 @@
 from .errors import ClsonarError, DeviceError, SceneError
 from .scene import Scene, load_scene, save_scene
 
-__all__ = ["ClsonarError", "DeviceError", "Scene", "SceneError", "load_scene", "save_scene"]
+
+def run(scene: Scene, *, device: str | None = None, context=None, preset: str | None = None,
+        progress=None):
+    """Run the whole mapping pipeline on ``scene``; see :func:`clsonar.pipeline.run`.
+
+    Returns a :class:`clsonar.pipeline.RunResult` with every stage (sensors, echoes,
+    detections, raw/filtered/thin maps, profile), per-stage seconds, counts and metrics.
+    """
+    from .pipeline import run as _run
+
+    return _run(scene, device=device, context=context, preset=preset, progress=progress)
+
+
+__all__ = ["ClsonarError", "DeviceError", "Scene", "SceneError", "load_scene", "run",
+           "save_scene"]
 __version__ = "0.1.0"

@@ -1,5 +1,7 @@
 """The ``clsonar`` command line (DESIGN.md, "Command line — a contract").
 
+- ``clsonar run SCENE.json --out DIR`` runs the whole pipeline and writes report.json,
+  stages.npz, profile.csv, echoes.csv and one PNG per stage into DIR (outputs.py).
 - ``clsonar echoes SCENE.json`` prints the echo table as CSV:
   ``tx,rx,tof_s,amplitude,kind,order``.
 - ``clsonar devices`` lists the OpenCL devices, whether each can build kernels, and which one
@@ -15,6 +17,7 @@ import argparse
 import io
 import os
 import sys
+import time
 from collections.abc import Sequence
 
 from . import __version__
@@ -36,6 +39,19 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"clsonar {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
+    p = sub.add_parser("run", help="run the whole mapping pipeline and write its outputs",
+                       description="Sensors, echoes, detection, map accumulation, filtering, "
+                                   "thinning, profile fit and metrics; writes report.json, "
+                                   "stages.npz, profile.csv, echoes.csv and PNGs into DIR.")
+    p.add_argument("scene", metavar="SCENE.json")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--preset", choices=("thesis", "best"),
+                   help="detection/mapping/post settings: the thesis' methods or ours "
+                        "(default: the scene file's settings, which default to ours)")
+    _device_args(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    p.set_defaults(func=_cmd_run)
+
     p = sub.add_parser("echoes", help="print the echo table of a scene as CSV",
                        description="Compute every echo return of every transmitter→receiver "
                                    "pair and print tx,rx,tof_s,amplitude,kind,order.")
@@ -53,6 +69,55 @@ def build_parser() -> argparse.ArgumentParser:
     _device_args(p)
     p.set_defaults(func=_cmd_devices)
     return parser
+
+
+class _ProgressLine:
+    """``[3/8] detection`` on one rewritten line of stderr, only on a terminal."""
+
+    def __init__(self, enabled: bool) -> None:
+        self.enabled = enabled and sys.stderr.isatty()
+        self.start = time.perf_counter()
+
+    def __call__(self, stage: str, index: int, total: int) -> None:
+        if self.enabled:
+            bar = "#" * index + "." * (total - index)
+            elapsed = time.perf_counter() - self.start
+            print(f"\r[{bar}] {index}/{total} {stage:<13} {elapsed:6.1f} s", end="",
+                  file=sys.stderr, flush=True)
+
+    def done(self) -> None:
+        if self.enabled:
+            print(file=sys.stderr)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from .scene import load_scene
+
+    scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
+    from .outputs import write_outputs
+    from .pipeline import run
+
+    progress = _ProgressLine(not args.quiet)
+    try:
+        result = run(scene, device=args.device, preset=args.preset, progress=progress)
+    finally:
+        progress.done()
+    paths = write_outputs(result, args.out)
+    if not args.quiet:
+        m = result.metrics
+        rms = m["rms_m"]
+        acc = m["accuracy_m"]["rms"]
+        done = m["completeness"]["2cm"]
+        print(f"{scene.name}: {result.counts['echoes']} echoes, "
+              f"{result.counts['detections']} detections, "
+              f"{sum(result.seconds.values()):.2f} s on {result.device}")
+        print("  " + ", ".join(x for x in (
+            None if rms is None else f"RMS (eq. 2.6) {rms * 100:.2f} cm",
+            None if acc is None else f"accuracy RMS {acc * 100:.2f} cm",
+            None if done is None else f"completeness within 2 cm {done * 100:.0f} %",
+        ) if x))
+        print(f"  outputs in {args.out}/: " + ", ".join(p.name for p in paths))
+    return 0
 
 
 def _cmd_echoes(args: argparse.Namespace) -> int:
