@@ -52,6 +52,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
     p.set_defaults(func=_cmd_run)
 
+    p = sub.add_parser("reproduce", help="rerun the thesis' experiments and compare",
+                       description="Plane, corner, edge, cylinder and sinusoid at the thesis' "
+                                   "distances and the RMS curves of Figs 3.5, 3.6, 3.19, 3.20, "
+                                   "with thesis-faithful and best settings; writes "
+                                   "reproduce.md, reproduce.json and PNGs into DIR.")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--seeds", type=int, default=5, help="runs per experiment (default 5)")
+    p.add_argument("--scenes", metavar="DIR", help="scene folder (default: the bundled ones)")
+    _device_args(p)
+    p.set_defaults(func=_cmd_reproduce)
+
     p = sub.add_parser("echoes", help="print the echo table of a scene as CSV",
                        description="Compute every echo return of every transmitter→receiver "
                                    "pair and print tx,rx,tof_s,amplitude,kind,order.")
@@ -117,6 +128,29 @@ def _cmd_run(args: argparse.Namespace) -> int:
             None if done is None else f"completeness within 2 cm {done * 100:.0f} %",
         ) if x))
         print(f"  outputs in {args.out}/: " + ", ".join(p.name for p in paths))
+    return 0
+
+
+def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .reproduce import reproduce
+
+    if args.seeds < 1:
+        raise ClsonarError(f"--seeds must be >= 1, not {args.seeds}")
+    show = sys.stderr.isatty()
+
+    def progress(i: int, n: int, what: str) -> None:
+        if show:
+            print(f"\r[{i}/{n}] {what:<40}", end="", file=sys.stderr, flush=True)
+
+    try:
+        reproduce(Path(args.out), Path(args.scenes) if args.scenes else None,
+                  seeds=args.seeds, device=args.device, progress=progress)
+    finally:
+        if show:
+            print(file=sys.stderr)
+    print(f"wrote {args.out}/reproduce.md, reproduce.json and the figures' PNGs")
     return 0
 
 

@@ -46,7 +46,8 @@ def _figure(scene: Scene, title: str):
     return fig, ax
 
 
-def _png(fig) -> bytes:
+def png_bytes(fig) -> bytes:
+    """The figure as PNG bytes."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
     return buf.getvalue()
@@ -73,7 +74,7 @@ def map_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, *,
                 markersize=1.5)
     if points is not None and len(points):
         ax.plot(points[:, 0], points[:, 1], ".", color="black", markersize=1.0)
-    return _png(fig)
+    return png_bytes(fig)
 
 
 def scene_png(scene: Scene, geom: Geometry, sensors, echo_points: np.ndarray) -> bytes:
@@ -94,4 +95,4 @@ def scene_png(scene: Scene, geom: Geometry, sensors, echo_points: np.ndarray) ->
                 label="reflection points")
     if len(sensors.poses) or len(echo_points):
         ax.legend(loc="upper left", fontsize=7)
-    return _png(fig)
+    return png_bytes(fig)

@@ -1,0 +1,274 @@
+"""``clsonar reproduce``: the thesis' experiments of chapter 3, rerun and compared.
+
+Each experiment is a bundled scene (``scenes/``) moved to a distance: the placement line of a
+``random-lines`` scene is shifted towards or away from the surface, so "plane at 4 m" is
+``plane-2m.json`` with its arrays 2 m farther back. Every experiment runs with five seeds
+(placement and noise seeds 0..4 added to the scene's) under the thesis-faithful settings
+(preset ``thesis``) and ours (preset ``best``). The curves are those of the thesis' figures:
+
+- Fig 3.5: plane, RMS (eq. 2.6) against the distance 2–8 m, no noise;
+- Fig 3.6: plane at 5 m, RMS against the noise σ;
+- Fig 3.19: sinusoid, RMS against the distance 1–7 m, no noise;
+- Fig 3.20: sinusoid at 5 m, RMS against the noise σ.
+
+The report is a markdown table with the thesis' numbers beside ours, a JSON file of every
+run, and one PNG per figure.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .scene import RandomLines, Scene, Signal, load_scene, write_atomic
+
+#: The thesis' RMS errors in cm (chapter 3: Figs 3.2–3.4 and 3.16–3.18).
+THESIS_RMS_CM = {("plane", 2.0): 0.72, ("plane", 4.0): 3.14, ("plane", 8.0): 6.69,
+                 ("sinusoid", 1.0): 13.72, ("sinusoid", 4.0): 16.54, ("sinusoid", 6.0): 22.80}
+
+#: The table's experiments: (family, bundled scene, the scene's distance, distances to run).
+TABLE = (
+    ("plane", "plane-2m", 2.0, (2.0, 4.0, 8.0)),
+    ("corner", "corner-4m", 4.0, (4.0, 7.0, 9.0)),
+    ("edge", "edge-1m", 1.0, (1.0, 3.0, 5.0)),
+    ("cylinder", "cylinder-2.1m", 2.1, (2.1, 3.0, 4.0)),
+    ("sinusoid", "sinusoid-1m", 1.0, (1.0, 4.0, 6.0)),
+)
+
+#: The figures' curves: (figure, family, scene, its distance, what varies, values).
+CURVES = (
+    ("3.5", "plane", "plane-2m", 2.0, "distance_m", (2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0)),
+    ("3.6", "plane", "plane-2m", 2.0, "noise_std", (0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4)),
+    ("3.19", "sinusoid", "sinusoid-1m", 1.0, "distance_m", (1.0, 2.0, 3.0, 4.0, 5.0, 6.0,
+                                                             7.0)),
+    ("3.20", "sinusoid", "sinusoid-1m", 1.0, "noise_std", (0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2,
+                                                            1.4)),
+)
+
+#: Distance of the noise curves (thesis: 5 m for both).
+NOISE_DISTANCE_M = 5.0
+
+PRESETS = ("thesis", "best")
+
+
+def at_distance(scene: Scene, scene_distance: float, distance: float) -> Scene:
+    """``scene`` with its random-lines placement moved back by ``distance − scene_distance``
+    (against the direction the arrays face), renamed ``family-<distance>m``."""
+    p = scene.sensors.placement
+    if not isinstance(p, RandomLines) or p.start is None:
+        raise ValueError(f"{scene.name}: needs a random-lines placement with a start")
+    back = distance - scene_distance
+    a = math.radians(p.facing_deg)
+    start = (p.start[0] - back * math.cos(a), p.start[1] - back * math.sin(a))
+    name = f"{scene.name.rsplit('-', 1)[0]}-{distance:g}m"
+    sensors = dataclasses.replace(scene.sensors, placement=dataclasses.replace(p, start=start))
+    return dataclasses.replace(scene, name=name, sensors=sensors)
+
+
+def with_seed(scene: Scene, k: int, noise_std: float | None = None) -> Scene:
+    """``scene`` with placement and noise seeds advanced by ``k`` (and the noise σ set)."""
+    p = scene.sensors.placement
+    sensors = scene.sensors
+    if isinstance(p, RandomLines):
+        sensors = dataclasses.replace(sensors, placement=dataclasses.replace(p, seed=p.seed + k))
+    sig = scene.signal
+    signal = Signal(noise_std=sig.noise_std if noise_std is None else noise_std,
+                    threshold=sig.threshold, seed=sig.seed + k)
+    return dataclasses.replace(scene, sensors=sensors, signal=signal)
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One run of the pipeline and what came out of it."""
+
+    family: str
+    distance_m: float
+    noise_std: float
+    preset: str
+    seed: int
+    rms_m: float | None
+    accuracy_m: float | None
+    completeness_2cm: float | None
+    seconds: float
+
+
+def run_trial(scene: Scene, family: str, distance: float, preset: str, seed: int,
+              context) -> Trial:
+    from .pipeline import run
+
+    result = run(scene, context=context, preset=preset)
+    m = result.metrics
+    return Trial(family, distance, scene.signal.noise_std, preset, seed, m["rms_m"],
+                 m["accuracy_m"]["rms"], m["completeness"]["2cm"],
+                 float(sum(result.seconds.values())))
+
+
+def plan(scenes_dir: Path, seeds: int) -> list[tuple[str, float, Scene, str, int]]:
+    """Every (family, distance, scene, preset, seed) of the table and the curves, once."""
+    jobs: dict[tuple, tuple] = {}
+    bases = {name: load_scene(scenes_dir / f"{name}.json")
+             for name in {t[1] for t in TABLE} | {c[2] for c in CURVES}}
+
+    def add(family, base, d0, distance, noise):
+        moved = at_distance(bases[base], d0, distance)
+        for preset in PRESETS:
+            for k in range(seeds):
+                key = (family, distance, noise, preset, k)
+                jobs.setdefault(key, (family, distance, with_seed(moved, k, noise), preset, k))
+
+    for family, base, d0, distances in TABLE:
+        for d in distances:
+            add(family, base, d0, d, 0.0)
+    for _, family, base, d0, varies, values in CURVES:
+        for v in values:
+            if varies == "distance_m":
+                add(family, base, d0, v, 0.0)
+            else:
+                add(family, base, d0, NOISE_DISTANCE_M, v)
+    return list(jobs.values())
+
+
+def _mean(values: Iterable[float | None]) -> float | None:
+    v = [x for x in values if x is not None and math.isfinite(x)]
+    return float(np.mean(v)) if v else None
+
+
+def _select(trials: list[Trial], **where) -> list[Trial]:
+    return [t for t in trials if all(getattr(t, k) == v for k, v in where.items())]
+
+
+def _cm(value: float | None) -> str:
+    return "–" if value is None else f"{value * 100:.2f}"
+
+
+def table_markdown(trials: list[Trial], seeds: int) -> str:
+    """The comparison table: thesis RMS beside ours, mean over seeds, per experiment."""
+    lines = [
+        "| experiment | thesis RMS (cm) | thesis-faithful RMS (cm) | best RMS (cm) | "
+        "best accuracy RMS (cm) | best completeness ≤ 2 cm | best seconds |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for family, _, _, distances in TABLE:
+        for d in distances:
+            faithful = _select(trials, family=family, distance_m=d, noise_std=0.0,
+                               preset="thesis")
+            best = _select(trials, family=family, distance_m=d, noise_std=0.0, preset="best")
+            thesis = THESIS_RMS_CM.get((family, d))
+            comp = _mean(t.completeness_2cm for t in best)
+            lines.append(
+                f"| {family} {d:g} m | {'–' if thesis is None else f'{thesis:.2f}'} | "
+                f"{_cm(_mean(t.rms_m for t in faithful))} | {_cm(_mean(t.rms_m for t in best))}"
+                f" | {_cm(_mean(t.accuracy_m for t in best))} | "
+                f"{'–' if comp is None else f'{comp * 100:.0f} %'} | "
+                f"{_mean(t.seconds for t in best) or 0:.2f} |")
+    lines.append("")
+    lines.append(f"Means over {seeds} seeds, noise-free. RMS is thesis eq. 2.6 along the wall "
+                 "(plane and sinusoid only); accuracy is the RMS distance from the estimated "
+                 "points to the true surface, for every scene.")
+    return "\n".join(lines)
+
+
+def curve_png(figure: str, family: str, varies: str, values, trials: list[Trial]) -> bytes:
+    """One of the thesis' RMS curves, thesis-faithful and best, mean ± spread over seeds."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from .plots import png_bytes
+
+    fig = Figure(figsize=(6, 4), dpi=120, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    for preset, style in (("thesis", "o-"), ("best", "s-")):
+        means, lo, hi = [], [], []
+        for v in values:
+            sel = (_select(trials, family=family, distance_m=v, noise_std=0.0, preset=preset)
+                   if varies == "distance_m" else
+                   _select(trials, family=family, distance_m=NOISE_DISTANCE_M, noise_std=v,
+                           preset=preset))
+            rms = [t.rms_m * 100 for t in sel if t.rms_m is not None]
+            means.append(np.mean(rms) if rms else np.nan)
+            lo.append(np.min(rms) if rms else np.nan)
+            hi.append(np.max(rms) if rms else np.nan)
+        ax.plot(values, means, style, label=f"clsonar, {preset} settings")
+        ax.fill_between(values, lo, hi, alpha=0.2)
+    marks = [(d, v) for (f, d), v in THESIS_RMS_CM.items() if f == family]
+    if varies == "distance_m" and marks:
+        ax.plot(*zip(*marks, strict=True), "k*", markersize=10, label="thesis")
+    ax.set_xlabel("distance to the surface (m)" if varies == "distance_m"
+                  else "noise standard deviation (units)")
+    ax.set_ylabel("RMS error, eq. 2.6 (cm)")
+    ax.set_title(f"Thesis Fig {figure}: {family}"
+                 + (f" at {NOISE_DISTANCE_M:g} m" if varies == "noise_std" else ", no noise"))
+    ax.set_yscale("log")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    return png_bytes(fig)
+
+
+def curves_markdown(trials: list[Trial]) -> str:
+    """The figures' curves as tables (mean RMS in cm over seeds)."""
+    out = []
+    for figure, family, _, _, varies, values in CURVES:
+        label = "distance (m)" if varies == "distance_m" else "noise σ"
+        out += [f"### Fig {figure}: {family}, RMS (cm) against {label}", "",
+                f"| {label} | " + " | ".join(f"{v:g}" for v in values) + " |",
+                "| --- |" + " ---: |" * len(values)]
+        for preset in PRESETS:
+            row = []
+            for v in values:
+                sel = (_select(trials, family=family, distance_m=v, noise_std=0.0,
+                               preset=preset) if varies == "distance_m" else
+                       _select(trials, family=family, distance_m=NOISE_DISTANCE_M,
+                               noise_std=v, preset=preset))
+                row.append(_cm(_mean(t.rms_m for t in sel)))
+            out.append(f"| {preset} | " + " | ".join(row) + " |")
+        out += ["", f"![Fig {figure}](fig{figure.replace('.', '_')}.png)", ""]
+    return "\n".join(out)
+
+
+def bundled_scenes() -> Path:
+    """The folder of the bundled scenes (``scenes/``, installed as ``clsonar.scenes``)."""
+    from importlib import resources
+
+    return Path(str(resources.files("clsonar.scenes")))
+
+
+def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = 5,
+              device: str | None = None,
+              progress: Callable[[int, int, str], None] | None = None) -> list[Trial]:
+    """Run every experiment and write ``reproduce.md``, ``reproduce.json`` and the figures'
+    PNGs into ``out``; returns the trials."""
+    from .opencl import get_context
+
+    context = get_context(device)
+    jobs = plan(scenes_dir or bundled_scenes(), seeds)
+    trials = []
+    for i, (family, distance, scene, preset, k) in enumerate(jobs):
+        if progress is not None:
+            progress(i + 1, len(jobs), f"{scene.name} σ={scene.signal.noise_std:g} {preset}")
+        trials.append(run_trial(scene, family, distance, preset, k, context))
+    out.mkdir(parents=True, exist_ok=True)
+    device_name = context.devices[0].name.strip()
+    text = "\n".join([
+        "# The thesis' experiments, reproduced",
+        "",
+        f"Regenerate with `clsonar reproduce --out docs/reproduce --seeds {seeds}` "
+        f"(device: {device_name}).",
+        "",
+        table_markdown(trials, seeds),
+        "",
+        curves_markdown(trials),
+    ])
+    write_atomic(out / "reproduce.md", (text + "\n").encode())
+    write_atomic(out / "reproduce.json", (json.dumps(
+        [dataclasses.asdict(t) for t in trials], indent=1) + "\n").encode())
+    for figure, family, _, _, varies, values in CURVES:
+        name = f"fig{figure.replace('.', '_')}.png"
+        write_atomic(out / name, curve_png(figure, family, varies, values, trials))
+    return trials

@@ -1,0 +1,1 @@
+"""The bundled scenes (scene format v1), installed as package data."""
