@@ -1,0 +1,557 @@
+"""The map: per-pixel accumulation of time-of-flight loci (thesis §2.1.1, parts 3–4).
+
+Two implementations of one model, as for the echoes: :func:`accumulate` and
+:func:`backproject` run the OpenCL kernels of ``kernels/accumulate.cl`` (float32 by default,
+float64 where the device has ``cl_khr_fp64``); :func:`accumulate_reference` and
+:func:`backproject_reference` evaluate the same expressions, in the same order, in NumPy
+float64, so the float64 kernels reproduce them bit for bit.
+
+**Loci** (``mapping.mode = "loci"``, the thesis). Each detected echo (T, R, τ) puts the
+reflector on the locus ``|p − T| + |p − R| = c·τ``: for T = R the circle of radius c·τ/2
+("a 24° arc is drawn from the centre of the transducer with a radius equal to half of the
+round-trip distance"), for T ≠ R the ellipse with foci T and R ("the elliptical arc which falls
+within the joint sensitivity region ... is drawn"). The map has one pixel per cell
+(DESIGN.md: arrays ``[iy, ix]``, cell centres ``(xmin + (ix + ½)·cell, ymin + (iy + ½)·cell)``);
+every pixel centre p gets, from every row, a vote iff
+
+    | |p − T| + |p − R| − c·τ | ≤ band/2      (band = mapping.band_m, default √2·cell)
+
+and p lies inside both beams: cosθ > 0 and sin²θ ≤ the hard cut
+(:func:`clsonar.physics.beam_cut_sin2`) for the angles θ_T, θ_R between each transducer's
+axis and the direction d to p: the echo engine's ``beam()`` test ``axis·d > 0`` and
+``(axis×d)²/|d|² ≤ cut``, multiplied out as ``(axis×d)² ≤ cut·|d|²``. The vote is 1
+(``weight = "unit"``, the thesis), the detected amplitude (``"amplitude"``) or
+b(θ_T)·b(θ_R) (``"beam"``, the piston pattern of :func:`clsonar.physics.beam_pattern`).
+Votes add up over rows in row order.
+
+**Back-projection** (``mapping.mode = "backprojection"``): every pixel in a pair's joint beam
+adds that pair's envelope at the pixel's delay ``(|p − T| + |p − R|)/c``, linearly
+interpolated between samples taken every ``dt`` from 0 (0 past the last sample); with
+``weight = "beam"`` times b(θ_T)·b(θ_R), otherwise unweighted.
+
+Numerics: coordinates are taken relative to the centre of an *origin pixel* in the middle of
+the map, in float64 on the host, so the kernels see pixel centres as exact integers times
+the cell and distances of at most the map's half-diagonal; float32 then decides every pixel
+as float64 does except those within a few float32 roundings of a band edge or a beam edge.
+
+Performance: one work item computes 8 pixels of a row as one float8 vector on a CPU (PoCL
+does not vectorise across work items a kernel with a loop), one pixel on a GPU; the loop over
+loci is branch-free; loci go to ``__constant`` memory in blocks of at most
+:data:`MAX_ROWS_PER_LAUNCH`. The kernels work on a rectangle of pixels around their own
+origin, the shape a tiled version will launch per tile.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from functools import cache
+
+import numpy as np
+
+from . import physics
+from .errors import ClsonarError, DeviceError
+from .scene import MappingSettings, Scene
+from .sensors import SensorArray
+
+PRECISIONS = {"float32": np.float32, "float64": np.float64}
+
+WEIGHTS = ("unit", "amplitude", "beam")
+
+#: (pixels along x per work item, i.e. the ``realN`` vector width; work-group shape in work
+#: items) by device kind and precision. A CPU gets one AVX2 register per work item (8 floats
+#: or 4 doubles) and 64 pixels of a row per group; a GPU one pixel per work item.
+LAUNCH = {
+    ("CPU", "float32"): (8, (8, 1)),
+    ("CPU", "float64"): (4, (16, 1)),
+    ("GPU", "float32"): (1, (64, 2)),
+    ("GPU", "float64"): (1, (64, 2)),
+    ("other", "float32"): (1, (32, 1)),
+    ("other", "float64"): (1, (32, 1)),
+}
+
+#: Most loci (or back-projection pairs) per kernel launch; fewer where the device's
+#: ``__constant`` memory is smaller (half of it is used).
+MAX_ROWS_PER_LAUNCH = 4096
+
+#: Reals per locus row in the kernels: (T, R), (axis T, axis R), (c·τ, weight, 0, 0).
+LOCUS_COLUMNS = 12
+#: Reals per back-projection pair: (T, R), (axis T, axis R).
+PAIR_COLUMNS = 8
+
+#: Largest number of pixels along x or y: float32 represents pixel indices exactly below it.
+MAX_CELLS_PER_AXIS = 1 << 24
+
+#: float64 arrays of the map's size the NumPy reference holds at once (estimate).
+REFERENCE_TEMPORARIES = 24
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+@dataclass(frozen=True, eq=False)
+class Loci:
+    """What the map is built from: one row per detected echo (any object with these four
+    arrays, e.g. the detector's table or :class:`clsonar.echoes.EchoTable`, will do)."""
+
+    tx: np.ndarray  # int64 indices into the SensorArray
+    rx: np.ndarray  # int64
+    tof_s: np.ndarray  # float64 time of flight, s
+    amplitude: np.ndarray  # float64
+
+    def __len__(self) -> int:
+        return len(self.tof_s)
+
+
+def as_loci(rows) -> Loci:
+    """``rows`` (anything with ``tx``, ``rx``, ``tof_s``, ``amplitude``) as a checked
+    :class:`Loci`: 1-D arrays of one length, integer indices, finite times and amplitudes."""
+    try:
+        cols = [np.asarray(getattr(rows, k)) for k in ("tx", "rx", "tof_s", "amplitude")]
+    except AttributeError as e:
+        raise TypeError(f"loci need tx, rx, tof_s and amplitude arrays ({e})") from None
+    if any(c.ndim != 1 for c in cols) or len({len(c) for c in cols}) != 1:
+        raise ValueError("loci: tx, rx, tof_s and amplitude must be 1-D arrays of one length")
+    tx, rx, tof, amp = cols
+    for name, c in (("tx", tx), ("rx", rx)):
+        if c.size and not np.issubdtype(c.dtype, np.integer):
+            raise ValueError(f"loci.{name} must hold integer sensor indices")
+    tof = tof.astype(np.float64)
+    amp = amp.astype(np.float64)
+    if not (np.all(np.isfinite(tof)) and np.all(np.isfinite(amp))):
+        raise ValueError("loci: tof_s and amplitude must be finite")
+    return Loci(tx.astype(np.int64), rx.astype(np.int64), tof, amp)
+
+
+@dataclass(frozen=True)
+class MapGrid:
+    """The pixels a kernel computes and the local origin of their coordinates.
+
+    Pixel ``(iy, ix)`` of the map has its centre at ``((col0 + ix)·cell, (row0 + iy)·cell)``
+    relative to ``origin``, the centre of the map's pixel ``(-row0, -col0)``.
+    """
+
+    ny: int
+    nx: int
+    cell: float
+    origin: tuple[float, float]
+    col0: int
+    row0: int
+
+
+def map_grid(scene: Scene) -> MapGrid:
+    """The scene's map (``scene.grid_shape`` cells of ``scene.cell``) around its middle pixel."""
+    ny, nx = scene.grid_shape
+    xmin, ymin = scene.extent[0], scene.extent[1]
+    ox, oy = nx // 2, ny // 2
+    origin = (xmin + (ox + 0.5) * scene.cell, ymin + (oy + 0.5) * scene.cell)
+    return MapGrid(ny, nx, float(scene.cell), origin, -ox, -oy)
+
+
+def cell_centres(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """``(x [nx], y [ny])``: the map's cell centres in scene coordinates (DESIGN.md)."""
+    ny, nx = scene.grid_shape
+    xmin, ymin = scene.extent[0], scene.extent[1]
+    return (xmin + (np.arange(nx) + 0.5) * scene.cell,
+            ymin + (np.arange(ny) + 0.5) * scene.cell)
+
+
+def band_m(scene: Scene, settings: MappingSettings | None = None) -> float:
+    """Width of a locus in path length: ``settings.band_m``, or √2·cell when it is null."""
+    settings = settings if settings is not None else scene.mapping
+    return settings.band_m if settings.band_m is not None else math.sqrt(2.0) * scene.cell
+
+
+@dataclass(frozen=True, eq=False)
+class MapProblem:
+    """Inputs of both implementations: float64 rows relative to ``grid.origin``."""
+
+    grid: MapGrid
+    rows: np.ndarray  # [n, LOCUS_COLUMNS] loci, or [n, PAIR_COLUMNS] back-projection pairs
+    weight: str
+    half_band: float  # band/2 (loci)
+    cut_sin2: float
+    beam_u: float  # (ka/j1)²: u = beam_u·sin²θ in the beam series
+    envelopes: np.ndarray | None = None  # [n, samples] (back-projection)
+    inv_c_dt: float = 0.0  # 1/(c·dt) (back-projection)
+
+
+def _beam_constants(scene: Scene) -> tuple[float, float]:
+    t = scene.transducer
+    c = scene.medium.c
+    ka = physics.wavenumber(t.frequency_hz, c) * t.radius_m
+    cut = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
+    return cut, (ka / physics.J1_FIRST_ZERO) ** 2
+
+
+def _settings(scene: Scene, settings: MappingSettings | None) -> MappingSettings:
+    settings = settings if settings is not None else scene.mapping
+    if settings.weight not in WEIGHTS:
+        raise ValueError(f"mapping weight must be one of {', '.join(WEIGHTS)}, "
+                         f"not {settings.weight!r}")
+    return settings
+
+
+def _geometry_rows(sensors: SensorArray, tx: np.ndarray, rx: np.ndarray,
+                   grid: MapGrid) -> np.ndarray:
+    """[n, 8]: T and R relative to the grid's origin, then their unit axes."""
+    n = len(sensors)
+    for name, idx in (("tx", tx), ("rx", rx)):
+        if idx.size and (idx.min() < 0 or idx.max() >= n):
+            raise ValueError(f"{name} holds sensor indices outside 0..{n - 1}")
+    pos = np.asarray(sensors.positions, dtype=np.float64).reshape(-1, 2) - np.asarray(grid.origin)
+    axes = np.asarray(sensors.axes, dtype=np.float64).reshape(-1, 2)
+    return np.concatenate([pos[tx], pos[rx], axes[tx], axes[rx]], axis=1)
+
+
+def prepare_loci(scene: Scene, sensors: SensorArray, loci,
+                 settings: MappingSettings | None = None) -> MapProblem:
+    """The :class:`MapProblem` of drawing ``loci`` on the scene's map."""
+    settings = _settings(scene, settings)
+    grid = map_grid(scene)
+    rows = as_loci(loci)
+    band = band_m(scene, settings)
+    if not (math.isfinite(band) and band > 0):
+        raise ValueError(f"mapping band must be > 0, not {band!r}")
+    table = np.zeros((len(rows), LOCUS_COLUMNS))
+    table[:, :8] = _geometry_rows(sensors, rows.tx, rows.rx, grid)
+    table[:, 8] = scene.medium.c * rows.tof_s
+    table[:, 9] = rows.amplitude if settings.weight == "amplitude" else 1.0
+    cut, beam_u = _beam_constants(scene)
+    return MapProblem(grid, table, settings.weight, 0.5 * band, cut, beam_u)
+
+
+def prepare_backprojection(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float,
+                           settings: MappingSettings | None = None) -> MapProblem:
+    """The :class:`MapProblem` of back-projecting ``envelopes`` [P, n] of ``pairs`` [P, 2]."""
+    settings = _settings(scene, settings)
+    grid = map_grid(scene)
+    pr = np.asarray(pairs)
+    env = np.asarray(envelopes, dtype=np.float64)
+    if pr.ndim != 2 or pr.shape[1] != 2 or (pr.size and not np.issubdtype(pr.dtype, np.integer)):
+        raise ValueError("pairs must be a [P, 2] array of integer (tx, rx) sensor indices")
+    if env.ndim != 2 or env.shape[0] != len(pr):
+        raise ValueError(f"envelopes must be [P, n] with P = {len(pr)} rows, one per pair")
+    if len(pr) and env.shape[1] < 2:
+        raise ValueError("envelopes need at least 2 samples")
+    if not np.all(np.isfinite(env)):
+        raise ValueError("envelopes must be finite")
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be > 0, not {dt!r}")
+    rows = _geometry_rows(sensors, pr[:, 0].astype(np.int64), pr[:, 1].astype(np.int64), grid)
+    cut, beam_u = _beam_constants(scene)
+    return MapProblem(grid, rows, settings.weight, 0.0, cut, beam_u, env,
+                      1.0 / (scene.medium.c * dt))
+
+
+# --------------------------------------------------------------------------- memory
+
+
+def _bytes(n: float) -> str:
+    for unit, size in (("PB", 1e15), ("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n:.0f} B"
+
+
+def _host_available_bytes() -> int | None:
+    """Memory this machine can still give (MemAvailable), None if unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _items(nx: int, ny: int, vec: int, wgx: int, wgy: int) -> tuple[int, int]:
+    """Work items along x and y covering nx × ny pixels, in whole work-groups."""
+    def ceil_div(a: int, b: int) -> int:
+        return -(-a // b)
+
+    return ceil_div(ceil_div(nx, vec), wgx) * wgx, ceil_div(ny, wgy) * wgy
+
+
+def _grid_error(scene: Scene, problem: str) -> ClsonarError:
+    ny, nx = scene.grid_shape
+    xmin, ymin, xmax, ymax = scene.extent
+    return ClsonarError(
+        f"{scene.name}: the map of {ny} × {nx} cells (extent {xmax - xmin:g} m × "
+        f"{ymax - ymin:g} m, cell {scene.cell:g} m) {problem}: use a larger cell or a "
+        "smaller extent")
+
+
+def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
+                     reference: bool = False) -> None:
+    """Raise :class:`~clsonar.errors.ClsonarError` naming the size needed when the scene's
+    map cannot be held: by ``device`` (a ``pyopencl.Device``: one buffer of the padded map),
+    by this machine's free memory (the result, plus the reference's temporaries when
+    ``reference``), or by float32 pixel indices (at most :data:`MAX_CELLS_PER_AXIS` a side).
+    """
+    ny, nx = scene.grid_shape
+    if max(ny, nx) > MAX_CELLS_PER_AXIS:
+        side = "x" if nx >= ny else "y"
+        raise _grid_error(scene, f"has more than the {MAX_CELLS_PER_AXIS} cells along {side} "
+                                 "that the kernels index exactly")
+    itemsize = np.dtype(PRECISIONS[precision]).itemsize
+    if device is not None:
+        vec, group = LAUNCH[_device_kind(device), precision]
+        items_x, items_y = _items(nx, ny, vec, *group)
+        padded = float(items_x * vec) * items_y * itemsize
+        limit = min(int(device.max_mem_alloc_size), int(device.global_mem_size))
+        if padded > limit:
+            raise _grid_error(scene, f"needs {_bytes(padded)} as a {precision} map, more than "
+                                     f"one buffer on {device.name.strip()} can hold "
+                                     f"({_bytes(limit)})")
+    if reference:
+        needed = float(ny) * nx * 8 * REFERENCE_TEMPORARIES
+    else:
+        needed = float(ny) * nx * itemsize * 3  # padded transfer copy, result, its caller
+    available = _host_available_bytes()
+    if available is not None and needed > available:
+        raise _grid_error(scene, f"needs {_bytes(needed)} of memory, more than this machine "
+                                 f"has available ({_bytes(available)})")
+
+
+# --------------------------------------------------------------------------- NumPy reference
+
+
+def _ref_beam(sin2: np.ndarray, beam_u: float) -> np.ndarray:
+    """b(θ) from sin²θ: the kernels' beam series by Horner's rule (common.h ``beam()``)."""
+    coeffs = physics.beam_series_coefficients(14)
+    u = beam_u * sin2
+    acc = np.zeros_like(u)
+    for c in coeffs[::-1]:
+        acc = acc * u + c
+    return (1.0 - u) * acc
+
+
+def _ref_view(pb: MapProblem, row: np.ndarray) -> dict[str, np.ndarray]:
+    """|p − T|², axis_T × (p − T) (the same for R), |p − T| + |p − R| and the joint-beam
+    mask over the whole map, evaluated exactly as the kernels' ``view_pixel``."""
+    g = pb.grid
+    px = ((g.col0 + np.arange(g.nx)).astype(np.float64) * g.cell)[None, :]
+    py = ((g.row0 + np.arange(g.ny)).astype(np.float64) * g.cell)[:, None]
+    tx, ty = px - row[0], py - row[1]
+    rx, ry = px - row[2], py - row[3]
+    dd_t = tx * tx + ty * ty
+    dd_r = rx * rx + ry * ry
+    c_t = row[4] * tx + row[5] * ty
+    c_r = row[6] * rx + row[7] * ry
+    s_t = row[4] * ty - row[5] * tx
+    s_r = row[6] * ry - row[7] * rx
+    path = np.sqrt(dd_t) + np.sqrt(dd_r)
+    inside = ((c_t > 0) & (s_t * s_t <= pb.cut_sin2 * dd_t)
+              & (c_r > 0) & (s_r * s_r <= pb.cut_sin2 * dd_r))
+    return {"dd_t": dd_t, "s_t": s_t, "dd_r": dd_r, "s_r": s_r, "path": path,
+            "inside": inside}
+
+
+def _ref_joint_beam(pb: MapProblem, v: dict[str, np.ndarray]) -> np.ndarray:
+    """b(θ_T)·b(θ_R) as the kernels' ``joint_beam``."""
+    return (_ref_beam((v["s_t"] * v["s_t"]) / v["dd_t"], pb.beam_u)
+            * _ref_beam((v["s_r"] * v["s_r"]) / v["dd_r"], pb.beam_u))
+
+
+def _reference_loci(pb: MapProblem) -> np.ndarray:
+    acc = np.zeros((pb.grid.ny, pb.grid.nx))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for row in pb.rows:
+            v = _ref_view(pb, row)
+            vote = (np.abs(v["path"] - row[8]) <= pb.half_band) & v["inside"]
+            w = _ref_joint_beam(pb, v) if pb.weight == "beam" else row[9]
+            acc += np.where(vote, w, 0.0)
+    return acc
+
+
+def _reference_backprojection(pb: MapProblem) -> np.ndarray:
+    acc = np.zeros((pb.grid.ny, pb.grid.nx))
+    env = pb.envelopes
+    last = float(env.shape[1] - 1) if env is not None and env.ndim == 2 else 1.0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i, row in enumerate(pb.rows):
+            v = _ref_view(pb, row)
+            t = v["path"] * pb.inv_c_dt
+            k = np.minimum(np.floor(t), last - 1.0)
+            f = t - k
+            ik = k.astype(np.int64)
+            e0, e1 = env[i][ik], env[i][ik + 1]
+            w = e0 + f * (e1 - e0)
+            if pb.weight == "beam":
+                w = w * _ref_joint_beam(pb, v)
+            acc += np.where((t <= last) & v["inside"], w, 0.0)
+    return acc
+
+
+def accumulate_reference(scene: Scene, sensors: SensorArray, loci, *,
+                         settings: MappingSettings | None = None) -> np.ndarray:
+    """The loci map in NumPy float64 ([ny, nx]): the reference of :func:`accumulate`."""
+    check_map_memory(scene, "float64", reference=True)
+    return _reference_loci(prepare_loci(scene, sensors, loci, settings))
+
+
+def backproject_reference(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float, *,
+                          settings: MappingSettings | None = None) -> np.ndarray:
+    """The back-projected map in NumPy float64 ([ny, nx]): the reference of
+    :func:`backproject`."""
+    check_map_memory(scene, "float64", reference=True)
+    return _reference_backprojection(
+        prepare_backprojection(scene, sensors, pairs, envelopes, dt, settings))
+
+
+# --------------------------------------------------------------------------- OpenCL
+
+
+def _device_kind(device) -> str:
+    import pyopencl as cl
+
+    if device.type & cl.device_type.GPU:
+        return "GPU"
+    if device.type & cl.device_type.CPU:
+        return "CPU"
+    return "other"
+
+
+@cache
+def _queue(context):
+    import pyopencl as cl
+
+    return cl.CommandQueue(context)
+
+
+def _program(context, precision: str, weight_beam: bool, vec: int):
+    """``kernels/accumulate.cl`` for ``precision``, the beam weight or not, and ``vec``
+    pixels per work item (memoised by :func:`clsonar.opencl.build_program`)."""
+    from .opencl import build_program
+
+    coeffs = physics.beam_series_coefficients(14)
+    defines: dict[str, object] = {
+        "VEC": vec,
+        "WEIGHT_BEAM": int(weight_beam),
+        "BEAM_TERMS": len(coeffs),
+        "BEAM_SERIES": "{" + ",".join(repr(float(v)) for v in coeffs) + "}",
+        "MAX_FOCUS_GAIN": float(physics.MAX_FOCUS_GAIN),
+    }
+    if precision == "float64":
+        defines["REAL_DOUBLE"] = 1
+    return build_program(context, "accumulate.cl", defines)
+
+
+@cache
+def _kernel(program, name: str):
+    import pyopencl as cl
+
+    return cl.Kernel(program, name)
+
+
+def _context(context, device, precision: str):
+    from .opencl import get_context, has_fp64
+
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, not {precision!r}")
+    ctx = context if context is not None else get_context(device)
+    if precision == "float64" and not has_fp64(ctx):
+        raise DeviceError(f"{ctx.devices[0].name.strip()} has no cl_khr_fp64: "
+                          "use precision='float32'")
+    return ctx
+
+
+def _run(ctx, scene: Scene, pb: MapProblem, precision: str, name: str) -> np.ndarray:
+    """Launch kernel ``name`` over the whole map, rows in blocks; return the [ny, nx] map."""
+    import pyopencl as cl
+
+    device = ctx.devices[0]
+    vec, (wgx, wgy) = LAUNCH[_device_kind(device), precision]
+    real = PRECISIONS[precision]
+    itemsize = np.dtype(real).itemsize
+    g = pb.grid
+    program = _program(ctx, precision, pb.weight == "beam", vec)
+    kernel = _kernel(program, name)
+    limit = int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, device))
+    while wgx * wgy > limit and wgx * wgy > 1:
+        wgx, wgy = (wgx, wgy // 2) if wgy > 1 else (wgx // 2, wgy)
+    items_x, items_y = _items(g.nx, g.ny, vec, wgx, wgy)
+    pitch = items_x * vec
+    if len(pb.rows) == 0:
+        return np.zeros((g.ny, g.nx), dtype=real)
+
+    queue = _queue(ctx)
+    mf = cl.mem_flags
+    out = cl.Buffer(ctx, mf.READ_WRITE, pitch * items_y * itemsize)
+    columns = pb.rows.shape[1]
+    constant_rows = int(device.max_constant_buffer_size) // 2 // (columns * itemsize)
+    block = max(1, min(MAX_ROWS_PER_LAUNCH, constant_rows))
+    if pb.envelopes is not None:
+        env_bytes = pb.envelopes.shape[1] * itemsize
+        block = max(1, min(block, int(device.max_mem_alloc_size) // 2 // env_bytes))
+    cell = real(g.cell)
+    beam = (real(pb.cut_sin2), real(pb.beam_u))
+    where = (np.int32(g.col0), np.int32(g.row0))
+    for first in range(0, len(pb.rows), block):
+        rows = np.ascontiguousarray(pb.rows[first:first + block], dtype=real)
+        n = np.int32(len(rows))
+        rows_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=rows)
+        tail = (*where, np.int32(first == 0), out, np.int64(0), np.int32(pitch))
+        if pb.envelopes is None:
+            args = (rows_buf, n, cell, real(pb.half_band), *beam, *tail)
+        else:
+            env = np.ascontiguousarray(pb.envelopes[first:first + block], dtype=real)
+            env_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=env)
+            args = (rows_buf, n, env_buf, np.int32(env.shape[1]), real(pb.inv_c_dt), cell,
+                    *beam, *tail)
+        kernel(queue, (items_x, items_y), (wgx, wgy), *args)
+    host = np.empty((items_y, pitch), dtype=real)
+    cl.enqueue_copy(queue, host, out)
+    queue.finish()
+    return np.ascontiguousarray(host[:g.ny, :g.nx])
+
+
+def accumulate(scene: Scene, sensors: SensorArray, loci, *, context=None,
+               device: str | None = None, precision: str | None = None,
+               settings: MappingSettings | None = None) -> np.ndarray:
+    """The loci map ``[ny, nx]`` of ``scene`` drawn by the OpenCL kernel ``loci_map``.
+
+    ``loci``: any object with ``tx``, ``rx``, ``tof_s`` and ``amplitude`` arrays
+    (:class:`Loci`, the detector's table, an echo table); ``sensors`` the
+    :class:`~clsonar.sensors.SensorArray` they index. ``settings`` (default
+    ``scene.mapping``) gives ``weight``, ``band_m`` and ``precision`` (overridden by
+    ``precision``); its ``mode`` is the caller's business: this draws loci. float32 maps come
+    back as float32, float64 (needs ``cl_khr_fp64``) as float64. A map that cannot fit in
+    the device's or this machine's memory raises :class:`~clsonar.errors.ClsonarError`.
+    Same model as :func:`accumulate_reference`.
+    """
+    settings = settings if settings is not None else scene.mapping
+    precision = precision or settings.precision
+    ctx = _context(context, device, precision)
+    check_map_memory(scene, precision, ctx.devices[0])
+    pb = prepare_loci(scene, sensors, loci, settings)
+    return _run(ctx, scene, pb, precision, "loci_map")
+
+
+def backproject(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float, *,
+                context=None, device: str | None = None, precision: str | None = None,
+                settings: MappingSettings | None = None) -> np.ndarray:
+    """The back-projected map ``[ny, nx]`` (``mapping.mode = "backprojection"``) by the
+    OpenCL kernel ``backproject_map``.
+
+    ``pairs`` [P, 2] are (tx, rx) sensor indices; ``envelopes`` [P, n] their received
+    envelopes sampled every ``dt`` seconds from the transmission (n ≥ 2). Otherwise as
+    :func:`accumulate`; same model as :func:`backproject_reference`.
+    """
+    settings = settings if settings is not None else scene.mapping
+    precision = precision or settings.precision
+    ctx = _context(context, device, precision)
+    check_map_memory(scene, precision, ctx.devices[0])
+    pb = prepare_backprojection(scene, sensors, pairs, envelopes, dt, settings)
+    return _run(ctx, scene, pb, precision, "backproject_map")
+
+
+__all__ = ["Loci", "MapGrid", "MapProblem", "accumulate", "accumulate_reference", "as_loci",
+           "backproject", "backproject_reference", "band_m", "cell_centres",
+           "check_map_memory", "map_grid", "prepare_backprojection", "prepare_loci"]

@@ -1,0 +1,186 @@
+// The map: per-pixel accumulation of time-of-flight loci and delay-and-sum back-projection
+// (thesis §2.1.1, parts 3–4; model and NumPy float64 reference in clsonar/mapping.py).
+//
+// Both kernels run over a rectangle of pixels: work item (gx, gy) owns VEC consecutive
+// pixels of one row, columns col0 + gx·VEC + lane (lane = 0..VEC−1) and row row0 + gy, where
+// columns and rows count from the *origin pixel*, whose centre is the local origin of every
+// coordinate the host passes (transducers relative to it, in float64 before rounding to
+// `real`). So a pixel centre is exactly ((real)col·cell, (real)row·cell): small integers
+// times the cell, one rounding, and distances are differences of small numbers. The host
+// puts the origin in the middle of the rectangle (a future tile gets its own).
+//
+// Vectorisation: PoCL's CPU device does not vectorise a kernel across work items when its
+// body holds a loop, so each work item computes VEC pixels as one realN vector (VEC = 8
+// on CPUs: an AVX2 register of floats; 1 on GPUs). The loop over loci is uniform: every
+// work item runs every locus, in order, with no early exit; the test is a mask and the vote
+// a select. Only the costly parts that few pixels need, the beam weight's series and the
+// back-projection's envelope gathers, wait behind "does any pixel of this work item vote"
+// (skipping them changes no result). Loci come in __constant memory, one launch per block
+// of them; `first` = 1 starts
+// the sum at 0, else at the value already in `out`, so the sum over loci runs in locus order
+// whatever the blocks (the reference sums in the same order).
+//
+// The host pads the rectangle to whole work-groups (fixed size: PoCL compiles a kernel anew
+// for every work-group size) and `out` with it, and drops the padding.
+//
+// Compile-time constants: VEC (1, 2, 4, 8 or 16), WEIGHT_BEAM (1: vote b(θ_T)·b(θ_R)),
+// BEAM_TERMS/BEAM_SERIES (common.h), MAX_FOCUS_GAIN (common.h), REAL_DOUBLE for float64.
+
+#include "common.h"
+
+#define CAT(a, b) a##b
+#define XCAT(a, b) CAT(a, b)
+
+#ifdef REAL_DOUBLE
+#define REAL_NAME double
+#define MASK_NAME long
+#else
+#define REAL_NAME float
+#define MASK_NAME int
+#endif
+
+#if VEC == 1
+#define ANY(m) (m)
+typedef real realv;
+typedef int maskv;
+typedef int intv;
+#define LANES R(0.0)
+#define LOADV(p) (*(p))
+#define STOREV(v, p) (*(p) = (v))
+#define GATHER(b, i) ((b)[i])
+#define CONVERT_INTV convert_int
+#else
+#define ANY(m) any(m)
+typedef XCAT(REAL_NAME, VEC) realv;
+typedef XCAT(MASK_NAME, VEC) maskv;
+typedef XCAT(int, VEC) intv;
+#define LOADV(p) XCAT(vload, VEC)(0, p)
+#define STOREV(v, p) XCAT(vstore, VEC)(v, 0, p)
+#define CONVERT_INTV XCAT(convert_int, VEC)
+#if VEC == 2
+#define LANES ((realv)(0, 1))
+#define GATHER(b, i) ((realv)((b)[(i).s0], (b)[(i).s1]))
+#elif VEC == 4
+#define LANES ((realv)(0, 1, 2, 3))
+#define GATHER(b, i) ((realv)((b)[(i).s0], (b)[(i).s1], (b)[(i).s2], (b)[(i).s3]))
+#elif VEC == 8
+#define LANES ((realv)(0, 1, 2, 3, 4, 5, 6, 7))
+#define GATHER(b, i) ((realv)((b)[(i).s0], (b)[(i).s1], (b)[(i).s2], (b)[(i).s3], \
+                              (b)[(i).s4], (b)[(i).s5], (b)[(i).s6], (b)[(i).s7]))
+#elif VEC == 16
+#define LANES ((realv)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
+#define GATHER(b, i) ((realv)((b)[(i).s0], (b)[(i).s1], (b)[(i).s2], (b)[(i).s3], \
+                              (b)[(i).s4], (b)[(i).s5], (b)[(i).s6], (b)[(i).s7], \
+                              (b)[(i).s8], (b)[(i).s9], (b)[(i).sa], (b)[(i).sb], \
+                              (b)[(i).sc], (b)[(i).sd], (b)[(i).se], (b)[(i).sf]))
+#else
+#error "VEC must be 1, 2, 4, 8 or 16"
+#endif
+#endif
+
+#ifndef WEIGHT_BEAM
+#define WEIGHT_BEAM 0
+#endif
+
+// What every kernel here needs of one pixel and one transmitter–receiver row: T, R relative
+// to the origin pixel and their unit axes. The joint beam test is the echo engine's hard cut
+// (common.h, beam()): inside T's beam iff cosθ_T > 0 and sin²θ_T ≤ cut, with cosθ ∝ c =
+// axis·d, sinθ ∝ s = axis×d for d = p − T; sin²θ = s²/|d|² ≤ cut is tested multiplied out,
+// s² ≤ cut·|d|² (no division; the same decision but for rounding). The same for R.
+typedef struct {
+    realv dd_t, s_t, dd_r, s_r;  // |p − T|², axis_T × (p − T); the same for R
+    realv path;                  // |p − T| + |p − R|
+    maskv inside;                // inside both beams
+} pixel_view;
+
+inline pixel_view view_pixel(realv px, real py, real4 tr, real4 axes, real cut_sin2) {
+    pixel_view v;
+    realv tx = px - tr.x;
+    real ty = py - tr.y;
+    realv rx = px - tr.z;
+    real ry = py - tr.w;
+    v.dd_t = tx * tx + ty * ty;
+    v.dd_r = rx * rx + ry * ry;
+    realv c_t = axes.x * tx + axes.y * ty;
+    realv c_r = axes.z * rx + axes.w * ry;
+    v.s_t = axes.x * ty - axes.y * tx;
+    v.s_r = axes.z * ry - axes.w * rx;
+    v.path = sqrt(v.dd_t) + sqrt(v.dd_r);
+    v.inside = (c_t > R(0.0)) & (v.s_t * v.s_t <= cut_sin2 * v.dd_t) &
+               (c_r > R(0.0)) & (v.s_r * v.s_r <= cut_sin2 * v.dd_r);
+    return v;
+}
+
+// b(θ_T)·b(θ_R) inside both beams: common.h's beam() on vectors, the same series in the same
+// order from sin²θ = s²/|d|² (NaN where d = 0, which is never inside).
+inline realv beam_of_sin2(realv sin2, real beam_u) {
+    realv u = beam_u * sin2;
+    realv sum = R(0.0);
+    for (int i = BEAM_TERMS - 1; i >= 0; --i) sum = sum * u + beam_series[i];
+    return (R(1.0) - u) * sum;
+}
+
+inline realv joint_beam(pixel_view v, real beam_u) {
+    return beam_of_sin2((v.s_t * v.s_t) / v.dd_t, beam_u) *
+           beam_of_sin2((v.s_r * v.s_r) / v.dd_r, beam_u);
+}
+
+// Start of this work item's pixels in `out`, and their centres relative to the origin.
+#define PIXELS_OF_WORK_ITEM                                                              \
+    size_t gx = get_global_id(0), gy = get_global_id(1);                                 \
+    __global real *o = out + out_offset + gy * (size_t)pitch + gx * VEC;                  \
+    realv px = ((realv)((real)(col0 + (int)(gx * VEC))) + LANES) * cell;                 \
+    real py = (real)(row0 + (int)gy) * cell;                                             \
+    realv acc = first ? (realv)(R(0.0)) : LOADV(o);
+
+// Loci: every pixel p votes for each row (T, R, L = c·τ, w) with
+// | |p − T| + |p − R| − L | ≤ half_band inside both beams; the vote is w (1 or the
+// amplitude, from the host) or, with WEIGHT_BEAM, b(θ_T)·b(θ_R).
+// loci[3i] = (Tx, Ty, Rx, Ry), loci[3i + 1] = (axis T, axis R), loci[3i + 2] = (L, w, 0, 0).
+__kernel void loci_map(__constant real4 *loci, int n_loci, real cell, real half_band,
+                       real cut_sin2, real beam_u, int col0, int row0, int first,
+                       __global real *out, long out_offset, int pitch) {
+    PIXELS_OF_WORK_ITEM
+    for (int i = 0; i < n_loci; ++i) {
+        real4 extra = loci[3 * i + 2];
+        pixel_view v = view_pixel(px, py, loci[3 * i], loci[3 * i + 1], cut_sin2);
+        maskv vote = (fabs(v.path - extra.x) <= half_band) & v.inside;
+#if WEIGHT_BEAM
+        if (ANY(vote)) acc += vote ? joint_beam(v, beam_u) : (realv)(R(0.0));
+#else
+        acc += vote ? (realv)(extra.y) : (realv)(R(0.0));
+#endif
+    }
+    STOREV(acc, o);
+}
+
+// Back-projection (delay and sum): every pixel adds, for each pair, the pair's envelope at
+// the pixel's delay (|p − T| + |p − R|)/c, linearly interpolated between samples taken every
+// dt from 0 (t = path·inv_c_dt samples; 0 beyond the last sample), inside both beams; with
+// WEIGHT_BEAM times b(θ_T)·b(θ_R). pairs[2i] = (Tx, Ty, Rx, Ry), pairs[2i + 1] = (axis T,
+// axis R); the envelope of pair i is env[i·n_samples ...], n_samples ≥ 2.
+__kernel void backproject_map(__constant real4 *pairs, int n_pairs, __global const real *env,
+                              int n_samples, real inv_c_dt, real cell,
+                              real cut_sin2, real beam_u, int col0, int row0, int first,
+                              __global real *out, long out_offset, int pitch) {
+    PIXELS_OF_WORK_ITEM
+    real last = (real)(n_samples - 1);
+    for (int i = 0; i < n_pairs; ++i) {
+        pixel_view v = view_pixel(px, py, pairs[2 * i], pairs[2 * i + 1], cut_sin2);
+        realv t = v.path * inv_c_dt;
+        maskv vote = (t <= last) & v.inside;
+        if (!ANY(vote)) continue;  // the whole vector is outside the beams or past the end
+        realv k = fmin(floor(t), last - R(1.0));
+        realv f = t - k;
+        intv ik = CONVERT_INTV(k);
+        __global const real *e = env + (size_t)i * (size_t)n_samples;
+        realv e0 = GATHER(e, ik);
+        realv e1 = GATHER(e + 1, ik);
+        realv w = e0 + f * (e1 - e0);
+#if WEIGHT_BEAM
+        w = w * joint_beam(v, beam_u);
+#endif
+        acc += vote ? w : (realv)(R(0.0));
+    }
+    STOREV(acc, o);
+}
