@@ -462,7 +462,7 @@ def _context(context, device, precision: str):
     return ctx
 
 
-def _run(ctx, scene: Scene, pb: MapProblem, precision: str, name: str) -> np.ndarray:
+def _run(ctx, pb: MapProblem, precision: str, name: str) -> np.ndarray:
     """Launch kernel ``name`` over the whole map, rows in blocks; return the [ny, nx] map."""
     import pyopencl as cl
 
@@ -471,6 +471,8 @@ def _run(ctx, scene: Scene, pb: MapProblem, precision: str, name: str) -> np.nda
     real = PRECISIONS[precision]
     itemsize = np.dtype(real).itemsize
     g = pb.grid
+    if len(pb.rows) == 0:
+        return np.zeros((g.ny, g.nx), dtype=real)
     program = _program(ctx, precision, pb.weight == "beam", vec)
     kernel = _kernel(program, name)
     limit = int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, device))
@@ -478,9 +480,6 @@ def _run(ctx, scene: Scene, pb: MapProblem, precision: str, name: str) -> np.nda
         wgx, wgy = (wgx, wgy // 2) if wgy > 1 else (wgx // 2, wgy)
     items_x, items_y = _items(g.nx, g.ny, vec, wgx, wgy)
     pitch = items_x * vec
-    if len(pb.rows) == 0:
-        return np.zeros((g.ny, g.nx), dtype=real)
-
     queue = _queue(ctx)
     mf = cl.mem_flags
     out = cl.Buffer(ctx, mf.READ_WRITE, pitch * items_y * itemsize)
@@ -531,7 +530,7 @@ def accumulate(scene: Scene, sensors: SensorArray, loci, *, context=None,
     ctx = _context(context, device, precision)
     check_map_memory(scene, precision, ctx.devices[0])
     pb = prepare_loci(scene, sensors, loci, settings)
-    return _run(ctx, scene, pb, precision, "loci_map")
+    return _run(ctx, pb, precision, "loci_map")
 
 
 def backproject(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float, *,
@@ -549,7 +548,7 @@ def backproject(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float,
     ctx = _context(context, device, precision)
     check_map_memory(scene, precision, ctx.devices[0])
     pb = prepare_backprojection(scene, sensors, pairs, envelopes, dt, settings)
-    return _run(ctx, scene, pb, precision, "backproject_map")
+    return _run(ctx, pb, precision, "backproject_map")
 
 
 __all__ = ["Loci", "MapGrid", "MapProblem", "accumulate", "accumulate_reference", "as_loci",
