@@ -158,9 +158,13 @@ def cell_centres(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
 
 
 def band_m(scene: Scene, settings: MappingSettings | None = None) -> float:
-    """Width of a locus in path length: ``settings.band_m``, or √2·cell when it is null."""
+    """Width of a locus in path length: ``settings.band_m``, or 2√2·cell when it is null.
+
+    |p−T| + |p−R| changes at most twice as fast as the distance across the locus (exactly
+    twice for T = R), so 2√2·cell of path length make every locus at least √2 cells thick
+    on the map: one 8-connected band, never a dotted one."""
     settings = settings if settings is not None else scene.mapping
-    return settings.band_m if settings.band_m is not None else math.sqrt(2.0) * scene.cell
+    return settings.band_m if settings.band_m is not None else 2.0 * math.sqrt(2.0) * scene.cell
 
 
 @dataclass(frozen=True, eq=False)
@@ -178,10 +182,7 @@ class MapProblem:
 
 
 def _beam_constants(scene: Scene) -> tuple[float, float]:
-    t = scene.transducer
-    c = scene.medium.c
-    ka = physics.wavenumber(t.frequency_hz, c) * t.radius_m
-    cut = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
+    cut, ka = scene.transducer.beam(scene.medium.c)
     return cut, (ka / physics.J1_FIRST_ZERO) ** 2
 
 

@@ -109,6 +109,17 @@ def beam_pattern(
     return np.where(inside, piston_pattern(ka * np.abs(sin_theta)), 0.0)
 
 
+def beam_constants(frequency_hz: float, radius_m: float, half_beam_deg: float,
+                   directivity: str, c: float) -> tuple[float, float]:
+    """``(cut_sin2, ka)`` of a transducer for :func:`beam_pattern`: the hard cut and the
+    piston's k·a. ``directivity`` ``"uniform"`` (the thesis' flat sensitivity inside the
+    cut, §2.1: "divided into 25 parts starting at −12° and ending at +12°") gives ka = 0,
+    which makes the pattern 1 everywhere inside the cut."""
+    cut = beam_cut_sin2(frequency_hz, radius_m, half_beam_deg, c)
+    ka = 0.0 if directivity == "uniform" else wavenumber(frequency_hz, c) * radius_m
+    return cut, ka
+
+
 def beam_series_coefficients(terms: int = 14) -> np.ndarray:
     """Coefficients ``c_k`` of ``2·J1(x)/x = (1 − u)·Σ c_k·u^k`` with ``u = (x/j1)²``.
 

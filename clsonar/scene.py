@@ -11,7 +11,8 @@ Optional keys and their defaults (all units SI, angles in degrees where the key 
 
 ``medium``      ``temperature_k`` 293.15; ``speed_of_sound`` (m/s) overrides eq. 2.1 if set.
 ``transducer``  ``frequency_hz`` 50000, ``radius_m`` 0.02, ``half_beam_deg`` 12.0,
-                ``amplitude`` 5.0, ``pulse_sigma_s`` ≈ 54 µs (see physics.DEFAULT_PULSE_SIGMA_S).
+                ``amplitude`` 5.0, ``pulse_sigma_s`` ≈ 54 µs (see physics.DEFAULT_PULSE_SIGMA_S),
+                ``directivity`` "piston" (or "uniform", the thesis' flat sensitivity).
 ``signal``      ``noise_std`` 0.0, ``threshold`` 4.0, ``seed`` 1.
 ``echo``        ``max_order`` 2 (reflections on flat walls), ``reflection_coefficient`` 0.9,
                 ``edge_coefficient`` 1.0, ``absorption_db_per_m`` 0.0, ``curve_step_m`` 0.01
@@ -33,7 +34,12 @@ from pathlib import Path
 from typing import Any, Literal
 
 from .errors import SceneError
-from .physics import DEFAULT_PULSE_SIGMA_S, DEFAULT_REFLECTION_COEFFICIENT, speed_of_sound
+from .physics import (
+    DEFAULT_PULSE_SIGMA_S,
+    DEFAULT_REFLECTION_COEFFICIENT,
+    beam_constants,
+    speed_of_sound,
+)
 
 FORMAT_VERSION = 1
 
@@ -104,6 +110,12 @@ class TransducerModel:
     half_beam_deg: float = 12.0
     amplitude: float = 5.0
     pulse_sigma_s: float = DEFAULT_PULSE_SIGMA_S
+    directivity: Literal["piston", "uniform"] = "piston"
+
+    def beam(self, c: float) -> tuple[float, float]:
+        """``(cut_sin2, ka)`` for :func:`clsonar.physics.beam_pattern`."""
+        return beam_constants(self.frequency_hz, self.radius_m, self.half_beam_deg,
+                              self.directivity, c)
 
 
 @dataclass(frozen=True)
@@ -148,7 +160,7 @@ class MappingSettings:
 
     ``loci``: every pixel p gets a vote from each detection whose time of flight τ puts p on
     its locus, ``| |p−T| + |p−R| − c·τ | ≤ band_m/2``, inside both beams (a circle for T = R,
-    an ellipse otherwise). ``band_m`` null means √2·cell. ``weight``: ``unit`` (the thesis),
+    an ellipse otherwise). ``band_m`` null means 2√2·cell (loci ≥ √2 cells thick). ``weight``: ``unit`` (the thesis),
     ``amplitude`` (the detected amplitude) or ``beam`` (b(θ_T)·b(θ_R) at the pixel).
     ``backprojection``: the sum over pairs of each pair's envelope at the pixel's delay
     (delay-and-sum, "total focusing"). ``precision``: the kernel's arithmetic.
@@ -168,7 +180,8 @@ class PostSettings:
     map, as a fraction of its maximum (null: automatic); ``thinning``: ``thesis`` (eq. 2.5
     as written) or ``guo-hall`` (one-pixel 8-connected curves); ``fit``: ``polynomial`` of
     ``poly_order`` along a single wall (the thesis: 5–8), ``spline`` along each linked curve
-    (rooms too) or ``none``; curves closer than ``max_gap_m`` are bridged.
+    (rooms too) or ``none``; curves closer than ``max_gap_m`` are bridged; ``subcell`` moves
+    each thin cell to the vote-weighted centroid of the filtered map around it.
     """
 
     filter: Literal["mean3", "none"] = "mean3"
@@ -177,6 +190,7 @@ class PostSettings:
     fit: Literal["polynomial", "spline", "none"] = "spline"
     poly_order: int = 7
     max_gap_m: float = 0.3
+    subcell: bool = True
 
 
 # --------------------------------------------------------------------------- sensors
@@ -421,6 +435,8 @@ def _read_transducer(r: _Reader, d: Any) -> TransducerModel:
         half_beam_deg=r.number(d, "half_beam_deg", k, TransducerModel.half_beam_deg, gt=0, le=90),
         amplitude=r.number(d, "amplitude", k, TransducerModel.amplitude, gt=0),
         pulse_sigma_s=r.number(d, "pulse_sigma_s", k, TransducerModel.pulse_sigma_s, gt=0),
+        directivity=r.choice(d, "directivity", k, ("piston", "uniform"),  # type: ignore[arg-type]
+                             TransducerModel.directivity),
     )
     return m
 
@@ -483,6 +499,7 @@ def _read_post(r: _Reader, d: Any) -> PostSettings:
         fit=r.choice(d, "fit", k, ("polynomial", "spline", "none"), ps.fit),  # type: ignore[arg-type]
         poly_order=r.integer(d, "poly_order", k, ps.poly_order, ge=1, le=12),
         max_gap_m=r.number(d, "max_gap_m", k, ps.max_gap_m, ge=0),
+        subcell=r.boolean(d, "subcell", k, ps.subcell),
     )
 
 

@@ -98,7 +98,7 @@ def model_rows(scene: Scene, sensors: SensorArray, loci: Loci, settings=None):
     X, Y = cell_grid(scene)
     ka, cut = beam_geometry(scene)
     sin_c, cos_c = math.sqrt(cut), math.sqrt(1.0 - cut)
-    band = settings.band_m if settings.band_m is not None else math.sqrt(2.0) * scene.cell
+    band = settings.band_m if settings.band_m is not None else 2.0 * math.sqrt(2.0) * scene.cell
     origin = np.asarray(mapping.map_grid(scene).origin)
     pixel_scale = np.hypot(X - origin[0], Y - origin[1])
     out = []
@@ -207,7 +207,7 @@ def map_cases(draw):
             aim += draw(st.floats(-20.0, 20.0))
         transducers.append((px, py, aim))
     sensors = make_sensors(*transducers)
-    half_band = (band if band is not None else math.sqrt(2.0) * cell) / 2
+    half_band = (band if band is not None else 2.0 * math.sqrt(2.0) * cell) / 2
     rows = []
     for _ in range(draw(st.integers(1, 6))):
         t = draw(st.integers(0, len(transducers) - 1))
@@ -311,7 +311,7 @@ def test_monostatic_locus_is_a_ring_arc_within_the_half_beam(precision):
     X, Y = cell_grid(scene)
     r = np.hypot(X - T[0], Y - T[1])
     angle = np.degrees(np.arctan2(Y - T[1], X - T[0])) - heading
-    band = math.sqrt(2.0) * scene.cell
+    band = 2.0 * math.sqrt(2.0) * scene.cell
     voted = m > 0
     assert np.all(m[voted] == 1.0)
     # |2r − 2·radius| ≤ band/2: a ring of half-width band/4 around the radius ...
@@ -352,7 +352,7 @@ def test_bistatic_locus_is_an_ellipse_arc_with_foci_at_the_transducers(precision
     X, Y = cell_grid(scene)
     err = np.hypot(X - T[0], Y - T[1]) + np.hypot(X - R[0], Y - R[1]) - path
     voted = m > 0
-    band = math.sqrt(2.0) * scene.cell
+    band = 2.0 * math.sqrt(2.0) * scene.cell
     assert voted.sum() > 20
     assert np.all(np.abs(err[voted]) <= band / 2 + 1e-6)
     # pixels by hand: the minor axis' vertex (the foci's midpoint + b along the beams) is on
