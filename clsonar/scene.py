@@ -209,7 +209,7 @@ class RandomLines:
 
     Arrays of ``elements`` transducers start at ``start`` (random inside the extent if
     null) and run along ``direction_deg``; element spacing is uniform in ``spacing_m``,
-    the gap between arrays uniform in ``gap_m``; each heading is ``facing_deg`` plus a
+    the separation of consecutive arrays' centres uniform in ``separation_m``; each heading is ``facing_deg`` plus a
     uniform offset in ±``heading_spread_deg``. Placement stops after ``length_m`` or when
     an element would come within ``clearance_m`` of a surface or leave the extent.
     """
@@ -220,7 +220,7 @@ class RandomLines:
     length_m: float = 10.0
     elements: int = 10
     spacing_m: tuple[float, float] = (0.05, 0.11)
-    gap_m: tuple[float, float] = (0.5, 1.65)
+    separation_m: tuple[float, float] = (0.5, 1.65)
     facing_deg: float = 0.0
     heading_spread_deg: float = 90.0
     clearance_m: float = 0.05
@@ -581,7 +581,7 @@ def _read_placement(r: _Reader, d: Any) -> Placement | None:
             length_m=r.number(d, "length_m", k, p.length_m, gt=0),
             elements=r.integer(d, "elements", k, p.elements, ge=1, le=10000),
             spacing_m=r.interval(d, "spacing_m", k, p.spacing_m, gt=0),
-            gap_m=r.interval(d, "gap_m", k, p.gap_m, gt=0),
+            separation_m=r.interval(d, "separation_m", k, p.separation_m, gt=0),
             facing_deg=r.number(d, "facing_deg", k, p.facing_deg),
             heading_spread_deg=r.number(d, "heading_spread_deg", k, p.heading_spread_deg,
                                         ge=0, le=180),

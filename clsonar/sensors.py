@@ -123,8 +123,10 @@ def place_random_lines(p: RandomLines, scene: Scene, geom: Geometry):
 
     Elements are placed one after another along the line from ``p.start`` in direction
     ``p.direction_deg``: the first element at the start, each next element of an array
-    ``uniform(spacing_m)`` further on, the first element of the next array ``uniform(gap_m)``
-    beyond the last one of the previous array. Each heading is ``facing_deg +
+    ``uniform(spacing_m)`` further on; the centre of the next array lies ``uniform(
+    separation_m)`` beyond the centre of the previous one (thesis §2.1: "separations of the
+    centers of the transducer arrays vary between 50 cm and 165 cm"), so arrays longer than
+    their separation interleave, and a 10 m line holds the thesis' 100 transducers. Each heading is ``facing_deg +
     uniform(±heading_spread_deg)`` (the thesis' "random orientations between 0° and 180°" is
     ``facing ± 90°``). Placement ends for good ("the localization process is terminated",
     §2.1) at the first element that would lie beyond ``length_m`` along the line, outside the
@@ -151,14 +153,16 @@ def place_random_lines(p: RandomLines, scene: Scene, geom: Geometry):
     positions: list[np.ndarray] = []
     headings: list[float] = []
     groups: list[int] = []
-    s = 0.0
     prev: np.ndarray | None = None
     reason = ""
     array = 0
+    centre = 0.0
     while not reason:
-        for k in range(p.elements):
-            if positions:
-                s += rng.uniform(*(p.spacing_m if k > 0 else p.gap_m))
+        offsets = np.r_[0.0, np.cumsum(rng.uniform(*p.spacing_m, size=p.elements - 1))]
+        half = 0.5 * offsets[-1]
+        first = 0.0 if array == 0 else centre + rng.uniform(*p.separation_m) - half
+        centre = first + half
+        for s in first + offsets:
             point = start + s * u
             reason = _random_lines_stop(p, scene, geom, point, prev, s)
             if reason:

@@ -100,15 +100,17 @@ def _check_random_lines(p: RandomLines, pos, head, groups):
     np.testing.assert_allclose(rel[:, 0] * u[1] - rel[:, 1] * u[0], 0.0, atol=1e-9)  # on line
     assert s[0] == pytest.approx(0.0, abs=1e-12)
     assert np.all(s <= p.length_m + TOL)
-    steps = np.diff(s)
     same = np.diff(groups) == 0
+    steps = np.diff(s)
     assert np.all(np.diff(groups) >= 0) and np.all(np.diff(groups) <= 1)
     assert groups[0] == 0 and groups.dtype == np.int64
     lo, hi = p.spacing_m
     assert np.all((steps[same] >= lo - TOL) & (steps[same] <= hi + TOL))
-    lo, hi = p.gap_m
-    assert np.all((steps[~same] >= lo - TOL) & (steps[~same] <= hi + TOL))
     sizes = np.bincount(groups)
+    full = np.flatnonzero(sizes == p.elements)
+    centres = np.array([0.5 * (s[groups == g].min() + s[groups == g].max()) for g in full])
+    lo, hi = p.separation_m
+    assert np.all((np.diff(centres) >= lo - TOL) & (np.diff(centres) <= hi + TOL))
     assert np.all(sizes[:-1] == p.elements) and 1 <= sizes[-1] <= p.elements
     offset = (head - p.facing_deg + 180.0) % 360.0 - 180.0
     assert np.all(np.abs(offset) <= p.heading_spread_deg + TOL)
