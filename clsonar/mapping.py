@@ -140,6 +140,46 @@ class MapGrid:
     row0: int
 
 
+
+def merge_reciprocal(loci: Loci, tolerance_s: float) -> Loci:
+    """One locus per physical path: (T, R) and (R, T) travel the same path, so a detection
+    of each whose times of flight differ by at most ``tolerance_s`` become one row with
+    T < R, their mean time of flight (√2 less noise) and mean amplitude. Unmatched rows and
+    T = R rows stay as they are. Rows come back sorted by (tx, rx, tof)."""
+    loci = as_loci(loci)
+    groups: dict[tuple[int, int], list[int]] = {}
+    for i, (t, r) in enumerate(zip(loci.tx.tolist(), loci.rx.tolist(), strict=True)):
+        groups.setdefault((min(t, r), max(t, r)), []).append(i)
+    tx, rx, tof, amp = [], [], [], []
+    for (a, b), rows in groups.items():
+        if a == b:
+            forward, backward = rows, []
+        else:
+            forward = [i for i in rows if loci.tx[i] == a]
+            backward = [i for i in rows if loci.tx[i] == b]
+        used = set()
+        for i in forward:
+            match = min((j for j in backward if j not in used),
+                        key=lambda j: abs(loci.tof_s[j] - loci.tof_s[i]), default=None)
+            if match is not None and abs(loci.tof_s[match] - loci.tof_s[i]) <= tolerance_s:
+                used.add(match)
+                both = [i, match]
+            else:
+                both = [i]
+            tx.append(a)
+            rx.append(b if a != b else a)
+            tof.append(float(np.mean(loci.tof_s[both])))
+            amp.append(float(np.mean(loci.amplitude[both])))
+        for j in backward:
+            if j not in used:
+                tx.append(a)
+                rx.append(b)
+                tof.append(float(loci.tof_s[j]))
+                amp.append(float(loci.amplitude[j]))
+    order = np.lexsort((tof, rx, tx))
+    return Loci(np.asarray(tx, np.int64)[order], np.asarray(rx, np.int64)[order],
+                np.asarray(tof, np.float64)[order], np.asarray(amp, np.float64)[order])
+
 def map_grid(scene: Scene) -> MapGrid:
     """The scene's map (``scene.grid_shape`` cells of ``scene.cell``) around its middle pixel."""
     ny, nx = scene.grid_shape

@@ -29,8 +29,9 @@ STAGES = ("sensors", "echoes", "detection", "accumulation", "filter", "thinning"
 PRESETS: dict[str, dict[str, object]] = {
     "thesis": {
         "detection": DetectionSettings(mode="threshold"),
-        "mapping": MappingSettings(mode="loci", weight="unit"),
-        "post": PostSettings(filter="mean3", thinning="thesis", fit="polynomial", poly_order=7),
+        "mapping": MappingSettings(mode="loci", weight="unit", reciprocal="both"),
+        "post": PostSettings(filter="mean3", level=1e-6, thinning="thesis", fit="polynomial",
+                             poly_order=7, subcell=False),
     },
     "best": {"detection": DetectionSettings(), "mapping": MappingSettings(),
              "post": PostSettings()},
@@ -113,16 +114,19 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         dt, env = signals.envelopes(scene, sensors, echoes, context=ctx)
         raw = mapping.backproject(scene, sensors, pairs(sensors), env, dt, context=ctx)
     else:
-        raw = mapping.accumulate(scene, sensors, detections, context=ctx)
+        loci = mapping.as_loci(detections)
+        if scene.mapping.reciprocal == "merge":
+            loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
+        raw = mapping.accumulate(scene, sensors, loci, context=ctx)
     clock.start("filter")
     filtered = post.low_pass(raw) if scene.post.filter == "mean3" else np.asarray(raw, float)
     occupied = post.binarize(filtered, post.occupancy_level(filtered, scene.post))
     clock.start("thinning")
     thin = post.thin_map(occupied, scene.post)
     clock.start("profile")
-    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post)
+    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered)
     clock.start("metrics")
-    result_metrics = metrics.evaluate(scene, geom, sensors, profile.points)
+    result_metrics = metrics.evaluate(scene, geom, sensors, echoes, profile.points)
     seconds = clock.stop()
 
     counts = {

@@ -160,16 +160,20 @@ class MappingSettings:
 
     ``loci``: every pixel p gets a vote from each detection whose time of flight τ puts p on
     its locus, ``| |p−T| + |p−R| − c·τ | ≤ band_m/2``, inside both beams (a circle for T = R,
-    an ellipse otherwise). ``band_m`` null means 2√2·cell (loci ≥ √2 cells thick). ``weight``: ``unit`` (the thesis),
-    ``amplitude`` (the detected amplitude) or ``beam`` (b(θ_T)·b(θ_R) at the pixel).
+    an ellipse otherwise). ``band_m`` null means 2√2·cell (loci ≥ √2 cells thick).
+    ``weight``: ``unit`` (the thesis), ``amplitude`` (the detected amplitude) or ``beam``
+    (b(θ_T)·b(θ_R) at the pixel).
     ``backprojection``: the sum over pairs of each pair's envelope at the pixel's delay
     (delay-and-sum, "total focusing"). ``precision``: the kernel's arithmetic.
+    ``reciprocal``: ``merge`` makes the detections of (T, R) and (R, T) — one path measured
+    twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
     """
 
     mode: Literal["loci", "backprojection"] = "loci"
     weight: Literal["unit", "amplitude", "beam"] = "unit"
     band_m: float | None = None
     precision: Literal["float32", "float64"] = "float32"
+    reciprocal: Literal["merge", "both"] = "merge"
 
 
 @dataclass(frozen=True)
@@ -209,9 +213,10 @@ class RandomLines:
 
     Arrays of ``elements`` transducers start at ``start`` (random inside the extent if
     null) and run along ``direction_deg``; element spacing is uniform in ``spacing_m``,
-    the separation of consecutive arrays' centres uniform in ``separation_m``; each heading is ``facing_deg`` plus a
-    uniform offset in ±``heading_spread_deg``. Placement stops after ``length_m`` or when
-    an element would come within ``clearance_m`` of a surface or leave the extent.
+    the separation of consecutive arrays' centres uniform in ``separation_m``; each heading
+    is ``facing_deg`` plus a uniform offset in ±``heading_spread_deg``. Placement stops
+    after ``length_m`` or when an element would come within ``clearance_m`` of a surface or
+    leave the extent.
     """
 
     seed: int = 1
@@ -485,6 +490,7 @@ def _read_mapping(r: _Reader, d: Any) -> MappingSettings:
         weight=r.choice(d, "weight", k, ("unit", "amplitude", "beam"), ms.weight),  # type: ignore[arg-type]
         band_m=band,
         precision=r.choice(d, "precision", k, ("float32", "float64"), ms.precision),  # type: ignore[arg-type]
+        reciprocal=r.choice(d, "reciprocal", k, ("merge", "both"), ms.reciprocal),  # type: ignore[arg-type]
     )
 
 

@@ -123,16 +123,17 @@ def place_random_lines(p: RandomLines, scene: Scene, geom: Geometry):
 
     Elements are placed one after another along the line from ``p.start`` in direction
     ``p.direction_deg``: the first element at the start, each next element of an array
-    ``uniform(spacing_m)`` further on; the centre of the next array lies ``uniform(
-    separation_m)`` beyond the centre of the previous one (thesis §2.1: "separations of the
-    centers of the transducer arrays vary between 50 cm and 165 cm"), so arrays longer than
-    their separation interleave, and a 10 m line holds the thesis' 100 transducers. Each heading is ``facing_deg +
-    uniform(±heading_spread_deg)`` (the thesis' "random orientations between 0° and 180°" is
-    ``facing ± 90°``). Placement ends for good ("the localization process is terminated",
-    §2.1) at the first element that would lie beyond ``length_m`` along the line, outside the
-    extent, outside free space, within ``clearance_m`` of a surface, or behind a surface as
-    seen from the previous element; what was placed is kept, a partly filled last array
-    included. Each array is one pair group (0, 1, …).
+    ``uniform(spacing_m)`` further on; the centre of the next array lies
+    ``uniform(separation_m)`` beyond the centre of the previous one (thesis §2.1:
+    "separations of the centers of the transducer arrays vary between 50 cm and 165 cm"), so
+    arrays longer than their separation interleave, and a 10 m line holds the thesis' 100
+    transducers. Each heading is ``facing_deg + uniform(±heading_spread_deg)`` (the thesis'
+    "random orientations between 0° and 180°" is ``facing ± 90°``). Placement ends for good
+    ("the localization process is terminated", §2.1) at the first element that would lie
+    beyond ``length_m`` along the line, outside the extent, outside free space, within
+    ``clearance_m`` of a surface, or behind a surface as seen from the previous element;
+    what was placed is kept, a partly filled last array included. Each array is one pair
+    group (0, 1, …).
 
     With ``start`` null the start is drawn inside the extent, retrying (up to 1000 draws)
     until it is in free space and at least ``clearance_m`` from every surface. All random

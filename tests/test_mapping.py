@@ -606,3 +606,17 @@ def test_backprojection_inputs_are_checked():
     m = kernel_backprojection(scene, sensors, np.zeros((0, 2), np.int64), np.zeros((0, 4)),
                               1e-5, "float32")
     assert m.shape == scene.grid_shape and not m.any()
+
+
+def test_merge_reciprocal_pairs_one_locus_per_path():
+    from clsonar.mapping import merge_reciprocal
+
+    rows = [(0, 1, 0.010, 2.0), (1, 0, 0.0102, 4.0), (2, 2, 0.02, 1.0), (0, 1, 0.03, 1.0),
+            (3, 1, 0.05, 1.0)]
+    r = np.asarray(rows)
+    loci = Loci(r[:, 0].astype(np.int64), r[:, 1].astype(np.int64), r[:, 2], r[:, 3])
+    merged = merge_reciprocal(loci, tolerance_s=1e-3)
+    got = list(zip(merged.tx.tolist(), merged.rx.tolist(), merged.tof_s.tolist(),
+                   merged.amplitude.tolist(), strict=True))
+    assert got == [(0, 1, pytest.approx(0.0101), 3.0), (0, 1, 0.03, 1.0), (1, 3, 0.05, 1.0),
+                   (2, 2, 0.02, 1.0)]
