@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache
 
@@ -595,3 +596,25 @@ def backproject(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float,
 __all__ = ["Loci", "MapGrid", "MapProblem", "accumulate", "accumulate_reference", "as_loci",
            "backproject", "backproject_reference", "band_m", "cell_centres",
            "check_map_memory", "map_grid", "prepare_backprojection", "prepare_loci"]
+
+
+def _subset(loci: Loci, keep: np.ndarray) -> Loci:
+    return Loci(loci.tx[keep], loci.rx[keep], loci.tof_s[keep], loci.amplitude[keep])
+
+
+def count_viewpoints(scene: Scene, sensors: SensorArray, loci,
+                     draw: Callable[[Loci], np.ndarray]) -> np.ndarray:
+    """How many *viewpoints* have a locus through each cell ([ny, nx] float32).
+
+    A viewpoint is a pair group (one linear array, one ring pose). Its loci are nearly
+    concentric — transducers a few centimetres apart looking at a surface metres away — so
+    they agree along their whole arcs, not only at the surface; loci from two viewpoints
+    cross where the surface is. ``draw`` maps one viewpoint's loci (:func:`accumulate` or
+    :func:`accumulate_reference` with the scene's settings).
+    """
+    loci = as_loci(loci)
+    groups = sensors.groups[loci.tx]
+    total = np.zeros(scene.grid_shape, dtype=np.float32)
+    for g in np.unique(groups):
+        total += draw(_subset(loci, groups == g)) > 0
+    return total

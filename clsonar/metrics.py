@@ -7,9 +7,10 @@
 - accuracy: RMS and 95th percentile of the distance from each estimated point to the
   nearest true surface;
 - completeness: the share of the *insonified* true geometry that has an estimated point
-  within 1, 2 and 5 cm. A point of a true surface is insonified when some transducer sees it
-  inside its beam (the hard cut) with a clear line of sight: the parts of the scene the
-  sensors could possibly map;
+  within 1, 2 and 5 cm. A point of a true surface is insonified when it lies on the locus
+  of an echo return inside both beams (:func:`insonified`): the parts of the scene the
+  echoes speak of, so what a perfect map could recover; ``coverage`` is their share of all
+  the true geometry;
 - spurious share: the share of estimated points farther than 5 cm from every true surface.
 """
 
@@ -21,7 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import physics
-from .geometry import Geometry, curve_point, nearest_surface_point, ray_distance
+from .geometry import Geometry, curve_point, nearest_surface_point
 from .scene import Polyline, Scene, Sinusoid
 from .sensors import SensorArray
 
@@ -31,8 +32,8 @@ COMPLETENESS_RADII = (0.01, 0.02, 0.05)
 #: An estimated point farther than this from every surface is spurious, metres.
 SPURIOUS_M = 0.05
 
-#: A line of sight may end this close to (or start on) a surface and still be clear, metres.
-SIGHT_EPS = 1e-4
+#: A true point within about this range of an echo's locus is insonified by it, metres.
+LOCUS_TOL_M = 0.01
 
 
 def truth_points(scene: Scene, geom: Geometry, spacing: float) -> np.ndarray:
@@ -61,27 +62,38 @@ def truth_points(scene: Scene, geom: Geometry, spacing: float) -> np.ndarray:
     return pts[inside]
 
 
-def insonified(scene: Scene, geom: Geometry, sensors: SensorArray,
-               points: np.ndarray) -> np.ndarray:
-    """[M] bool: which ``points`` some transducer sees inside its beam with a clear line of
-    sight (the transducer's axis within the hard cut, nothing in between)."""
+def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
+               min_amplitude: float | None = None) -> np.ndarray:
+    """[M] bool: which ``points`` of the true geometry lie on the locus of an echo return.
+
+    A point q is on the locus of the echo (T, R, τ) when ``| |q−T| + |q−R| − c·τ | ≤
+    2·LOCUS_TOL_M`` (about ±1 cm in range) and q is inside both beams: what the echoes
+    themselves say about the scene, so what a perfect map could recover. A smooth wall
+    only echoes around its specular points; the rest of it, even inside a beam, is silent.
+    Echoes weaker than ``min_amplitude`` (default 10 % of the transmitted amplitude) are
+    ignored.
+    """
     t = scene.transducer
-    cut_sin2 = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg,
-                                     scene.medium.c)
-    seen = np.zeros(len(points), dtype=bool)
-    axes = sensors.axes
-    for pos, axis in zip(sensors.positions, axes, strict=True):
-        d = points - pos
-        dist = np.hypot(d[:, 0], d[:, 1])
-        cos = d @ axis
-        cross = axis[0] * d[:, 1] - axis[1] * d[:, 0]
-        candidates = np.flatnonzero(~seen & (cos > 0) & (cross * cross <= cut_sin2 * dist * dist))
-        if len(candidates) == 0:
-            continue
-        u = d[candidates] / dist[candidates, None]
-        first_hit = ray_distance(geom, np.broadcast_to(pos, (len(candidates), 2)), u)
-        seen[candidates[first_hit >= dist[candidates] - SIGHT_EPS]] = True
-    return seen
+    c = scene.medium.c
+    floor = 0.1 * t.amplitude if min_amplitude is None else min_amplitude
+    keep = np.asarray(echoes.amplitude) >= floor
+    tx, rx = np.asarray(echoes.tx)[keep], np.asarray(echoes.rx)[keep]
+    path = np.asarray(echoes.tof_s)[keep] * c
+    cut_sin2 = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
+    pos, axes = sensors.positions, sensors.axes
+    lit = np.zeros(len(points), dtype=bool)
+
+    def in_beam(sensor: np.ndarray, d: np.ndarray, dist: np.ndarray) -> np.ndarray:
+        cos = d @ axes[sensor]
+        cross = axes[sensor][0] * d[:, 1] - axes[sensor][1] * d[:, 0]
+        return (cos > 0) & (cross * cross <= cut_sin2 * dist * dist)
+
+    for i in range(len(path)):
+        dt, dr = points - pos[tx[i]], points - pos[rx[i]]
+        lt, lr = np.hypot(dt[:, 0], dt[:, 1]), np.hypot(dr[:, 0], dr[:, 1])
+        near = np.abs(lt + lr - path[i]) <= 2 * LOCUS_TOL_M
+        lit |= near & in_beam(tx[i], dt, lt) & in_beam(rx[i], dr, lr)
+    return lit
 
 
 def single_wall(scene: Scene) -> tuple[np.ndarray, np.ndarray, Sinusoid | None] | None:
@@ -116,18 +128,21 @@ def rms_along_wall(scene: Scene, points: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean((c_true - c_est) ** 2)))
 
 
-def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray,
+def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
              points: np.ndarray) -> dict[str, object]:
     """All metrics of the estimated profile ``points`` [n, 2] (module docstring), as a
     JSON-ready dict: ``rms_m`` (eq. 2.6 or None), ``accuracy_m`` {rms, p95},
     ``completeness`` {"1cm", "2cm", "5cm"}, ``spurious_share``, ``insonified_m`` (length of
-    the insonified true geometry) and ``points``."""
+    the insonified true geometry), ``coverage`` (its share of all of it) and ``points``."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     spacing = min(scene.cell, 0.005)
     truth = truth_points(scene, geom, spacing)
-    lit = truth[insonified(scene, geom, sensors, truth)] if len(truth) else truth
-    out: dict[str, object] = {"points": len(points), "rms_m": rms_along_wall(scene, points),
-                              "insonified_m": len(lit) * spacing}
+    lit = truth[insonified(scene, sensors, echoes, truth)] if len(truth) else truth
+    out: dict[str, object] = {
+        "points": len(points), "rms_m": rms_along_wall(scene, points),
+        "insonified_m": len(lit) * spacing,
+        "coverage": len(lit) / len(truth) if len(truth) else None,
+    }
     if len(points) and len(truth):
         dist, _ = nearest_surface_point(geom, points)
         out["accuracy_m"] = {"rms": float(np.sqrt(np.mean(dist**2))),
@@ -137,10 +152,7 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray,
         out["accuracy_m"] = {"rms": None, "p95": None}
         out["spurious_share"] = None
     if len(lit):
-        if len(points):
-            gap, _ = cKDTree(points).query(lit)
-        else:
-            gap = np.full(len(lit), np.inf)
+        gap = cKDTree(points).query(lit)[0] if len(points) else np.full(len(lit), np.inf)
         out["completeness"] = {f"{round(r * 100)}cm": float(np.mean(gap <= r))
                                for r in COMPLETENESS_RADII}
     else:

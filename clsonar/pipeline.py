@@ -29,7 +29,7 @@ STAGES = ("sensors", "echoes", "detection", "accumulation", "filter", "thinning"
 PRESETS: dict[str, dict[str, object]] = {
     "thesis": {
         "detection": DetectionSettings(mode="threshold"),
-        "mapping": MappingSettings(mode="loci", weight="unit", reciprocal="both"),
+        "mapping": MappingSettings(mode="loci", weight="unit", reciprocal="both", combine="sum"),
         "post": PostSettings(filter="mean3", level=1e-6, thinning="thesis", fit="polynomial",
                              poly_order=7, subcell=False),
     },
@@ -117,7 +117,12 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         loci = mapping.as_loci(detections)
         if scene.mapping.reciprocal == "merge":
             loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
-        raw = mapping.accumulate(scene, sensors, loci, context=ctx)
+        if scene.mapping.combine == "viewpoints":
+            raw = mapping.count_viewpoints(
+                scene, sensors, loci, lambda part: mapping.accumulate(scene, sensors, part,
+                                                                      context=ctx))
+        else:
+            raw = mapping.accumulate(scene, sensors, loci, context=ctx)
     clock.start("filter")
     filtered = post.low_pass(raw) if scene.post.filter == "mean3" else np.asarray(raw, float)
     occupied = post.binarize(filtered, post.occupancy_level(filtered, scene.post))

@@ -55,14 +55,14 @@ def png_bytes(fig) -> bytes:
 
 def map_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, *,
             binary: bool = False, sensors=None, points: np.ndarray | None = None) -> bytes:
-    """A map stage (``[iy, ix]``) as a PNG, the true geometry in red over it. Binary maps
-    are widened by one cell so one-pixel curves stay visible at print size."""
+    """A map stage (``[iy, ix]``) as a PNG, the true geometry in red over it."""
     fig, ax = _figure(scene, title)
     xmin, ymin = scene.extent[:2]
     ny, nx = image.shape
-    shown = np.asarray(image, dtype=float)
-    if binary:
-        shown = ndimage.binary_dilation(image, iterations=1).astype(float)
+    # One map cell can be smaller than a pixel of the picture: show each pixel's maximum,
+    # so thin arcs and one-cell curves stay visible.
+    size = max(1, int(np.ceil(max(nx, ny) / 700)))
+    shown = ndimage.maximum_filter(np.asarray(image, dtype=float), size=2 * size - 1)
     im = ax.imshow(shown, origin="lower", interpolation="nearest",
                    extent=(xmin, xmin + nx * scene.cell, ymin, ymin + ny * scene.cell),
                    cmap="gray_r" if binary else "viridis")

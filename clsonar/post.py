@@ -322,13 +322,34 @@ def thin_map(occupied: np.ndarray, settings: PostSettings) -> np.ndarray:
     return thin_thesis(occupied) if settings.thinning == "thesis" else thin(occupied)
 
 
+def refine_cells(cells: np.ndarray, weights: np.ndarray, radius: int = 1) -> np.ndarray:
+    """[n, 2] sub-cell ``(iy, ix)`` of ``cells`` [n, 2]: the centroid of ``weights`` (the
+    filtered map) over the (2·radius + 1)² cells around each. A vote ridge symmetric about
+    the true surface puts the centroid on it, to a fraction of a cell."""
+    cells = np.asarray(cells, dtype=np.int64)
+    w = np.pad(np.asarray(weights, dtype=np.float64), radius)
+    total = np.zeros(len(cells))
+    moment = np.zeros((len(cells), 2))
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            v = w[cells[:, 0] + radius + dy, cells[:, 1] + radius + dx]
+            total += v
+            moment += v[:, None] * np.array([dy, dx])
+    shift = np.where(total[:, None] > 0, moment / np.maximum(total, 1e-300)[:, None], 0.0)
+    return cells + shift
+
+
 def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float,
-                    settings: PostSettings) -> Profile:
-    """Link the thin cells into curves, bridge gaps up to ``settings.max_gap_m`` and fit:
-    one polynomial along the principal axis (``polynomial``, the thesis), a smoothing
-    spline per curve (``spline``) or the cell centres as linked (``none``)."""
+                    settings: PostSettings, weights: np.ndarray | None = None) -> Profile:
+    """Link the thin cells into curves, refine them to sub-cell positions (``subcell``, with
+    the filtered map ``weights``), bridge gaps up to ``settings.max_gap_m`` and fit: one
+    polynomial along the principal axis (``polynomial``, the thesis), a smoothing spline
+    per curve (``spline``) or the cells as linked (``none``)."""
+    linked = trace_curves(thin_map, MIN_CURVE_CELLS)
+    if settings.subcell and weights is not None:
+        linked = [refine_cells(c, weights) for c in linked]
     curves = [np.stack([extent[0] + (c[:, 1] + 0.5) * cell, extent[1] + (c[:, 0] + 0.5) * cell],
-                       axis=-1) for c in trace_curves(thin_map, MIN_CURVE_CELLS)]
+                       axis=-1) for c in linked]
     if settings.fit == "polynomial":
         if not curves:
             return Profile(())

@@ -167,6 +167,10 @@ class MappingSettings:
     (delay-and-sum, "total focusing"). ``precision``: the kernel's arithmetic.
     ``reciprocal``: ``merge`` makes the detections of (T, R) and (R, T) — one path measured
     twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
+    ``combine``: ``sum`` adds the votes (the thesis); ``viewpoints`` counts the viewpoints
+    (pair groups: an array, a ring pose) with a locus through each cell, since one
+    viewpoint's loci agree along whole arcs and only different viewpoints' cross at the
+    surface.
     """
 
     mode: Literal["loci", "backprojection"] = "loci"
@@ -174,6 +178,7 @@ class MappingSettings:
     band_m: float | None = None
     precision: Literal["float32", "float64"] = "float32"
     reciprocal: Literal["merge", "both"] = "merge"
+    combine: Literal["sum", "viewpoints"] = "viewpoints"
 
 
 @dataclass(frozen=True)
@@ -491,6 +496,7 @@ def _read_mapping(r: _Reader, d: Any) -> MappingSettings:
         band_m=band,
         precision=r.choice(d, "precision", k, ("float32", "float64"), ms.precision),  # type: ignore[arg-type]
         reciprocal=r.choice(d, "reciprocal", k, ("merge", "both"), ms.reciprocal),  # type: ignore[arg-type]
+        combine=r.choice(d, "combine", k, ("sum", "viewpoints"), ms.combine),  # type: ignore[arg-type]
     )
 
 

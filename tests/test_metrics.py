@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 
+from clsonar.echoes import reference_echoes
 from clsonar.geometry import build_geometry
 from clsonar.metrics import evaluate, insonified, rms_along_wall, truth_points
 from clsonar.scene import Polyline, Scene, Sensors, Sinusoid, Transducer
@@ -29,27 +30,37 @@ def test_rms_eq_2_6_plane_and_sinusoid():
     assert rms_along_wall(_scene(WALL, sin), np.zeros((3, 2))) is None
 
 
-def test_insonified_patch_is_the_beam_footprint():
-    scene = _scene(WALL)
+def _setup(scene):
     geom = build_geometry(scene)
+    sensors = place_sensors(scene, geom)
+    return geom, sensors, reference_echoes(scene, sensors)
+
+
+def test_insonified_is_where_the_echo_loci_meet_the_wall():
+    scene = _scene(WALL)  # one transducer 2 m from the wall, facing it
+    geom, sensors, echoes = _setup(scene)
+    assert len(echoes) == 1
     truth = truth_points(scene, geom, 0.005)
-    lit = truth[insonified(scene, geom, place_sensors(scene, geom), truth)]
-    half = 2.0 * math.tan(math.radians(12.0))
-    assert lit[:, 1].min() == pytest.approx(5 - half, abs=0.01)
-    assert lit[:, 1].max() == pytest.approx(5 + half, abs=0.01)
+    lit = truth[insonified(scene, sensors, echoes, truth)]
+    # |q − T| ≤ 2 m + 1 cm on the wall: |y − 5| ≤ sqrt(2.01² − 2²) ≈ 0.20 m
+    half = math.sqrt(2.01**2 - 2.0**2)
+    assert lit[:, 1].min() == pytest.approx(5 - half, abs=0.006)
+    assert lit[:, 1].max() == pytest.approx(5 + half, abs=0.006)
+    quiet = _scene(WALL, transducers=((7.0, 5.0, 20.0),))  # faces away from the normal
+    assert not insonified(quiet, *_setup(quiet)[1:], truth).any()
 
 
 def test_evaluate_accuracy_completeness_spurious():
     scene = _scene(WALL)
-    geom = build_geometry(scene)
-    sensors = place_sensors(scene, geom)
-    y = np.arange(4.5, 5.5, 0.005)
+    geom, sensors, echoes = _setup(scene)
+    y = np.arange(4.7, 5.3, 0.005)
     good = np.stack([np.full_like(y, 9.005), y], -1)
     junk = np.array([[5.0, 5.0], [6.0, 5.0]])
-    m = evaluate(scene, geom, sensors, np.concatenate([good, junk]))
+    m = evaluate(scene, geom, sensors, echoes, np.concatenate([good, junk]))
     assert m["completeness"]["1cm"] == pytest.approx(1.0)
     assert m["accuracy_m"]["p95"] == pytest.approx(0.005, abs=1e-9)
     assert m["spurious_share"] == pytest.approx(2 / (len(y) + 2))
-    assert m["insonified_m"] == pytest.approx(4 * math.tan(math.radians(12)), rel=0.02)
-    empty = evaluate(scene, geom, sensors, np.zeros((0, 2)))
+    assert m["insonified_m"] == pytest.approx(2 * math.sqrt(2.01**2 - 4), rel=0.05)
+    assert m["coverage"] == pytest.approx(m["insonified_m"] / 10.0, rel=0.01)
+    empty = evaluate(scene, geom, sensors, echoes, np.zeros((0, 2)))
     assert empty["completeness"]["5cm"] == 0.0 and empty["accuracy_m"]["rms"] is None

@@ -150,3 +150,12 @@ def test_extract_profile_from_a_thin_map():
     assert abs(np.median(r) - 0.2) < 0.01
     none = extract_profile(t, (0.0, 0.0, 0.6, 0.6), 0.01, PostSettings(fit="none"))
     assert len(none.points) == np.count_nonzero(t) + 1  # closed loop repeats its start
+
+
+def test_refine_cells_finds_the_ridge_between_cells():
+    from clsonar.post import refine_cells
+
+    w = np.zeros((5, 6))
+    w[:, 2] = w[:, 3] = 1.0  # a ridge on the boundary between columns 2 and 3
+    refined = refine_cells(np.array([[2, 2], [2, 3]]), w)
+    assert np.allclose(refined[:, 1], 2.5) and np.allclose(refined[:, 0], 2.0)
