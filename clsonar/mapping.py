@@ -618,3 +618,141 @@ def count_viewpoints(scene: Scene, sensors: SensorArray, loci,
     for g in np.unique(groups):
         total += draw(_subset(loci, groups == g)) > 0
     return total
+
+
+# --------------------------------------------------------------------------- tangent points
+
+#: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
+#: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
+TANGENT_BIAS_M = 0.002
+
+#: Samples of each locus (an ellipse with foci T and R) searched for crossings: 0.25°.
+LOCUS_SAMPLES = 1440
+
+
+def _locus_samples(scene: Scene, sensors: SensorArray, loci: Loci):
+    """[n, S, 2] points of each locus (ellipse with foci T, R and path length c·τ) and
+    [n, S] whether each lies inside both beams; [n] the half path length a."""
+    pos, axes = sensors.positions, sensors.axes
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+    T, R = pos[loci.tx], pos[loci.rx]
+    a = 0.5 * scene.medium.c * loci.tof_s
+    f = 0.5 * np.hypot(*(R - T).T)
+    b = np.sqrt(np.maximum(a * a - f * f, 0.0))
+    u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
+    v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
+    phi = 2 * np.pi * np.arange(LOCUS_SAMPLES) / LOCUS_SAMPLES
+    centre = 0.5 * (T + R)
+    p = (centre[:, None] + (a[:, None] * np.cos(phi))[..., None] * u[:, None]
+         + (b[:, None] * np.sin(phi))[..., None] * v[:, None])
+    inside = _in_beams(p, T[:, None], axes[loci.tx][:, None], cut_sin2)
+    inside &= _in_beams(p, R[:, None], axes[loci.rx][:, None], cut_sin2)
+    inside &= (a > f)[:, None]
+    return p, inside, a
+
+
+def _in_beams(p, sensor, axis, cut_sin2):
+    d = p - sensor
+    dist2 = d[..., 0] ** 2 + d[..., 1] ** 2
+    cos = d[..., 0] * axis[..., 0] + d[..., 1] * axis[..., 1]
+    cross = axis[..., 0] * d[..., 1] - axis[..., 1] * d[..., 0]
+    return (cos > 0) & (cross * cross <= cut_sin2 * dist2)
+
+
+def tangent_points(scene: Scene, sensors: SensorArray, loci,
+                   max_bias_m: float = TANGENT_BIAS_M,
+                   isolated_bias_m: float = 0.0) -> np.ndarray:
+    """[m, 2] points where the loci of neighbouring transducers cross, inside all beams.
+
+    A smooth surface is the envelope of the loci of its echoes: each locus touches it at its
+    reflection point. Two loci of transducers δ apart, tangent to the surface at points
+    δ apart, cross within δ²/(8r) of it (r the range) — even where their bands overlap
+    over a long stretch — so the crossings of loci from one viewpoint (pair group) whose
+    centres lie within sqrt(8·r·max_bias_m) of each other are surface points (the
+    arc-transversal idea of sonar mapping). Each locus is sampled every 0.25° and crossings
+    are found as sign changes of the other locus' path-length residual, interpolated. Around
+    each crossing the locus' own tangent segment is added: the ±sqrt(2·r·max_bias_m) of arc
+    over which it stays within ``max_bias_m`` of its tangent. With ``isolated_bias_m`` > 0
+    a locus that crosses no neighbour contributes the middle of its in-beam arc,
+    ±sqrt(2·r·isolated_bias_m): a surface facing the beams' middle (the line of sight,
+    thesis §2.1.1 part 1) is there to within that.
+    """
+    loci = as_loci(loci)
+    if len(loci) < 2:
+        return np.zeros((0, 2))
+    p, inside, a = _locus_samples(scene, sensors, loci)
+    pos = sensors.positions
+    T, R = pos[loci.tx], pos[loci.rx]
+    centre = 0.5 * (T + R)
+    path = 2 * a
+    groups = sensors.groups[loci.tx]
+    axes = sensors.axes
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+    found = []
+    crossed = np.zeros(len(loci), dtype=bool)
+    for i in range(len(loci)):
+        others = np.flatnonzero((groups == groups[i]) & (np.arange(len(loci)) > i))
+        if len(others) == 0 or not inside[i].any():
+            continue
+        reach = np.sqrt(8.0 * a[i] * max_bias_m)
+        others = others[np.hypot(*(centre[others] - centre[i]).T) <= reach]
+        if len(others) == 0:
+            continue
+        pi = p[i]  # [S, 2]
+        g = (np.hypot(*(pi[None] - T[others, None]).transpose(2, 0, 1))
+             + np.hypot(*(pi[None] - R[others, None]).transpose(2, 0, 1)) - path[others, None])
+        ok = inside[i] & np.roll(inside[i], -1)  # both ends of the step in i's beams
+        change = ok[None] & (np.sign(g) != np.sign(np.roll(g, -1, axis=1)))
+        j, k = np.nonzero(change)
+        if len(j) == 0:
+            continue
+        g0, g1 = g[j, k], np.roll(g, -1, axis=1)[j, k]
+        t = g0 / (g0 - g1)
+        q = pi[k] + t[:, None] * (pi[(k + 1) % LOCUS_SAMPLES] - pi[k])
+        b = others[j]
+        keep = (_in_beams(q, T[b], axes[loci.tx[b]], cut_sin2)
+                & _in_beams(q, R[b], axes[loci.rx[b]], cut_sin2))
+        found.append(q[keep])
+        crossed[i] |= keep.any()
+        crossed[b[keep]] = True
+        # The locus itself stays within max_bias_m of the surface for ±sqrt(2·r·bias) of
+        # arc around its tangent point: add those samples too (tangent segments).
+        half = int(np.sqrt(2.0 * max_bias_m / a[i]) / (2 * np.pi / LOCUS_SAMPLES))
+        for centre_k in np.unique(k[keep]):
+            idx = (centre_k + np.arange(-half, half + 1)) % LOCUS_SAMPLES
+            found.append(pi[idx[inside[i, idx]]])
+    for i in np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0)):
+        found.append(_middle_of_arc(p[i], inside[i], a[i], isolated_bias_m))
+    return np.concatenate(found) if found else np.zeros((0, 2))
+
+
+def _middle_of_arc(samples: np.ndarray, inside: np.ndarray, a: float,
+                   bias: float) -> np.ndarray:
+    """The samples within ±sqrt(2·a·bias) of arc around the middle of the in-beam run."""
+    idx = np.flatnonzero(inside)
+    if len(idx) == 0:
+        return np.zeros((0, 2))
+    # the in-beam run may wrap around sample 0: unwrap it before taking its middle
+    gaps = np.diff(idx)
+    if len(gaps) and gaps.max() > 1:
+        start = int(np.argmax(gaps)) + 1
+        idx = np.r_[idx[start:], idx[:start] + LOCUS_SAMPLES]
+    middle = int(idx[len(idx) // 2])
+    half = int(np.sqrt(2.0 * bias / a) / (2 * np.pi / LOCUS_SAMPLES))
+    window = np.arange(middle - half, middle + half + 1) % LOCUS_SAMPLES
+    return samples[window[inside[window]]]
+
+
+def point_map(scene: Scene, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(counts [ny, nx], sums [ny, nx, 2])``: how many ``points`` fall in each cell and
+    the sum of their coordinates (for sub-cell positions)."""
+    ny, nx = scene.grid_shape
+    xmin, ymin = scene.extent[:2]
+    ix = np.floor((points[:, 0] - xmin) / scene.cell).astype(np.int64)
+    iy = np.floor((points[:, 1] - ymin) / scene.cell).astype(np.int64)
+    ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
+    counts = np.zeros((ny, nx), dtype=np.float32)
+    sums = np.zeros((ny, nx, 2))
+    np.add.at(counts, (iy[ok], ix[ok]), 1.0)
+    np.add.at(sums, (iy[ok], ix[ok]), points[ok])
+    return counts, sums

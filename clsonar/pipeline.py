@@ -110,6 +110,7 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     clock.start("detection")
     detections = signals.detect(scene, sensors, echoes, context=ctx)
     clock.start("accumulation")
+    point_sums = None
     if scene.mapping.mode == "backprojection":
         dt, env = signals.envelopes(scene, sensors, echoes, context=ctx)
         raw = mapping.backproject(scene, sensors, pairs(sensors), env, dt, context=ctx)
@@ -117,7 +118,11 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         loci = mapping.as_loci(detections)
         if scene.mapping.reciprocal == "merge":
             loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
-        if scene.mapping.combine == "viewpoints":
+        if scene.mapping.mode == "tangents":
+            points = mapping.tangent_points(scene, sensors, loci,
+                                            isolated_bias_m=scene.mapping.isolated_bias_m)
+            raw, point_sums = mapping.point_map(scene, points)
+        elif scene.mapping.combine == "viewpoints":
             raw = mapping.count_viewpoints(
                 scene, sensors, loci, lambda part: mapping.accumulate(scene, sensors, part,
                                                                       context=ctx))
@@ -125,11 +130,13 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
             raw = mapping.accumulate(scene, sensors, loci, context=ctx)
     clock.start("filter")
     filtered = post.low_pass(raw) if scene.post.filter == "mean3" else np.asarray(raw, float)
-    occupied = post.binarize(filtered, post.occupancy_level(filtered, scene.post))
+    level = post.occupancy_level(filtered, scene.post, points=point_sums is not None)
+    occupied = post.binarize(filtered, level)
     clock.start("thinning")
     thin = post.thin_map(occupied, scene.post)
     clock.start("profile")
-    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered)
+    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
+                                   raw if point_sums is not None else None, point_sums)
     clock.start("metrics")
     result_metrics = metrics.evaluate(scene, geom, sensors, echoes, profile.points)
     seconds = clock.stop()

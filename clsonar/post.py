@@ -220,24 +220,50 @@ def _neighbours(c: tuple[int, int], cells: set) -> list[tuple[int, int]]:
 
 
 def bridge_gaps(curves: list[np.ndarray], max_gap: float) -> list[np.ndarray]:
-    """Join curves whose ends are within ``max_gap`` (same units as the points), nearest ends
-    first, reversing curves as needed: gaps left by unscanned parts of a surface."""
+    """Join curves whose ends are within ``max_gap`` (same units as the points), nearest
+    ends first, each end at most once and never into a loop, reversing curves as needed:
+    gaps left by unscanned parts of a surface."""
+    from scipy.spatial import cKDTree
+
     curves = [np.asarray(c, dtype=np.float64) for c in curves]
-    while len(curves) > 1:
-        best = None
-        for i in range(len(curves)):
-            for j in range(i + 1, len(curves)):
-                for ei, ej in ((0, 0), (0, -1), (-1, 0), (-1, -1)):
-                    d = float(np.hypot(*(curves[i][ei] - curves[j][ej])))
-                    if d <= max_gap and (best is None or d < best[0]):
-                        best = (d, i, j, ei, ej)
-        if best is None:
-            break
-        _, i, j, ei, ej = best
-        a = curves[i] if ei == -1 else curves[i][::-1]  # a ends at the joined end
-        b = curves[j] if ej == 0 else curves[j][::-1]  # b starts at it
-        curves = [c for k, c in enumerate(curves) if k not in (i, j)] + [np.concatenate([a, b])]
-    return curves
+    if len(curves) < 2:
+        return curves
+    ends = np.array([c[k] for c in curves for k in (0, -1)])  # end 2i: start of i, 2i+1: end
+    pairs = np.array(sorted(cKDTree(ends).query_pairs(max_gap, output_type="set")))
+    if len(pairs) == 0:
+        return curves
+    pairs = pairs[pairs[:, 0] // 2 != pairs[:, 1] // 2]
+    order = np.argsort(np.hypot(*(ends[pairs[:, 0]] - ends[pairs[:, 1]]).T), kind="stable")
+    link = {}  # end -> the end it is joined to
+    root = list(range(len(curves)))
+
+    def find(i: int) -> int:
+        while root[i] != i:
+            root[i] = root[root[i]]
+            i = root[i]
+        return i
+
+    for a, b in pairs[order].tolist():
+        if a in link or b in link or find(a // 2) == find(b // 2):
+            continue
+        link[a], link[b] = b, a
+        root[find(a // 2)] = find(b // 2)
+    out, done = [], set()
+    for i in range(len(curves)):
+        if i in done or (2 * i in link and 2 * i + 1 in link):
+            continue  # chains are walked from a curve with a free end
+        start_end = 2 * i if 2 * i not in link else 2 * i + 1  # the free end
+        chain, end = [], start_end
+        while True:
+            k = end // 2
+            done.add(k)
+            chain.append(curves[k] if end % 2 == 0 else curves[k][::-1])
+            other = end ^ 1  # the far end of this curve
+            if other not in link:
+                break
+            end = link[other]
+        out.append(np.concatenate(chain))
+    return out
 
 
 def fit_polynomial(points: np.ndarray, order: int, spacing: float) -> np.ndarray:
@@ -307,14 +333,19 @@ AUTO_LEVEL_VOTES = 0.75
 MIN_CURVE_CELLS = 5
 
 
-def occupancy_level(filtered: np.ndarray, settings: PostSettings) -> float:
+#: Automatic level of a map of surface points (``mapping.mode`` ``tangents``): any point
+#: within a 3×3 neighbourhood (the points are already cross-checked by two loci).
+AUTO_LEVEL_POINTS = 0.99 / 9.0
+
+
+def occupancy_level(filtered: np.ndarray, settings: PostSettings, points: bool = False) -> float:
     """The value above which a filtered cell is occupied: ``settings.level`` × the map's
-    maximum, or (automatic) :data:`AUTO_LEVEL_VOTES`, so cells where loci coincide stay and
-    lone arcs go."""
+    maximum, or (automatic) :data:`AUTO_LEVEL_VOTES` for a map of loci — cells where loci
+    coincide stay, lone arcs go — or :data:`AUTO_LEVEL_POINTS` for a map of points."""
     peak = float(np.max(filtered)) if np.size(filtered) else 0.0
     if settings.level is not None:
         return settings.level * peak
-    return AUTO_LEVEL_VOTES
+    return AUTO_LEVEL_POINTS if points else AUTO_LEVEL_VOTES
 
 
 def thin_map(occupied: np.ndarray, settings: PostSettings) -> np.ndarray:
@@ -339,17 +370,46 @@ def refine_cells(cells: np.ndarray, weights: np.ndarray, radius: int = 1) -> np.
     return cells + shift
 
 
+def refine_to_points(cells: np.ndarray, counts: np.ndarray, sums: np.ndarray,
+                     radius: int = 1) -> np.ndarray | None:
+    """[n, 2] metres: the mean of the points counted in the (2·radius + 1)² cells around each
+    of ``cells`` (``counts`` per cell and ``sums`` [ny, nx, 2] of their coordinates); cells
+    with no point nearby are dropped (None if none is left)."""
+    c = np.pad(counts, radius)
+    s = np.pad(sums, ((radius, radius), (radius, radius), (0, 0)))
+    n = np.zeros(len(cells))
+    total = np.zeros((len(cells), 2))
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            iy, ix = cells[:, 0] + radius + dy, cells[:, 1] + radius + dx
+            n += c[iy, ix]
+            total += s[iy, ix]
+    keep = n > 0
+    return total[keep] / n[keep, None] if keep.any() else None
+
+
 def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float,
-                    settings: PostSettings, weights: np.ndarray | None = None) -> Profile:
-    """Link the thin cells into curves, refine them to sub-cell positions (``subcell``, with
-    the filtered map ``weights``), bridge gaps up to ``settings.max_gap_m`` and fit: one
-    polynomial along the principal axis (``polynomial``, the thesis), a smoothing spline
-    per curve (``spline``) or the cells as linked (``none``)."""
+                    settings: PostSettings, weights: np.ndarray | None = None,
+                    counts: np.ndarray | None = None,
+                    sums: np.ndarray | None = None) -> Profile:
+    """Link the thin cells into curves, refine them to sub-cell positions (``subcell``: the
+    mean of the mapped points around each cell when the map counts points, ``counts`` and
+    ``sums``, else the centroid of the filtered map ``weights``), bridge gaps up to
+    ``settings.max_gap_m`` and fit: one polynomial along the principal axis
+    (``polynomial``, the thesis), a smoothing spline per curve (``spline``) or the points as
+    linked (``none``)."""
     linked = trace_curves(thin_map, MIN_CURVE_CELLS)
-    if settings.subcell and weights is not None:
-        linked = [refine_cells(c, weights) for c in linked]
-    curves = [np.stack([extent[0] + (c[:, 1] + 0.5) * cell, extent[1] + (c[:, 0] + 0.5) * cell],
-                       axis=-1) for c in linked]
+    curves = []
+    for c in linked:
+        if settings.subcell and counts is not None and sums is not None:
+            refined = refine_to_points(c, counts, sums)
+            if refined is not None:
+                curves.append(refined)
+            continue
+        if settings.subcell and weights is not None:
+            c = refine_cells(c, weights)
+        curves.append(np.stack([extent[0] + (c[:, 1] + 0.5) * cell,
+                                extent[1] + (c[:, 0] + 0.5) * cell], axis=-1))
     if settings.fit == "polynomial":
         if not curves:
             return Profile(())

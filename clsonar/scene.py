@@ -158,27 +158,35 @@ class DetectionSettings:
 class MappingSettings:
     """How detections become a map (thesis §2.1.1, 3–4).
 
-    ``loci``: every pixel p gets a vote from each detection whose time of flight τ puts p on
-    its locus, ``| |p−T| + |p−R| − c·τ | ≤ band_m/2``, inside both beams (a circle for T = R,
-    an ellipse otherwise). ``band_m`` null means 2√2·cell (loci ≥ √2 cells thick).
-    ``weight``: ``unit`` (the thesis), ``amplitude`` (the detected amplitude) or ``beam``
-    (b(θ_T)·b(θ_R) at the pixel).
-    ``backprojection``: the sum over pairs of each pair's envelope at the pixel's delay
-    (delay-and-sum, "total focusing"). ``precision``: the kernel's arithmetic.
+    ``mode``:
+
+    - ``loci`` (the thesis): every pixel p gets a vote from each detection whose time of
+      flight τ puts p on its locus, ``| |p−T| + |p−R| − c·τ | ≤ band_m/2``, inside both beams
+      (a circle for T = R, an ellipse otherwise); ``band_m`` null means 2√2·cell (loci at
+      least √2 cells thick). ``weight``: ``unit`` (the thesis), ``amplitude`` (the detected
+      amplitude) or ``beam`` (b(θ_T)·b(θ_R) at the pixel). ``combine``: ``sum`` adds the
+      votes (the thesis); ``viewpoints`` counts the viewpoints (pair groups: an array, a
+      ring pose) with a locus through each cell.
+    - ``tangents`` (ours): the points where loci of neighbouring transducers of one viewpoint
+      cross, which lie on the surface to within δ²/(8r) (mapping.tangent_points), with the
+      loci's tangent segments around them, counted per cell. A locus that crosses none keeps
+      the middle of its in-beam arc within ``isolated_bias_m`` of its tangent (0: dropped),
+      which suits transducers that face the surface squarely, as a wall-following ring does.
+    - ``backprojection``: the sum over pairs of each pair's envelope at the pixel's delay
+      (delay-and-sum, "total focusing").
+
     ``reciprocal``: ``merge`` makes the detections of (T, R) and (R, T) — one path measured
     twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
-    ``combine``: ``sum`` adds the votes (the thesis); ``viewpoints`` counts the viewpoints
-    (pair groups: an array, a ring pose) with a locus through each cell, since one
-    viewpoint's loci agree along whole arcs and only different viewpoints' cross at the
-    surface.
+    ``precision``: the kernels' arithmetic.
     """
 
-    mode: Literal["loci", "backprojection"] = "loci"
+    mode: Literal["loci", "tangents", "backprojection"] = "tangents"
     weight: Literal["unit", "amplitude", "beam"] = "unit"
     band_m: float | None = None
     precision: Literal["float32", "float64"] = "float32"
     reciprocal: Literal["merge", "both"] = "merge"
     combine: Literal["sum", "viewpoints"] = "viewpoints"
+    isolated_bias_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -491,12 +499,14 @@ def _read_mapping(r: _Reader, d: Any) -> MappingSettings:
     d = r.obj(d, k, tuple(f.name for f in fields(ms)))
     band = None if d.get("band_m") is None else r.number(d, "band_m", k, gt=0)
     return MappingSettings(
-        mode=r.choice(d, "mode", k, ("loci", "backprojection"), ms.mode),  # type: ignore[arg-type]
+        mode=r.choice(d, "mode", k, ("loci", "tangents", "backprojection"),  # type: ignore[arg-type]
+                      ms.mode),
         weight=r.choice(d, "weight", k, ("unit", "amplitude", "beam"), ms.weight),  # type: ignore[arg-type]
         band_m=band,
         precision=r.choice(d, "precision", k, ("float32", "float64"), ms.precision),  # type: ignore[arg-type]
         reciprocal=r.choice(d, "reciprocal", k, ("merge", "both"), ms.reciprocal),  # type: ignore[arg-type]
         combine=r.choice(d, "combine", k, ("sum", "viewpoints"), ms.combine),  # type: ignore[arg-type]
+        isolated_bias_m=r.number(d, "isolated_bias_m", k, ms.isolated_bias_m, ge=0),
     )
 
 
@@ -793,7 +803,24 @@ def write_atomic(path: str | os.PathLike[str], data: bytes) -> None:
         raise
 
 
+def scene_json(data: dict[str, Any]) -> str:
+    """JSON text of a scene dict, indented, with lists of numbers and objects that fit on
+    one line kept on one line (readable scene files)."""
+
+    def dump(value: Any, indent: int) -> str:
+        flat = json.dumps(value, allow_nan=False)
+        if len(flat) + indent <= 96 or not isinstance(value, (dict, list)):
+            return flat
+        pad = " " * (indent + 2)
+        if isinstance(value, dict):
+            items = [f"{pad}{json.dumps(k)}: {dump(v, indent + 2)}" for k, v in value.items()]
+            return "{\n" + ",\n".join(items) + "\n" + " " * indent + "}"
+        items = [pad + dump(v, indent + 2) for v in value]
+        return "[\n" + ",\n".join(items) + "\n" + " " * indent + "]"
+
+    return dump(data, 0) + "\n"
+
+
 def save_scene(scene: Scene, path: str | os.PathLike[str]) -> None:
-    """Write ``scene`` as format v1 JSON, atomically."""
-    text = json.dumps(scene_to_dict(scene), indent=2, allow_nan=False) + "\n"
-    write_atomic(path, text.encode("utf-8"))
+    """Write ``scene`` as format v1 JSON (:func:`scene_json`), atomically."""
+    write_atomic(path, scene_json(scene_to_dict(scene)).encode("utf-8"))
