@@ -150,6 +150,7 @@ class EchoProblem:
     rho: float
     edge_coefficient: float
     absorption_db_per_m: float
+    curvature: float  # 1.0, or 0.0: curved surfaces reflect like flat ones (echo.curvature_gain)
 
     @property
     def widths(self) -> dict[str, int]:
@@ -245,6 +246,7 @@ def _prepare_problem(scene: Scene, sensors: SensorArray | None = None,
         rho=scene.echo.reflection_coefficient,
         edge_coefficient=scene.echo.edge_coefficient,
         absorption_db_per_m=scene.echo.absorption_db_per_m,
+        curvature=1.0 if scene.echo.curvature_gain else 0.0,
     )
 
 
@@ -580,7 +582,7 @@ def _ref_circle(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
     amp = pb.amplitude * _ref_beam(pb, pb.axes[pr[:, 0]][:, None], Pw - T)
     amp = amp * _ref_beam(pb, pb.axes[pr[:, 1]][:, None], Pw - R)
     amp = np.where(valid, amp, 0.0)
-    gain = physics.curved_gain(d1, d2, 1.0 / r, np.where(valid, cos_t, 1.0))
+    gain = physics.curved_gain(d1, d2, pb.curvature / r, np.where(valid, cos_t, 1.0))
     amp = amp * pb.rho * gain * physics.absorption_factor(path, pb.absorption_db_per_m)
     amp = np.where(valid, amp, 0.0)
     circle = np.broadcast_to(np.arange(len(pb.circles))[None, :], amp.shape)
@@ -648,7 +650,7 @@ def _ref_curve(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
     curvature = _cross(d1v, d2v) / (speed * speed * speed)
     kappa = np.where(side_t > 0, -curvature, curvature)
     cos_i = np.abs(_cross(d1v, vt)) / (speed * d1)
-    gain = physics.curved_gain(d1, d2, kappa, np.where(valid, cos_i, 1.0))
+    gain = physics.curved_gain(d1, d2, pb.curvature * kappa, np.where(valid, cos_i, 1.0))
     a = a * pb.rho * gain * physics.absorption_factor(path, pb.absorption_db_per_m)
     a = np.where(valid, a, 0.0)[None, :]
     skip = pb.interval_skip[i_idx]
@@ -719,6 +721,7 @@ def _constants(pb: EchoProblem) -> np.ndarray:
         pb.absorption_db_per_m * math.log(10.0) / 20.0,
         pb.edge_coefficient / (2.0 * math.sqrt(2.0 * math.pi * pb.wavenumber)),
         1.0 / pb.c,
+        pb.curvature,
     ])
 
 

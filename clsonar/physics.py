@@ -18,7 +18,8 @@ off its axis, after ``n`` reflections along a path of length ``L``, has amplitud
   reflector exactly, so a flat wall at normal incidence returns ``ρ·A0`` from any distance;
 - ``G_kind`` is 1 for flat walls (specular and corner multi-bounce); for curved surfaces
   the extra divergence of the reflected ray tube relative to a flat mirror
-  (:func:`curved_gain`); for diffraction at a convex edge the geometrical theory of
+  (:func:`curved_gain`; scene key ``echo.curvature_gain`` false sets it to 1, as the
+  thesis' ray tracing had it); for diffraction at a convex edge the geometrical theory of
   diffraction's order of magnitude (:func:`edge_gain`).
 
 Why ρ = 0.9: with the thesis' threshold of 4 units and A0 = 5, a single reflection at

@@ -44,11 +44,11 @@ TABLE = (
 #: The figures' curves: (figure, family, scene, its distance, what varies, values).
 CURVES = (
     ("3.5", "plane", "plane-2m", 2.0, "distance_m", (2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0)),
-    ("3.6", "plane", "plane-2m", 2.0, "noise_std", (0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.4)),
+    ("3.6", "plane", "plane-2m", 2.0, "noise_std", (0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2)),
     ("3.19", "sinusoid", "sinusoid-1m", 1.0, "distance_m", (1.0, 2.0, 3.0, 4.0, 5.0, 6.0,
                                                              7.0)),
-    ("3.20", "sinusoid", "sinusoid-1m", 1.0, "noise_std", (0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2,
-                                                            1.4)),
+    ("3.20", "sinusoid", "sinusoid-1m", 1.0, "noise_std", (0.0, 0.2, 0.4, 0.6, 0.8, 1.0,
+                                                            1.2)),
 )
 
 #: Distance of the noise curves (thesis: 5 m for both).

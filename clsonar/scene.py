@@ -16,7 +16,7 @@ Optional keys and their defaults (all units SI, angles in degrees where the key 
 ``signal``      ``noise_std`` 0.0, ``threshold`` 4.0, ``seed`` 1.
 ``echo``        ``max_order`` 2 (reflections on flat walls), ``reflection_coefficient`` 0.9,
                 ``edge_coefficient`` 1.0, ``absorption_db_per_m`` 0.0, ``curve_step_m`` 0.01
-                (sampling of curved surfaces, see geometry.py).
+                (sampling of curved surfaces, see geometry.py), ``curvature_gain`` true.
 ``detection``, ``mapping``, ``post``: see :class:`DetectionSettings`,
                 :class:`MappingSettings`, :class:`PostSettings`.
 ``sensors``     ``transducers`` [] and ``placement`` null; placements are documented with
@@ -127,13 +127,18 @@ class Signal:
 
 @dataclass(frozen=True)
 class EchoModel:
-    """Settings of the echo engine; see physics.py for the amplitude model."""
+    """Settings of the echo engine; see physics.py for the amplitude model.
+
+    ``curvature_gain`` false makes curved surfaces reflect as strongly as flat ones, as in
+    the thesis' ray tracing (its scenes use it with ``transducer.directivity`` uniform).
+    """
 
     max_order: int = 2
     reflection_coefficient: float = DEFAULT_REFLECTION_COEFFICIENT
     edge_coefficient: float = 1.0
     absorption_db_per_m: float = 0.0
     curve_step_m: float = 0.01
+    curvature_gain: bool = True
 
 
 @dataclass(frozen=True)
@@ -480,6 +485,7 @@ def _read_echo(r: _Reader, d: Any) -> EchoModel:
         absorption_db_per_m=r.number(d, "absorption_db_per_m", k,
                                      EchoModel.absorption_db_per_m, ge=0),
         curve_step_m=r.number(d, "curve_step_m", k, EchoModel.curve_step_m, gt=0),
+        curvature_gain=r.boolean(d, "curvature_gain", k, EchoModel.curvature_gain),
     )
 
 

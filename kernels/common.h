@@ -45,7 +45,8 @@ typedef float4 real4;
 #define K_ABSORPTION 4   // α·ln(10)/20 per metre: amplitude factor exp(−K_ABSORPTION·L)
 #define K_EDGE 5         // edge_coefficient / (2·sqrt(2πk)), see physics.edge_gain
 #define K_INV_C 6        // 1 / speed of sound (eq. 2.1 unless the scene overrides it)
-#define K_COUNT 7
+#define K_CURVATURE 7    // 1, or 0 where curved surfaces reflect like flat ones (the thesis)
+#define K_COUNT 8
 
 // Coefficients c_k of the beam series (physics.beam_series_coefficients), from the host:
 // -DBEAM_TERMS=14 -DBEAM_SERIES={c0,c1,...}.
@@ -89,7 +90,9 @@ inline real absorption(real path, __global const real *k) {
 // Gain of a curved reflector of convexity kappa over a flat mirror (physics.curved_gain):
 // the reflected ray tube spreads as if the path were d1 + d2 + 2κ·d1·d2/cosθi long; the
 // focusing of a concave surface is capped at MAX_FOCUS_GAIN.
-inline real curved_gain(real d1, real d2, real kappa, real cos_incidence) {
+inline real curved_gain(real d1, real d2, real kappa, real cos_incidence,
+                        __global const real *k) {
+    kappa *= k[K_CURVATURE];
     real path = d1 + d2;
     real l_eff = fabs(path + R(2.0) * kappa * d1 * d2 / cos_incidence);
     real floor_ = path / (R(MAX_FOCUS_GAIN) * R(MAX_FOCUS_GAIN));

@@ -257,7 +257,7 @@ __kernel void circle_paths(PAIR_ARGS, OCCLUDER_ARGS, OUTPUT_ARGS) {
     real2 Pw = C + P;
     real amp0 = k[K_AMPLITUDE] * beam(axis[pr.x], Pw - T, k) * beam(axis[pr.y], Pw - R_, k);
     if (!(amp0 > R(0.0))) return;
-    real a_out = amp0 * k[K_RHO] * curved_gain(d1, d2, R(1.0) / r, cos_t) * absorption(path, k);
+    real a_out = amp0 * k[K_RHO] * curved_gain(d1, d2, R(1.0) / r, cos_t, k) * absorption(path, k);
     if (!(a_out > R(0.0))) return;
     if (leg_blocked(T, Pw, occ, n_occ, -1, -1, circles, n_circles, ci)) return;
     if (leg_blocked(Pw, R_, occ, n_occ, -1, -1, circles, n_circles, ci)) return;
@@ -338,7 +338,7 @@ __kernel void curve_paths(PAIR_ARGS, __global const real *curves,
     real curvature = cross2(d1v, curve_d2(cv, s)) / (speed * speed * speed);
     real kappa = side_t > R(0.0) ? -curvature : curvature;
     real cos_i = fabs(cross2(d1v, vt)) / (speed * d1);  // |dot(unit normal, û_T)|
-    real a_out = amp0 * k[K_RHO] * curved_gain(d1, d2, kappa, cos_i) * absorption(path, k);
+    real a_out = amp0 * k[K_RHO] * curved_gain(d1, d2, kappa, cos_i, k) * absorption(path, k);
     if (!(a_out > R(0.0))) return;
     int2 skip = interval_skip[iv];
     if (leg_blocked(T, P, occ, n_occ, skip.x, skip.y, circles, n_circles, -1)) return;
