@@ -330,11 +330,12 @@ def _grid_error(scene: Scene, problem: str) -> ClsonarError:
 
 
 def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
-                     reference: bool = False) -> None:
+                     reference: bool = False, host_bytes_per_cell: float | None = None) -> None:
     """Raise :class:`~clsonar.errors.ClsonarError` naming the size needed when the scene's
     map cannot be held: by ``device`` (a ``pyopencl.Device``: one buffer of the padded map),
     by this machine's free memory (the result, plus the reference's temporaries when
-    ``reference``), or by float32 pixel indices (at most :data:`MAX_CELLS_PER_AXIS` a side).
+    ``reference``, or ``host_bytes_per_cell`` for a caller that holds several maps), or by
+    float32 pixel indices (at most :data:`MAX_CELLS_PER_AXIS` a side).
     """
     ny, nx = scene.grid_shape
     if max(ny, nx) > MAX_CELLS_PER_AXIS:
@@ -351,7 +352,9 @@ def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
             raise _grid_error(scene, f"needs {_bytes(padded)} as a {precision} map, more than "
                                      f"one buffer on {device.name.strip()} can hold "
                                      f"({_bytes(limit)})")
-    if reference:
+    if host_bytes_per_cell is not None:
+        needed = float(ny) * nx * host_bytes_per_cell
+    elif reference:
         needed = float(ny) * nx * 8 * REFERENCE_TEMPORARIES
     else:
         needed = float(ny) * nx * itemsize * 3  # padded transfer copy, result, its caller

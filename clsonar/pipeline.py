@@ -39,6 +39,10 @@ PRESETS: dict[str, dict[str, object]] = {
 
 Progress = Callable[[str, int, int], None]  # (stage, index from 1, number of stages)
 
+#: Host memory a run holds per map cell: the raw map, the filtered map and its filter's
+#: temporary (float64), the occupied and thin maps, the point sums of ``tangents``.
+PIPELINE_BYTES_PER_CELL = 48
+
 
 def apply_preset(scene: Scene, preset: str | None) -> Scene:
     """``scene`` with the detection/mapping/post settings of ``preset`` (None: unchanged)."""
@@ -100,6 +104,9 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
 
     scene = apply_preset(scene, preset)
     ctx = context if context is not None else get_context(device)
+    # Refuse a grid that cannot be held before any work is done (one clear message).
+    mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
+                             host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
     clock = _Stopwatch(progress)
 
     clock.start("sensors")
