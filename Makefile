@@ -1,5 +1,5 @@
-# Set-up and the two Quick-start commands (README): `make demo` runs the main job on a bundled
-# scene, `make test` runs the tests. Both create the virtual environment and install an OpenCL
+# Set-up and the two Quick-start commands (README): `make demo` runs the whole pipeline on the
+# bundled closed room, `make test` runs the tests. Both create the virtual environment and install an OpenCL
 # runtime that can build kernels when the machine has none (Debian's pocl-opencl-icd).
 
 PYTHON ?= python3
@@ -28,10 +28,8 @@ opencl: $(STAMP)
 	@$(BIN)/clsonar devices
 
 demo: opencl
-	@mkdir -p $(OUT)
-	$(BIN)/clsonar echoes $(SCENE) -o $(OUT)/echoes.csv
-	@echo "Echo table of $(SCENE): $(OUT)/echoes.csv ($$(($$(wc -l < $(OUT)/echoes.csv) - 1)) echoes); first rows:"
-	@head -n 8 $(OUT)/echoes.csv
+	$(BIN)/clsonar run $(SCENE) --out $(OUT)/$(notdir $(basename $(SCENE)))
+	@echo "Pictures of every stage: $(OUT)/$(notdir $(basename $(SCENE)))/*.png"
 
 test: opencl
 	$(BIN)/python -m pytest
