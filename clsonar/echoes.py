@@ -46,7 +46,6 @@ from typing import TextIO
 import numpy as np
 
 from . import physics
-from .errors import DeviceError
 from .geometry import Geometry, build_geometry, curve_derivatives, curve_point
 from .scene import Scene
 from .sensors import SensorArray, pairs, place_sensors
@@ -666,13 +665,6 @@ def _ref_curve(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
 # --------------------------------------------------------------------------- OpenCL
 
 
-@cache
-def _queue(context):
-    import pyopencl as cl
-
-    return cl.CommandQueue(context)
-
-
 def _program(context, precision: str, max_order: int):
     """``kernels/echoes.cl`` built for ``precision`` and ``max_order`` (memoised)."""
     from .opencl import build_program
@@ -735,17 +727,13 @@ def compute_echoes(scene: Scene, sensors: SensorArray | None = None, *, context=
     """
     import pyopencl as cl
 
-    from .opencl import get_context, has_fp64
+    from .opencl import context_for
+    from .opencl import queue as queue_of
 
-    if precision not in PRECISIONS:
-        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, not {precision!r}")
-    ctx = context if context is not None else get_context(device)
-    if precision == "float64" and not has_fp64(ctx):
-        raise DeviceError(f"{ctx.devices[0].name.strip()} has no cl_khr_fp64: "
-                          "use precision='float32'")
+    ctx = context_for(context, device, precision)
     pb = _prepare_problem(scene, sensors)
     real = PRECISIONS[precision]
-    queue = _queue(ctx)
+    queue = queue_of(ctx)
     program = _program(ctx, precision, pb.max_order)
     mf = cl.mem_flags
 

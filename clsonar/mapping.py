@@ -52,7 +52,9 @@ from functools import cache
 import numpy as np
 
 from . import physics
-from .errors import ClsonarError, DeviceError
+from .errors import ClsonarError
+from .opencl import context_for, device_kind
+from .opencl import queue as queue_of
 from .scene import MappingSettings, Scene
 from .sensors import SensorArray
 
@@ -344,7 +346,7 @@ def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
                                  "that the kernels index exactly")
     itemsize = np.dtype(PRECISIONS[precision]).itemsize
     if device is not None:
-        vec, group = LAUNCH[_device_kind(device), precision]
+        vec, group = LAUNCH[device_kind(device), precision]
         items_x, items_y = _items(nx, ny, vec, *group)
         padded = float(items_x * vec) * items_y * itemsize
         limit = min(int(device.max_mem_alloc_size), int(device.global_mem_size))
@@ -453,23 +455,6 @@ def backproject_reference(scene: Scene, sensors: SensorArray, pairs, envelopes, 
 # --------------------------------------------------------------------------- OpenCL
 
 
-def _device_kind(device) -> str:
-    import pyopencl as cl
-
-    if device.type & cl.device_type.GPU:
-        return "GPU"
-    if device.type & cl.device_type.CPU:
-        return "CPU"
-    return "other"
-
-
-@cache
-def _queue(context):
-    import pyopencl as cl
-
-    return cl.CommandQueue(context)
-
-
 def _program(context, precision: str, weight_beam: bool, vec: int):
     """``kernels/accumulate.cl`` for ``precision``, the beam weight or not, and ``vec``
     pixels per work item (memoised by :func:`clsonar.opencl.build_program`)."""
@@ -495,24 +480,12 @@ def _kernel(program, name: str):
     return cl.Kernel(program, name)
 
 
-def _context(context, device, precision: str):
-    from .opencl import get_context, has_fp64
-
-    if precision not in PRECISIONS:
-        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, not {precision!r}")
-    ctx = context if context is not None else get_context(device)
-    if precision == "float64" and not has_fp64(ctx):
-        raise DeviceError(f"{ctx.devices[0].name.strip()} has no cl_khr_fp64: "
-                          "use precision='float32'")
-    return ctx
-
-
 def _run(ctx, pb: MapProblem, precision: str, name: str) -> np.ndarray:
     """Launch kernel ``name`` over the whole map, rows in blocks; return the [ny, nx] map."""
     import pyopencl as cl
 
     device = ctx.devices[0]
-    vec, (wgx, wgy) = LAUNCH[_device_kind(device), precision]
+    vec, (wgx, wgy) = LAUNCH[device_kind(device), precision]
     real = PRECISIONS[precision]
     itemsize = np.dtype(real).itemsize
     g = pb.grid
@@ -525,7 +498,7 @@ def _run(ctx, pb: MapProblem, precision: str, name: str) -> np.ndarray:
         wgx, wgy = (wgx, wgy // 2) if wgy > 1 else (wgx // 2, wgy)
     items_x, items_y = _items(g.nx, g.ny, vec, wgx, wgy)
     pitch = items_x * vec
-    queue = _queue(ctx)
+    queue = queue_of(ctx)
     mf = cl.mem_flags
     out = cl.Buffer(ctx, mf.READ_WRITE, pitch * items_y * itemsize)
     columns = pb.rows.shape[1]
@@ -572,7 +545,7 @@ def accumulate(scene: Scene, sensors: SensorArray, loci, *, context=None,
     """
     settings = settings if settings is not None else scene.mapping
     precision = precision or settings.precision
-    ctx = _context(context, device, precision)
+    ctx = context_for(context, device, precision)
     check_map_memory(scene, precision, ctx.devices[0])
     pb = prepare_loci(scene, sensors, loci, settings)
     return _run(ctx, pb, precision, "loci_map")
@@ -590,7 +563,7 @@ def backproject(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float,
     """
     settings = settings if settings is not None else scene.mapping
     precision = precision or settings.precision
-    ctx = _context(context, device, precision)
+    ctx = context_for(context, device, precision)
     check_map_memory(scene, precision, ctx.devices[0])
     pb = prepare_backprojection(scene, sensors, pairs, envelopes, dt, settings)
     return _run(ctx, pb, precision, "backproject_map")

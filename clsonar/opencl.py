@@ -68,7 +68,8 @@ def _platforms():
         return []
 
 
-def _kind(device) -> str:
+def device_kind(device) -> str:
+    """``"GPU"``, ``"CPU"`` or ``"other"``: how kernels should be launched on ``device``."""
     cl = _cl()
     if device.type & cl.device_type.GPU:
         return "GPU"
@@ -105,7 +106,7 @@ def list_devices() -> list[DeviceInfo]:
                 index=f"{pi}:{di}",
                 platform=platform.name.strip(),
                 name=d.name.strip(),
-                kind=_kind(d),
+                kind=device_kind(d),
                 fp64="cl_khr_fp64" in d.extensions,
                 global_mem_bytes=int(d.global_mem_size),
                 problem=_build_problem(d),
@@ -145,7 +146,7 @@ def choose_device(spec: str | None = None):
             needle = spec.lower()
             matches = [d for p in _platforms() for d in p.get_devices()
                        if needle in d.name.lower() or needle in p.name.lower()
-                       or needle == _kind(d).lower()]
+                       or needle == device_kind(d).lower()]
             if not matches:
                 raise DeviceError(f"{source} {spec!r} matches no OpenCL device "
                                   "(see 'clsonar devices')")
@@ -160,7 +161,7 @@ def choose_device(spec: str | None = None):
         raise DeviceError(f"no OpenCL platform or device found: {INSTALL_HINT}")
     for wanted in ("GPU", "CPU", "other"):
         for d in devices:
-            if _kind(d) == wanted and not _build_problem(d):
+            if device_kind(d) == wanted and not _build_problem(d):
                 return d
     names = ", ".join(d.name.strip() for d in devices)
     raise DeviceError(f"no OpenCL device here can build kernels ({names}): {INSTALL_HINT}")
@@ -176,18 +177,47 @@ def get_context(device: str | None = None):
     return _context_for(choose_device(device))
 
 
+@cache
+def queue(context):
+    """The command queue of ``context`` (one per context, reused)."""
+    return _cl().CommandQueue(context)
+
+
+#: The arithmetic a kernel can be built for: ``precision`` name → NumPy type of its reals.
+PRECISIONS = {"float32": "float32", "float64": "float64"}
+
+
+def context_for(context=None, device: str | None = None, precision: str = "float32"):
+    """``context``, or the one of ``device`` (:func:`get_context`), checked for
+    ``precision``: ``ValueError`` for an unknown one, :class:`DeviceError` for float64 on
+    a device without ``cl_khr_fp64``."""
+    if precision not in PRECISIONS:
+        raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, not {precision!r}")
+    ctx = context if context is not None else get_context(device)
+    if precision == "float64" and not has_fp64(ctx):
+        raise DeviceError(f"{ctx.devices[0].name.strip()} has no cl_khr_fp64: "
+                          "use precision='float32'")
+    return ctx
+
+
 def has_fp64(context) -> bool:
     """Whether the context's device has ``cl_khr_fp64`` (needed for ``precision="float64"``)."""
     return "cl_khr_fp64" in context.devices[0].extensions
 
 
-def kernel_source(name: str) -> str:
-    """Text of ``kernels/<name>`` with its ``#include "x.h"`` lines expanded (one level)."""
+def kernel_source(name: str, _seen: frozenset[str] = frozenset()) -> str:
+    """Text of ``kernels/<name>`` with its ``#include "x.h"`` lines expanded from the same
+    package, recursively, each header once."""
     pkg = resources.files(KERNEL_PACKAGE)
     text = pkg.joinpath(name).read_text(encoding="utf-8")
+    seen = set(_seen | {name})
 
     def include(m: re.Match[str]) -> str:
-        return f"// ---- {m.group(1)}\n" + pkg.joinpath(m.group(1)).read_text(encoding="utf-8")
+        header = m.group(1)
+        if header in seen:
+            return f"// ---- {header} (already included)"
+        seen.add(header)
+        return f"// ---- {header}\n" + kernel_source(header, frozenset(seen))
 
     return re.sub(r'^\s*#include\s+"([^"]+)"\s*$', include, text, flags=re.MULTILINE)
 

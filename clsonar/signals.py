@@ -55,7 +55,8 @@ import numpy as np
 
 from . import physics
 from .echoes import EchoTable
-from .errors import DeviceError
+from .opencl import context_for, device_kind
+from .opencl import queue as queue_of
 from .scene import Scene
 from .sensors import SensorArray, pairs, place_sensors
 
@@ -623,13 +624,6 @@ def envelopes_reference(scene: Scene, sensors: SensorArray | None, echoes: EchoT
 # --------------------------------------------------------------------------- OpenCL
 
 
-@cache
-def _queue(context):
-    import pyopencl as cl
-
-    return cl.CommandQueue(context)
-
-
 def _program(context, precision: str, box: int, span: int, demod_period: int):
     """``kernels/signals.cl`` built for ``precision`` and the filter's sizes (memoised)."""
     from .opencl import build_program
@@ -658,12 +652,6 @@ def _work_group(kernel, device) -> int:
     return max(1, min(WORK_GROUP, 1 << (int(limit).bit_length() - 1)))
 
 
-def _device_kind(context) -> str:
-    import pyopencl as cl
-
-    return "GPU" if context.devices[0].type & cl.device_type.GPU else "CPU"
-
-
 class _Runner:
     """The buffers and launches of one scene on one context."""
 
@@ -671,17 +659,10 @@ class _Runner:
                  chunk: int | None, work_group: int | None):
         import pyopencl as cl
 
-        from .opencl import has_fp64
-
-        if precision not in PRECISIONS:
-            raise ValueError(f"precision must be one of {', '.join(PRECISIONS)}, "
-                             f"not {precision!r}")
-        if precision == "float64" and not has_fp64(context):
-            raise DeviceError(f"{context.devices[0].name.strip()} has no cl_khr_fp64: "
-                              "use precision='float32'")
+        context_for(context, None, precision)  # checks the precision against the device
         self.cl, self.ctx, self.model, self.pe = cl, context, model, pe
         self.real = PRECISIONS[precision]
-        self.queue = _queue(context)
+        self.queue = queue_of(context)
         self.program = _program(context, precision, model.box, model.span, model.demod_period)
         self.chunk = chunk
         self.work_group = work_group
@@ -715,7 +696,7 @@ class _Runner:
     def chunk_for(self, mode: str) -> int:
         if self.chunk is not None:
             return max(1, int(self.chunk))
-        return DEFAULT_CHUNK[(_device_kind(self.ctx), mode)]
+        return DEFAULT_CHUNK[("GPU" if device_kind(self.ctx.devices[0]) == "GPU" else "CPU", mode)]
 
     def launch(self, name: str, n_items: int, args: list) -> None:
         kernel = _kernel(self.program, name)
@@ -916,7 +897,7 @@ def _kernel_philox(context, seed: int, tx: int, rx: int, block0: int, count: int
 
     real = PRECISIONS[precision]
     program = _program(context, precision, 1, 1, 0)
-    queue = _queue(context)
+    queue = queue_of(context)
     raw = np.empty((count, 4), dtype=np.uint32)
     normals = np.empty((count, 4), dtype=real)
     rb = cl.Buffer(context, cl.mem_flags.WRITE_ONLY, raw.nbytes)

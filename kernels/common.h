@@ -5,27 +5,16 @@
 // write literals as R(1.5) so both builds see the same code. Coordinates arrive relative to a
 // local origin (the scene extent's centre), so float32 keeps ~1e-6 m resolution in a 20 m scene.
 //
-// FP_CONTRACT is off so a*b + c is never fused: the float64 build then rounds exactly like the
-// NumPy reference (clsonar/echoes.py), which evaluates the same expressions in the same order.
-// Helpers below deliberately avoid the dot()/length() builtins for the same reason.
+// FP_CONTRACT is off (real.h) so the float64 build rounds exactly like the NumPy reference
+// (clsonar/echoes.py); helpers below avoid the dot()/length() builtins for the same reason.
 
-#pragma OPENCL FP_CONTRACT OFF
+#include "real.h"
 
+// Bisection steps of the curved-surface searches: below each type's resolution.
+#ifndef BISECT_ITERATIONS
 #ifdef REAL_DOUBLE
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-typedef double real;
-typedef double2 real2;
-typedef double4 real4;
-#define R(x) ((double)(x))
-#ifndef BISECT_ITERATIONS
 #define BISECT_ITERATIONS 40
-#endif
 #else
-typedef float real;
-typedef float2 real2;
-typedef float4 real4;
-#define R(x) ((float)(x))
-#ifndef BISECT_ITERATIONS
 #define BISECT_ITERATIONS 32
 #endif
 #endif

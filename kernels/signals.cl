@@ -27,20 +27,7 @@
 // DEMOD_PERIOD (samples per carrier period when the carrier repeats in a whole number of
 // samples, else 0), and REAL_DOUBLE for the float64 build.
 
-#pragma OPENCL FP_CONTRACT OFF
-
-#ifdef REAL_DOUBLE
-#pragma OPENCL EXTENSION cl_khr_fp64 : enable
-typedef double real;
-typedef double2 real2;
-typedef double4 real4;
-#define R(x) ((double)(x))
-#else
-typedef float real;
-typedef float2 real2;
-typedef float4 real4;
-#define R(x) ((float)(x))
-#endif
+#include "real.h"
 
 #include <pyopencl-random123/philox.cl>
 
