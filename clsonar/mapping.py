@@ -637,8 +637,9 @@ def _in_beams(p, sensor, axis, cut_sin2):
 
 def tangent_points(scene: Scene, sensors: SensorArray, loci,
                    max_bias_m: float = TANGENT_BIAS_M,
-                   isolated_bias_m: float = 0.0) -> np.ndarray:
-    """[m, 2] points where the loci of neighbouring transducers cross, inside all beams.
+                   isolated_bias_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(points [m, 2], source [m])``: the points where the loci of neighbouring
+    transducers cross, inside all beams, and the index of the locus each came from.
 
     A smooth surface is the envelope of the loci of its echoes: each locus touches it at its
     reflection point. Two loci of transducers δ apart, tangent to the surface at points
@@ -655,7 +656,7 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
     """
     loci = as_loci(loci)
     if len(loci) < 2:
-        return np.zeros((0, 2))
+        return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
     p, inside, a = _locus_samples(scene, sensors, loci)
     pos = sensors.positions
     T, R = pos[loci.tx], pos[loci.rx]
@@ -664,7 +665,8 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
     groups = sensors.groups[loci.tx]
     axes = sensors.axes
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
-    found = []
+    found: list[np.ndarray] = []
+    source: list[np.ndarray] = []
     crossed = np.zeros(len(loci), dtype=bool)
     for i in range(len(loci)):
         others = np.flatnonzero((groups == groups[i]) & (np.arange(len(loci)) > i))
@@ -689,6 +691,7 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
         keep = (_in_beams(q, T[b], axes[loci.tx[b]], cut_sin2)
                 & _in_beams(q, R[b], axes[loci.rx[b]], cut_sin2))
         found.append(q[keep])
+        source.append(np.full(int(keep.sum()), i))
         crossed[i] |= keep.any()
         crossed[b[keep]] = True
         # The locus itself stays within max_bias_m of the surface for ±sqrt(2·r·bias) of
@@ -697,9 +700,13 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
         for centre_k in np.unique(k[keep]):
             idx = (centre_k + np.arange(-half, half + 1)) % LOCUS_SAMPLES
             found.append(pi[idx[inside[i, idx]]])
+            source.append(np.full(len(found[-1]), i))
     for i in np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0)):
         found.append(_middle_of_arc(p[i], inside[i], a[i], isolated_bias_m))
-    return np.concatenate(found) if found else np.zeros((0, 2))
+        source.append(np.full(len(found[-1]), i))
+    if not found:
+        return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
+    return np.concatenate(found), np.concatenate(source).astype(np.int64)
 
 
 def _middle_of_arc(samples: np.ndarray, inside: np.ndarray, a: float,

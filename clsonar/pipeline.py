@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import __version__, metrics, post
+from . import __version__, metrics, post, rooms
 from .echoes import EchoTable, compute_echoes
 from .geometry import Geometry, build_geometry
 from .scene import DetectionSettings, MappingSettings, PostSettings, Scene, scene_to_dict
@@ -118,6 +118,7 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     detections = signals.detect(scene, sensors, echoes, context=ctx)
     clock.start("accumulation")
     point_sums = None
+    ghosts = 0
     if scene.mapping.mode == "backprojection":
         dt, env = signals.envelopes(scene, sensors, echoes, context=ctx)
         raw = mapping.backproject(scene, sensors, pairs(sensors), env, dt, context=ctx)
@@ -126,9 +127,14 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         if scene.mapping.reciprocal == "merge":
             loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
         if scene.mapping.mode == "tangents":
-            points = mapping.tangent_points(scene, sensors, loci,
-                                            isolated_bias_m=scene.mapping.isolated_bias_m)
+            points, source = mapping.tangent_points(
+                scene, sensors, loci, isolated_bias_m=scene.mapping.isolated_bias_m)
             raw, point_sums = mapping.point_map(scene, points)
+            if scene.mapping.line_of_sight:
+                seen = rooms.in_sight_of_map(scene, sensors.positions, points,
+                                             loci.tx[source], loci.rx[source], raw)
+                ghosts = int(np.count_nonzero(~seen))
+                raw, point_sums = mapping.point_map(scene, points[seen])
         elif scene.mapping.combine == "viewpoints":
             raw = mapping.count_viewpoints(
                 scene, sensors, loci, lambda part: mapping.accumulate(scene, sensors, part,
@@ -155,6 +161,7 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         "detections": len(detections),
         "map_cells": int(raw.size),
         "cells_voted": int(np.count_nonzero(raw)),
+        "ghost_points": ghosts,
         "occupied_cells": int(np.count_nonzero(occupied)),
         "thin_cells": int(np.count_nonzero(thin)),
         "profile_curves": len(profile.curves),

@@ -11,7 +11,7 @@ Maps are indexed ``[iy, ix]`` with ``iy`` growing with y (DESIGN.md).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
@@ -31,8 +31,10 @@ def low_pass(raw: np.ndarray) -> np.ndarray:
 
 
 def binarize(filtered: np.ndarray, level: float) -> np.ndarray:
-    """Cells whose filtered value is at least ``level`` (the occupied, "black" cells)."""
-    return np.asarray(filtered) >= level
+    """Cells whose filtered value is at least ``level`` (the occupied, "black" cells). A cell
+    with no vote is never occupied, so a map without echoes stays empty at any level."""
+    filtered = np.asarray(filtered)
+    return (filtered >= level) & (filtered > 0)
 
 
 def thin_thesis(binary: np.ndarray, up: tuple[int, int] = (0, -1)) -> np.ndarray:
@@ -147,9 +149,9 @@ def thin(binary: np.ndarray, max_iterations: int = 10_000) -> np.ndarray:
     for _ in range(max_iterations):
         before = np.count_nonzero(skeleton)
         skeleton = _guo_hall(skeleton, max_iterations)
-        for field in subfields:
+        for subfield in subfields:
             code = _neighbour_code(skeleton)
-            skeleton &= ~(field & _redundant(skeleton) & _SIMPLE[code])
+            skeleton &= ~(subfield & _redundant(skeleton) & _SIMPLE[code])
         if np.count_nonzero(skeleton) == before:
             break
     return skeleton
@@ -313,9 +315,11 @@ def fit_spline(curve: np.ndarray, spacing: float, noise: float) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Profile:
-    """The estimated surfaces: curves of points in metres (the fitted profile)."""
+    """The estimated surfaces: curves of points in metres (the fitted profile), and the
+    corners and edges located as intersections of adjoining walls (``fit = "walls"``)."""
 
     curves: tuple[np.ndarray, ...]
+    vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
     @property
     def points(self) -> np.ndarray:
@@ -414,6 +418,10 @@ def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float
         if not curves:
             return Profile(())
         return Profile((fit_polynomial(np.concatenate(curves), settings.poly_order, cell),))
+    if settings.fit == "walls":
+        from .rooms import fit_walls
+
+        return fit_walls(curves, cell, settings)
     curves = bridge_gaps(curves, settings.max_gap_m)
     if settings.fit == "spline":
         curves = [fit_spline(c, cell, cell / 2) for c in curves]

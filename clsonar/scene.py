@@ -182,7 +182,9 @@ class MappingSettings:
 
     ``reciprocal``: ``merge`` makes the detections of (T, R) and (R, T) — one path measured
     twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
-    ``precision``: the kernels' arithmetic.
+    ``precision``: the kernels' arithmetic. ``line_of_sight`` (``tangents`` only): drop the
+    points that the map itself shows hidden behind a surface from their transducers — the
+    ghosts of multiply reflected echoes (rooms.line_of_sight).
     """
 
     mode: Literal["loci", "tangents", "backprojection"] = "tangents"
@@ -192,6 +194,7 @@ class MappingSettings:
     reciprocal: Literal["merge", "both"] = "merge"
     combine: Literal["sum", "viewpoints"] = "viewpoints"
     isolated_bias_m: float = 0.0
+    line_of_sight: bool = True
 
 
 @dataclass(frozen=True)
@@ -202,17 +205,20 @@ class PostSettings:
     map, as a fraction of its maximum (null: automatic); ``thinning``: ``thesis`` (eq. 2.5
     as written) or ``guo-hall`` (one-pixel 8-connected curves); ``fit``: ``polynomial`` of
     ``poly_order`` along a single wall (the thesis: 5–8), ``spline`` along each linked curve
-    (rooms too) or ``none``; curves closer than ``max_gap_m`` are bridged; ``subcell`` moves
-    each thin cell to the vote-weighted centroid of the filtered map around it.
+    (rooms too), ``walls`` (rooms: straight walls where the data are straight, extended to
+    meet at corners and edges within ``join_m`` of their ends, splines elsewhere;
+    rooms.fit_walls) or ``none``; curves closer than ``max_gap_m`` are bridged; ``subcell``
+    moves each thin cell to the vote-weighted centroid of the filtered map around it.
     """
 
     filter: Literal["mean3", "none"] = "mean3"
     level: float | None = None
     thinning: Literal["thesis", "guo-hall"] = "guo-hall"
-    fit: Literal["polynomial", "spline", "none"] = "spline"
+    fit: Literal["polynomial", "spline", "walls", "none"] = "spline"
     poly_order: int = 7
     max_gap_m: float = 0.3
     subcell: bool = True
+    join_m: float = 0.5
 
 
 # --------------------------------------------------------------------------- sensors
@@ -281,7 +287,35 @@ class WallFollowing:
     type: Literal["wall-following"] = "wall-following"
 
 
-Placement = RandomLines | Circular | WallFollowing
+@dataclass(frozen=True)
+class PerWall:
+    """Closed-room scan of thesis §3.6 (Figs 3.21–3.22): each wall scanned independently.
+
+    For every wall (segment) of the closed polyline ``surfaces[surface]``, in outline order,
+    random linear arrays are laid as in :class:`RandomLines` along a line parallel to the
+    wall, at line-of-sight distance ``distance_m + k·distance_step_m`` (k = 0, 1, … the
+    wall's index in the outline) on the room's inner side, from ``margin_m`` after the wall's
+    first end to ``margin_m`` before its second (``margin_m`` null: the wall's LoS distance).
+    Each heading is the direction facing the wall plus a uniform offset in
+    ±``heading_spread_deg``; so "the normal of the transducer array is turned by 90° after
+    each wall scan" in a rectangular room. ``distance_step_m`` ≠ 0 is the variant of Fig
+    3.22, where "after one scan, LoS distance is changed". Each array is its own pair group.
+    """
+
+    seed: int = 1
+    surface: int = 0
+    distance_m: float = 1.0
+    distance_step_m: float = 0.0
+    margin_m: float | None = None
+    elements: int = 10
+    spacing_m: tuple[float, float] = (0.05, 0.11)
+    separation_m: tuple[float, float] = (0.5, 1.65)
+    heading_spread_deg: float = 0.0
+    clearance_m: float = 0.05
+    type: Literal["per-wall"] = "per-wall"
+
+
+Placement = RandomLines | Circular | WallFollowing | PerWall
 
 
 @dataclass(frozen=True)
@@ -513,6 +547,7 @@ def _read_mapping(r: _Reader, d: Any) -> MappingSettings:
         reciprocal=r.choice(d, "reciprocal", k, ("merge", "both"), ms.reciprocal),  # type: ignore[arg-type]
         combine=r.choice(d, "combine", k, ("sum", "viewpoints"), ms.combine),  # type: ignore[arg-type]
         isolated_bias_m=r.number(d, "isolated_bias_m", k, ms.isolated_bias_m, ge=0),
+        line_of_sight=r.boolean(d, "line_of_sight", k, ms.line_of_sight),
     )
 
 
@@ -524,10 +559,11 @@ def _read_post(r: _Reader, d: Any) -> PostSettings:
         filter=r.choice(d, "filter", k, ("mean3", "none"), ps.filter),  # type: ignore[arg-type]
         level=level,
         thinning=r.choice(d, "thinning", k, ("thesis", "guo-hall"), ps.thinning),  # type: ignore[arg-type]
-        fit=r.choice(d, "fit", k, ("polynomial", "spline", "none"), ps.fit),  # type: ignore[arg-type]
+        fit=r.choice(d, "fit", k, ("polynomial", "spline", "walls", "none"), ps.fit),  # type: ignore[arg-type]
         poly_order=r.integer(d, "poly_order", k, ps.poly_order, ge=1, le=12),
         max_gap_m=r.number(d, "max_gap_m", k, ps.max_gap_m, ge=0),
         subcell=r.boolean(d, "subcell", k, ps.subcell),
+        join_m=r.number(d, "join_m", k, ps.join_m, ge=0),
     )
 
 
@@ -592,13 +628,50 @@ def _read_transducers(r: _Reader, raw: Any, key: str) -> tuple[Transducer, ...]:
     return tuple(out)
 
 
-def _read_placement(r: _Reader, d: Any) -> Placement | None:
+def _read_per_wall(r: _Reader, d: dict, k: str, surfaces: tuple[Surface, ...]) -> PerWall:
+    d = r.obj(d, k, tuple(f.name for f in fields(PerWall)))
+    p = PerWall
+    surface = r.integer(d, "surface", k, p.surface, ge=0)
+    problem = per_wall_surface_problem(surfaces, surface)
+    if problem:
+        raise r.fail(_join(k, "surface"), problem)
+    margin = None if d.get("margin_m") is None else r.number(d, "margin_m", k, ge=0)
+    return PerWall(
+        seed=r.integer(d, "seed", k, p.seed, ge=0, le=2**63 - 1),
+        surface=surface,
+        distance_m=r.number(d, "distance_m", k, p.distance_m, gt=0),
+        distance_step_m=r.number(d, "distance_step_m", k, p.distance_step_m),
+        margin_m=margin,
+        elements=r.integer(d, "elements", k, p.elements, ge=1, le=10000),
+        spacing_m=r.interval(d, "spacing_m", k, p.spacing_m, gt=0),
+        separation_m=r.interval(d, "separation_m", k, p.separation_m, gt=0),
+        heading_spread_deg=r.number(d, "heading_spread_deg", k, p.heading_spread_deg,
+                                    ge=0, le=180),
+        clearance_m=r.number(d, "clearance_m", k, p.clearance_m, ge=0),
+    )
+
+
+def per_wall_surface_problem(surfaces: tuple[Surface, ...], index: int) -> str:
+    """Why ``surfaces[index]`` cannot be scanned by a :class:`PerWall` placement, or ``""``."""
+    if not 0 <= index < len(surfaces):
+        return (f"no surfaces[{index}] (the scene has {len(surfaces)} surface"
+                f"{'' if len(surfaces) == 1 else 's'}); per-wall needs a closed polyline")
+    s = surfaces[index]
+    if not (isinstance(s, Polyline) and s.closed):
+        kind = "an open polyline" if isinstance(s, Polyline) else f"a {type(s).__name__.lower()}"
+        return f"surfaces[{index}] is {kind}; per-wall needs a closed polyline (a room)"
+    return ""
+
+
+def _read_placement(r: _Reader, d: Any, surfaces: tuple[Surface, ...] = ()) -> Placement | None:
     if d is None:
         return None
     k = "sensors.placement"
     if not isinstance(d, dict):
         raise r.fail(k, f"must be an object, not {_type_name(d)}")
-    kind = r.choice(d, "type", k, ("random-lines", "circular", "wall-following"))
+    kind = r.choice(d, "type", k, ("random-lines", "circular", "wall-following", "per-wall"))
+    if kind == "per-wall":
+        return _read_per_wall(r, d, k, surfaces)
     if kind == "random-lines":
         d = r.obj(d, k, tuple(f.name for f in fields(RandomLines)))
         p = RandomLines
@@ -637,10 +710,10 @@ def _read_placement(r: _Reader, d: Any) -> Placement | None:
     )
 
 
-def _read_sensors(r: _Reader, d: Any) -> Sensors:
+def _read_sensors(r: _Reader, d: Any, surfaces: tuple[Surface, ...]) -> Sensors:
     d = r.obj(d, "sensors", ("transducers", "placement"))
     return Sensors(_read_transducers(r, d.get("transducers", []), "sensors.transducers"),
-                   _read_placement(r, d.get("placement")))
+                   _read_placement(r, d.get("placement"), surfaces))
 
 
 _TOP_KEYS = ("clsonar", "name", "extent", "cell", "medium", "transducer", "signal", "echo",
@@ -669,6 +742,7 @@ def scene_from_dict(data: Any, source: str = "<scene>") -> Scene:
     if not (extent[2] > extent[0] and extent[3] > extent[1]):
         raise r.fail("extent", "must be [xmin, ymin, xmax, ymax] with xmax > xmin and ymax > ymin")
     cell = r.number(d, "cell", "", 0.01, gt=0)
+    surfaces = _read_surfaces(r, d.get("surfaces", []))
     return Scene(
         name=name,
         extent=extent,  # type: ignore[arg-type]
@@ -680,8 +754,8 @@ def scene_from_dict(data: Any, source: str = "<scene>") -> Scene:
         detection=_read_detection(r, d.get("detection", {})),
         mapping=_read_mapping(r, d.get("mapping", {})),
         post=_read_post(r, d.get("post", {})),
-        surfaces=_read_surfaces(r, d.get("surfaces", [])),
-        sensors=_read_sensors(r, d.get("sensors", {})),
+        surfaces=surfaces,
+        sensors=_read_sensors(r, d.get("sensors", {}), surfaces),
     )
 
 

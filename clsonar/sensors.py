@@ -3,7 +3,7 @@
 The sensors of a scene are its explicit ``sensors.transducers`` (in file order) followed by
 those its ``sensors.placement`` places; indices into :class:`SensorArray` are the ``tx`` and
 ``rx`` of the echo table. Every transducer belongs to a *group*: one linear array of
-``random-lines``, one ring of ``circular``, one pose of ``wall-following``; explicit
+``random-lines`` or ``per-wall``, one ring of ``circular``, one pose of ``wall-following``; explicit
 transducers keep their ``group`` key. Placed groups are numbered after the explicit ones.
 
 Which pairs fire (:func:`pairs`): every transducer transmits in turn and every transducer of
@@ -16,7 +16,8 @@ independent noise, so both are kept.
 Placements (each returns ``(positions [n, 2], headings_deg [n], group per element [n] int64
 from 0, poses [G, 2])``): :func:`place_random_lines` (thesis §2.1, §3.1),
 :func:`place_circular` and :func:`place_wall_following` (§2.1.2, traced by
-:func:`wall_following_path`). They are deterministic: random numbers come only from the
+:func:`wall_following_path`), :func:`place_per_wall` (§3.6, Figs 3.21–3.22). They are
+deterministic: random numbers come only from the
 placement's ``seed``. A placement that cannot be made raises
 :class:`~clsonar.errors.SceneError` with key ``sensors.placement`` and the scene's name as
 source.
@@ -31,7 +32,15 @@ import numpy as np
 
 from .errors import SceneError
 from .geometry import Geometry, build_geometry, nearest_surface_point, ray_distance
-from .scene import Circular, Polyline, RandomLines, Scene, WallFollowing
+from .scene import (
+    Circular,
+    PerWall,
+    Polyline,
+    RandomLines,
+    Scene,
+    WallFollowing,
+    per_wall_surface_problem,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -41,7 +50,8 @@ class SensorArray:
     positions: np.ndarray  # [N, 2] metres
     headings_deg: np.ndarray  # [N] direction of each transducer's axis, degrees from +x
     groups: np.ndarray  # [N] int64 pair group
-    poses: np.ndarray  # [G, 2] ring centres of circular / wall-following placements
+    poses: np.ndarray  # [G, 2] ring centres (circular, wall-following) or array centres
+    # (per-wall); none for random-lines
 
     def __len__(self) -> int:
         return len(self.positions)
@@ -383,6 +393,99 @@ def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry):
     return (np.concatenate(pos), np.concatenate(head), groups, poses)
 
 
+# --------------------------------------------------------------------------- per wall
+
+
+def per_wall_seed(seed: int, wall: int) -> int:
+    """Seed of the :class:`~clsonar.scene.RandomLines` of wall ``wall`` of a per-wall
+    placement: independent streams for every wall, all derived from the placement's seed."""
+    return int(np.random.SeedSequence([seed, wall]).generate_state(1, np.uint64)[0])
+
+
+def per_wall_lines(p: PerWall, scene: Scene, geom: Geometry) -> list[tuple[int, RandomLines]]:
+    """The line of arrays of each scanned wall of a per-wall placement (thesis §3.6).
+
+    For wall k (the k-th segment of the closed polyline ``surfaces[p.surface]``, from its
+    point k to point k+1) at LoS distance ``d = p.distance_m + k·p.distance_step_m`` and
+    margin ``m`` (``p.margin_m``, or d if null): a :class:`~clsonar.scene.RandomLines` that
+    starts at distance ``m`` from the wall's first end, shifted by ``d`` along the wall's
+    inward normal, runs ``length − 2m`` along the wall and faces the wall (the inward normal
+    reversed), with seed :func:`per_wall_seed`. Walls with ``d ≤ 0`` or too short for the
+    shortest possible array (``(elements − 1)·spacing_m[0]`` after the margins) are left
+    out. Returns ``[(k, lines)]`` in outline order.
+    """
+    problem = per_wall_surface_problem(scene.surfaces, p.surface)
+    if problem:
+        raise _placement_error(scene, problem, "sensors.placement.surface")
+    mine = np.flatnonzero(geom.wall_surface == p.surface)
+    shortest = (p.elements - 1) * p.spacing_m[0]
+    out = []
+    for k, w in enumerate(mine):
+        a, b = geom.walls[w, :2], geom.walls[w, 2:]
+        inward = geom.wall_normal[w]
+        length = float(np.hypot(*(b - a)))
+        u = (b - a) / length
+        distance = p.distance_m + k * p.distance_step_m
+        margin = distance if p.margin_m is None else p.margin_m
+        run = length - 2.0 * margin
+        if distance <= 0.0 or run < shortest:
+            continue
+        start = a + margin * u + distance * inward
+        out.append((k, RandomLines(
+            seed=per_wall_seed(p.seed, k),
+            start=(float(start[0]), float(start[1])),
+            direction_deg=float(np.degrees(np.arctan2(u[1], u[0]))),
+            length_m=run,
+            elements=p.elements,
+            spacing_m=p.spacing_m,
+            separation_m=p.separation_m,
+            facing_deg=float(np.degrees(np.arctan2(-inward[1], -inward[0]))),
+            heading_spread_deg=p.heading_spread_deg,
+            clearance_m=p.clearance_m,
+        )))
+    return out
+
+
+def place_per_wall(p: PerWall, scene: Scene, geom: Geometry):
+    """Per-wall scan of a closed room, thesis §3.6 (see :class:`~clsonar.scene.PerWall`).
+
+    "In the room, each wall is scanned independently. […] Transducers are localized as in
+    the previous simulations for each of the scanned walls of the room": every line of
+    :func:`per_wall_lines` is filled by :func:`place_random_lines`, so it ends where that
+    placement ends (its length, an element leaving free space, coming within
+    ``clearance_m`` of a surface, or hidden behind one); a line whose first element cannot
+    be placed is skipped. Walls are taken in outline order and every array stays its own
+    pair group, numbered 0, 1, … over the whole room.
+
+    Returns ``(positions [n, 2], headings_deg [n], groups [n] int64, poses [G, 2])`` with
+    ``poses`` the centre of each array (the midpoint of its first and last element).
+    Raises :class:`SceneError` (key ``sensors.placement``) if no wall gets a transducer.
+    """
+    pos: list[np.ndarray] = []
+    head: list[np.ndarray] = []
+    groups: list[np.ndarray] = []
+    first = 0
+    for _, line in per_wall_lines(p, scene, geom):
+        try:
+            wp, wh, wg, _ = place_random_lines(line, scene, geom)
+        except SceneError:
+            continue
+        pos.append(wp)
+        head.append(wh)
+        groups.append(wg + first)
+        first += int(wg.max()) + 1
+    if not pos:
+        raise _placement_error(scene, f"per-wall placed no transducer: no wall of surfaces"
+                                      f"[{p.surface}] has room for an array at distance_m = "
+                                      f"{p.distance_m:g} (distance_step_m = "
+                                      f"{p.distance_step_m:g}) inside the room")
+    g = np.concatenate(groups)
+    positions = np.concatenate(pos)
+    poses = np.asarray([0.5 * (positions[g == k][0] + positions[g == k][-1])
+                        for k in range(first)])
+    return positions, np.concatenate(head), g, poses.reshape(-1, 2)
+
+
 def place_sensors(scene: Scene, geom: Geometry | None = None) -> SensorArray:
     """The scene's transducers: explicit ones first, in file order, then placed ones."""
     explicit = scene.sensors.transducers
@@ -396,9 +499,12 @@ def place_sensors(scene: Scene, geom: Geometry | None = None) -> SensorArray:
             p_pos, p_head, p_group, poses = place_circular(placement)
         else:
             geom = geom if geom is not None else build_geometry(scene)
-            place = (place_random_lines if isinstance(placement, RandomLines)
-                     else place_wall_following)
-            p_pos, p_head, p_group, poses = place(placement, scene, geom)
+            if isinstance(placement, RandomLines):
+                p_pos, p_head, p_group, poses = place_random_lines(placement, scene, geom)
+            elif isinstance(placement, PerWall):
+                p_pos, p_head, p_group, poses = place_per_wall(placement, scene, geom)
+            else:
+                p_pos, p_head, p_group, poses = place_wall_following(placement, scene, geom)
         first = int(groups.max()) + 1 if len(groups) else 0
         pos = np.concatenate([pos, p_pos])
         head = np.concatenate([head, p_head])
@@ -428,6 +534,7 @@ def heading_deg(v: np.ndarray) -> np.ndarray:
     return np.degrees(np.arctan2(v[..., 1], v[..., 0]))
 
 
-__all__ = ["SensorArray", "heading_deg", "in_free_space", "pairs", "place_circular",
-           "place_random_lines", "place_sensors", "place_wall_following", "ring",
-           "wall_following_path", "wall_following_substep"]
+__all__ = ["SensorArray", "heading_deg", "in_free_space", "pairs", "per_wall_lines",
+           "per_wall_seed", "place_circular", "place_per_wall", "place_random_lines",
+           "place_sensors", "place_wall_following", "ring", "wall_following_path",
+           "wall_following_substep"]

@@ -82,6 +82,7 @@ def test_thin_preserves_components_and_is_idempotent(seed, density):
 
 def test_binarize():
     assert binarize(np.array([0.1, 0.5, 0.6]), 0.5).tolist() == [False, True, True]
+    assert not binarize(np.zeros((3, 3)), 0.0).any()  # no echo: nothing occupied
 
 
 # --------------------------------------------------------------------------- profile

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from clsonar import SceneError, load_scene, save_scene
 from clsonar.scene import (
     Circle,
+    PerWall,
     Polyline,
     Scene,
     Sinusoid,
@@ -149,6 +150,80 @@ def test_wall_following_keys():
                                                "step_m": 0.75}))
     p = scene_from_dict(d).sensors.placement
     assert p == WallFollowing(start=(1.0, 5.0), step_m=0.75)
+
+
+def _per_wall_scene(**placement) -> dict:
+    """A rectangular room scanned wall by wall (thesis §3.6, Figs 3.21–3.22)."""
+    return {
+        "clsonar": 1, "name": "room", "extent": [0.0, 0.0, 10.0, 10.0],
+        "surfaces": [
+            {"type": "circle", "center": [5.0, 5.0], "radius": 1.0},
+            {"type": "polyline", "points": [[1, 1], [9, 1], [9, 9], [1, 9]], "closed": True},
+        ],
+        "sensors": {"placement": {"type": "per-wall", "surface": 1, **placement}},
+    }
+
+
+def test_per_wall_keys_and_defaults():
+    p = scene_from_dict(_per_wall_scene()).sensors.placement
+    assert p == PerWall(surface=1)
+    assert (p.distance_m, p.distance_step_m, p.margin_m, p.elements) == (1.0, 0.0, None, 10)
+    assert p.spacing_m == (0.05, 0.11) and p.separation_m == (0.5, 1.65)
+    assert p.heading_spread_deg == 0.0
+    p = scene_from_dict(_per_wall_scene(distance_m=1.5, distance_step_m=-0.25, margin_m=0.25,
+                                        elements=8, spacing_m=[0.06, 0.1], seed=9,
+                                        heading_spread_deg=90, clearance_m=0.1)).sensors.placement
+    assert p == PerWall(seed=9, surface=1, distance_m=1.5, distance_step_m=-0.25, margin_m=0.25,
+                        elements=8, spacing_m=(0.06, 0.1), heading_spread_deg=90.0,
+                        clearance_m=0.1)
+
+
+@pytest.mark.parametrize("placement", [{}, {"distance_step_m": 0.25, "margin_m": 0.5, "seed": 4}])
+def test_per_wall_round_trip(tmp_path, placement):
+    s1 = scene_from_dict(_per_wall_scene(**placement), "room.json")
+    save_scene(s1, tmp_path / "a.json")
+    s2 = load_scene(tmp_path / "a.json")
+    save_scene(s2, tmp_path / "b.json")
+    assert s1 == s2 == load_scene(tmp_path / "b.json")
+    assert (tmp_path / "a.json").read_text() == (tmp_path / "b.json").read_text()
+    saved = json.loads((tmp_path / "a.json").read_text())["sensors"]["placement"]
+    assert saved["type"] == "per-wall" and saved["margin_m"] == placement.get("margin_m")
+
+
+@pytest.mark.parametrize(("placement", "expected"), [
+    ({"distance_m": -1.0}, "sensors.placement.distance_m: must be > 0"),
+    ({"distance_m": 0}, "sensors.placement.distance_m: must be > 0"),
+    ({"margin_m": -0.1}, "sensors.placement.margin_m: must be >= 0"),
+    ({"surface": 2}, "sensors.placement.surface: no surfaces[2] (the scene has 2 surfaces)"),
+    ({"surface": -1}, "sensors.placement.surface: must be >= 0"),
+    ({"surface": 0}, "sensors.placement.surface: surfaces[0] is a circle; per-wall needs a "
+                     "closed polyline"),
+    ({"surface": 1.5}, "sensors.placement.surface: must be an integer"),
+    ({"elements": 0}, "sensors.placement.elements: must be >= 1"),
+    ({"spacing_m": [0.1, 0.05]}, "sensors.placement.spacing_m: upper bound"),
+    ({"separation_m": [0, 1]}, "sensors.placement.separation_m[0]: must be > 0"),
+    ({"heading_spread_deg": 200}, "sensors.placement.heading_spread_deg: must be <= 180"),
+    ({"clearance_m": -1}, "sensors.placement.clearance_m: must be >= 0"),
+    ({"distance_step_m": "big"}, "sensors.placement.distance_step_m: must be a number"),
+    ({"seed": -1}, "sensors.placement.seed: must be >= 0"),
+    ({"facing_deg": 0}, "sensors.placement.facing_deg: unknown key"),
+])
+def test_per_wall_bad_values_are_one_clear_line(tmp_path, placement, expected):
+    f = tmp_path / "room.json"
+    f.write_text(json.dumps(_per_wall_scene(**placement)))
+    with pytest.raises(SceneError) as info:
+        load_scene(f)
+    message = str(info.value)
+    assert message.startswith(f"{f}: "), message
+    assert expected in message, message
+    assert "\n" not in message
+
+
+def test_per_wall_on_an_open_polyline_is_refused():
+    d = _per_wall_scene()
+    d["surfaces"][1]["closed"] = False
+    with pytest.raises(SceneError, match=r"surfaces\[1\] is an open polyline"):
+        scene_from_dict(d)
 
 
 finite = st.floats(-1e3, 1e3, allow_nan=False)

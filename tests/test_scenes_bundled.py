@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import clsonar
-from clsonar.geometry import build_geometry, nearest_surface_point
-from clsonar.scene import RandomLines, WallFollowing
-from clsonar.sensors import in_free_space, place_sensors
+from clsonar.geometry import build_geometry, nearest_surface_point, ray_distance
+from clsonar.scene import PerWall, RandomLines, WallFollowing
+from clsonar.sensors import in_free_space, per_wall_lines, place_random_lines, place_sensors
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = sorted((ROOT / "scenes").glob("*.json"))
@@ -26,11 +26,13 @@ ARRAY_X = {
     "sinusoid-1m": 6.7, "sinusoid-4m": 3.7, "sinusoid-6m": 1.7,
 }
 WALL_FOLLOWING = {"room": 0.5, "room-step70": 0.7, "room-step75": 0.75, "room-cylinder": 0.5}
+#: Scene name → LoS distance step of the per-wall scan (thesis §3.6: Fig 3.21, Fig 3.22).
+PER_WALL = {"room-per-wall": 0.0, "room-per-wall-steps": 0.25}
 
 
 def test_every_thesis_scene_is_bundled():
     names = {p.stem for p in SCENES}
-    assert set(ARRAY_X) | set(WALL_FOLLOWING) <= names
+    assert set(ARRAY_X) | set(WALL_FOLLOWING) | set(PER_WALL) <= names
 
 
 def test_docs_list_every_bundled_scene():
@@ -104,3 +106,27 @@ def test_wall_following_scenes_match_the_thesis(name, placed):
     perimeter = 36.0 - 6 * 1.0 + 2 * (np.pi / 2 * 0.5)
     assert len(sensors.poses) == int(np.ceil(perimeter / p.step_m - 0.05))
     assert len(sensors) == 8 * len(sensors.poses)
+
+
+@pytest.mark.parametrize("name", sorted(PER_WALL))
+def test_per_wall_scenes_match_the_thesis(name, placed):
+    scene, geom, sensors = placed[name]
+    room = clsonar.load_scene(ROOT / "scenes" / "room.json")
+    assert scene.surfaces == room.surfaces and scene.echo == room.echo
+    assert scene.mapping == room.mapping and scene.transducer == room.transducer
+    p = scene.sensors.placement
+    assert isinstance(p, PerWall)
+    assert p.elements == 10 and p.distance_m == 1.0 and p.distance_step_m == PER_WALL[name]
+    lines = per_wall_lines(p, scene, geom)
+    assert [k for k, _ in lines] == list(range(8))  # every wall of the room is scanned
+    first = 0
+    for k, line in lines:
+        pos = place_random_lines(line, scene, geom)[0]
+        np.testing.assert_array_equal(sensors.positions[first:first + len(pos)], pos)
+        axes = sensors.axes[first:first + len(pos)]
+        # each transducer faces its wall, at that wall's LoS distance
+        np.testing.assert_allclose(ray_distance(geom, pos, axes), 1.0 + k * PER_WALL[name],
+                                   atol=1e-9)
+        first += len(pos)
+    assert first == len(sensors)
+    assert len(sensors.poses) == sensors.groups.max() + 1

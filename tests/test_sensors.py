@@ -3,7 +3,9 @@ arrays) and the transmitter→receiver pairs."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -12,12 +14,14 @@ from hypothesis import strategies as st
 
 from clsonar.errors import SceneError
 from clsonar.geometry import build_geometry, nearest_surface_point, ray_distance
-from clsonar.scene import Circular, RandomLines, WallFollowing, scene_from_dict
+from clsonar.scene import Circular, PerWall, RandomLines, WallFollowing, scene_from_dict
 from clsonar.sensors import (
     SensorArray,
     in_free_space,
     pairs,
+    per_wall_lines,
     place_circular,
+    place_per_wall,
     place_random_lines,
     place_sensors,
     place_wall_following,
@@ -343,6 +347,168 @@ def test_wall_following_errors_name_the_placement(surfaces, kw, message):
     with pytest.raises(SceneError, match=message) as e:
         place(scene)
     assert e.value.key.startswith("sensors.placement")
+
+
+# --------------------------------------------------------------------------- per wall
+
+#: RECT's walls in outline order: (first end, second end, inward normal, heading facing it).
+RECT_WALLS = [((1, 1), (9, 1), (0, 1), -90.0), ((9, 1), (9, 6), (-1, 0), 0.0),
+              ((9, 6), (1, 6), (0, -1), 90.0), ((1, 6), (1, 1), (1, 0), 180.0)]
+
+
+def per_wall(**kw):
+    return {"type": "per-wall", **kw}
+
+
+def _wall_of(head):
+    """Index into RECT_WALLS of the wall each heading faces (headings spread < 45°)."""
+    facing = np.array([w[3] for w in RECT_WALLS])
+    diff = np.abs((head[:, None] - facing[None] + 180.0) % 360.0 - 180.0)
+    return np.argmin(diff, axis=1), diff.min(axis=1)
+
+
+@pytest.mark.parametrize("step", [0.0, 0.25])
+def test_per_wall_rectangle_every_wall_scanned_at_its_distance(step):
+    scene = make_scene([room(RECT)], per_wall(seed=3, distance_m=1.0, distance_step_m=step))
+    geom = build_geometry(scene)
+    p = scene.sensors.placement
+    assert isinstance(p, PerWall)
+    pos, head, groups, poses = place_per_wall(p, scene, geom)
+    assert groups.dtype == np.int64 and len(pos) == len(head) == len(groups)
+    assert np.all(in_free_space(scene, geom, pos))
+    assert np.all(nearest_surface_point(geom, pos)[0] >= p.clearance_m)
+    wall_of, off = _wall_of(head)
+    np.testing.assert_allclose(off, 0.0, atol=1e-9)  # heading_spread_deg 0: facing the wall
+    for k, (a, b, n, _) in enumerate(RECT_WALLS):
+        mine = wall_of == k
+        assert len(np.unique(groups[mine])) >= 1  # every wall has at least one array
+        a, b, n = np.asarray(a, float), np.asarray(b, float), np.asarray(n, float)
+        d = 1.0 + k * step
+        rel = pos[mine] - a
+        np.testing.assert_allclose(rel @ n, d, atol=1e-9)  # on the line at the LoS distance
+        u = (b - a) / np.hypot(*(b - a))
+        along = rel @ u
+        assert np.all((along >= d - TOL) & (along <= np.hypot(*(b - a)) - d + TOL))  # margins
+        # the axis points at the wall: the ray along it meets this wall at distance d
+        axes = np.stack([np.cos(np.radians(head[mine])), np.sin(np.radians(head[mine]))], -1)
+        np.testing.assert_allclose(ray_distance(geom, pos[mine], axes), d, atol=1e-9)
+    # every array is its own group, numbered 0, 1, … over the room, never across walls
+    assert groups[0] == 0 and np.all(np.diff(groups) >= 0) and np.all(np.diff(groups) <= 1)
+    for g in np.unique(groups):
+        assert len(np.unique(wall_of[groups == g])) == 1
+        assert np.sum(groups == g) <= p.elements
+    assert len(poses) == groups.max() + 1
+    for g, centre in enumerate(poses):
+        members = pos[groups == g]
+        np.testing.assert_allclose(centre, 0.5 * (members[0] + members[-1]))
+
+
+def test_per_wall_lines_are_random_lines():
+    """Each wall's arrays are what random-lines places along that wall's line."""
+    scene = make_scene([room(RECT)], per_wall(seed=8, distance_m=0.8, heading_spread_deg=30))
+    geom = build_geometry(scene)
+    p = scene.sensors.placement
+    lines_ = per_wall_lines(p, scene, geom)
+    assert [k for k, _ in lines_] == [0, 1, 2, 3]
+    assert len({line.seed for _, line in lines_}) == 4
+    pos, head, groups, _ = place_per_wall(p, scene, geom)
+    first = 0
+    for k, line in lines_:
+        assert line.facing_deg % 360.0 == pytest.approx(RECT_WALLS[k][3] % 360.0)
+        assert line.length_m == pytest.approx(np.hypot(*np.subtract(*RECT_WALLS[k][:2])) - 1.6)
+        wp, wh, wg, _ = place_random_lines(line, scene, geom)
+        sl = slice(first, first + len(wp))
+        np.testing.assert_array_equal(pos[sl], wp)
+        np.testing.assert_array_equal(head[sl], wh)
+        np.testing.assert_array_equal(groups[sl], wg + groups[first])
+        _check_random_lines(line, wp, wh, wg)
+        first += len(wp)
+    assert first == len(pos)
+
+
+def test_per_wall_deterministic_for_a_seed():
+    a, b, c = (place(make_scene([room(RECT)], per_wall(seed=s, heading_spread_deg=20)))
+               for s in (5, 5, 6))
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_array_equal(a.headings_deg, b.headings_deg)
+    np.testing.assert_array_equal(a.groups, b.groups)
+    np.testing.assert_array_equal(a.poses, b.poses)
+    assert not np.array_equal(a.headings_deg, c.headings_deg)
+
+
+def test_per_wall_skips_walls_too_short_or_outside_the_room():
+    # L room: walls 1 and 4 are 3 m long, less 2·1.5 m of margin: no line there
+    scene = make_scene([room(L_ROOM)], per_wall(seed=1, distance_m=1.5))
+    geom = build_geometry(scene)
+    assert [k for k, _ in per_wall_lines(scene.sensors.placement, scene, geom)] == [0, 2, 3, 5]
+    s = place_sensors(scene, geom)
+    assert np.all(in_free_space(scene, geom, s.positions))
+    assert len(np.unique(np.round(s.headings_deg % 360.0, 6))) == 4
+    # LoS distance growing 8 m per wall: the lines of walls 1–3 lie outside the room
+    scene = make_scene([room(RECT)], per_wall(seed=1, distance_m=1.0, distance_step_m=8.0,
+                                              margin_m=0.2))
+    geom = build_geometry(scene)
+    assert len(per_wall_lines(scene.sensors.placement, scene, geom)) == 4
+    s = place_sensors(scene, geom)
+    np.testing.assert_allclose(s.positions[:, 1], 2.0)
+    np.testing.assert_allclose(s.headings_deg, -90.0)
+
+
+def test_per_wall_after_explicit_transducers_and_in_pairs():
+    explicit = [{"position": [5.0, 3.0], "heading_deg": 0.0, "group": 2}]
+    s = place(make_scene([room(RECT)], per_wall(seed=2), explicit))
+    assert s.groups[0] == 2 and s.groups[1] == 3
+    assert len(s.poses) == s.groups.max() - 2
+    sizes = np.bincount(s.groups)
+    assert len(pairs(s)) == int(np.sum(sizes**2))
+
+
+@pytest.mark.parametrize("surfaces, kw, key, message", [
+    ([room(RECT)], {"distance_m": 4.5}, "sensors.placement", "placed no transducer"),
+    ([room(RECT)], {"distance_m": 1.0, "margin_m": 4.0}, "sensors.placement",
+     "placed no transducer"),
+    ([room(RECT)], {"distance_m": 1.0, "clearance_m": 2.0}, "sensors.placement",
+     "placed no transducer"),
+])
+def test_per_wall_that_places_nothing_raises(surfaces, kw, key, message):
+    scene = make_scene(surfaces, per_wall(**kw))
+    with pytest.raises(SceneError, match=message) as e:
+        place(scene)
+    assert e.value.key == key and e.value.source == "test"
+
+
+@pytest.mark.parametrize("surfaces, index, message", [
+    ([room(RECT)], 1, "no surfaces[1]"),
+    (PLANE, 0, "open polyline"),
+    ([circle((5, 5), 1)], 0, "a circle"),
+])
+def test_per_wall_needs_a_closed_polyline(surfaces, index, message):
+    with pytest.raises(SceneError, match=re.escape(message)) as e:
+        make_scene(surfaces, per_wall(surface=index))
+    assert e.value.key == "sensors.placement.surface"
+    # and a Scene built without the reader fails the same way when placed
+    scene = make_scene(surfaces)
+    scene = dataclasses.replace(scene, sensors=dataclasses.replace(
+        scene.sensors, placement=PerWall(surface=index)))
+    with pytest.raises(SceneError, match=re.escape(message)) as e:
+        place(scene)
+    assert e.value.key == "sensors.placement.surface"
+
+
+def test_per_wall_room_maps_end_to_end():
+    """Thesis §3.6, Fig 3.21: a per-wall scanned room gives detections and a map."""
+    import clsonar
+
+    scene = scene_from_dict({
+        "clsonar": 1, "name": "per-wall", "extent": [0.0, 0.0, 4.0, 3.0], "cell": 0.02,
+        "transducer": {"directivity": "uniform"}, "echo": {"curvature_gain": False},
+        "surfaces": [room([(0.2, 0.2), (3.8, 0.2), (3.8, 2.8), (0.2, 2.8)])],
+        "sensors": {"placement": per_wall(seed=1, distance_m=0.8, margin_m=0.3)},
+    })
+    result = clsonar.run(scene)
+    assert result.counts["detections"] > 0
+    assert result.counts["thin_cells"] > 0
+    assert len(np.unique(np.round(result.sensors.headings_deg % 360.0, 6))) == 4
 
 
 # --------------------------------------------------------------------------- place_sensors, pairs

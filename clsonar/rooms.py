@@ -1,0 +1,309 @@
+"""Closed rooms (thesis §2.1.2 and §3.6): echoes that were never a line of sight, and the
+room's outline as walls meeting at corners and edges.
+
+- :func:`line_of_sight`: an estimated reflection point q of the pair (T, R) is real only if
+  sound can go T → q → R, so a point that the map itself shows hidden behind a surface, as
+  seen from T or from R, is a ghost — the locus of a multiply reflected echo drawn as if it
+  were a single reflection (thesis §2.1.2: "for edges, corners, and cylinders multiple
+  reflections occur"). Each transducer's first hit in every direction is taken from the
+  occupied cells (a polar z-buffer), and points farther than it by more than a margin go.
+- :func:`fit_walls`: the profile of a room as straight walls where the data are straight
+  (split-and-merge of the linked curves, total-least-squares lines, collinear pieces
+  merged) and smoothing splines elsewhere (cylinders, sinusoids); adjoining walls are
+  extended to their intersection, which locates the corners and edges that the arcs
+  themselves round off (the thesis' maps lost them, §3.6).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import post
+from .post import Profile, fit_spline
+from .scene import PostSettings, Scene
+
+#: Angular resolution of the polar z-buffer of first hits, radians (0.1°).
+SIGHT_BIN_RAD = math.radians(0.1)
+
+#: A point may lie this many cells behind the first hit in its direction and still be seen
+#: (the occupied band of a wall is a few cells thick; a corner's two walls meet there).
+SIGHT_MARGIN_CELLS = 4
+
+
+def first_hits(origin: np.ndarray, occluders: np.ndarray, cell: float,
+               bin_rad: float = SIGHT_BIN_RAD) -> np.ndarray:
+    """[B] distance from ``origin`` [2] to the nearest of the occupied cells ``occluders``
+    [m, 2] (their centres) in each direction bin of ``bin_rad``; inf where none. A cell
+    covers every bin within its angular half-width 0.75·cell/d."""
+    bins = round(2 * math.pi / bin_rad)
+    hits = np.full(bins, np.inf)
+    d = occluders - origin
+    dist = np.hypot(d[:, 0], d[:, 1])
+    ok = dist > 0.5 * cell
+    dist, d = dist[ok], d[ok]
+    theta = np.arctan2(d[:, 1], d[:, 0])
+    half = 0.75 * cell / dist
+    lo = np.floor((theta - half) / bin_rad).astype(np.int64)
+    width = np.floor((theta + half) / bin_rad).astype(np.int64) - lo
+    for off in range(int(width.max(initial=-1)) + 1):
+        sel = width >= off
+        np.minimum.at(hits, (lo[sel] + off) % bins, dist[sel])
+    return hits
+
+
+def _bin(origin: np.ndarray, points: np.ndarray, bins: int, bin_rad: float) -> np.ndarray:
+    d = points - origin
+    return np.floor(np.arctan2(d[:, 1], d[:, 0]) / bin_rad).astype(np.int64) % bins
+
+
+def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
+                  positions: np.ndarray, occluders: np.ndarray, cell: float,
+                  margin_m: float | None = None) -> np.ndarray:
+    """[n] bool: which estimated reflection ``points`` [n, 2] of the pairs (``tx``, ``rx``)
+    [n] are in sight of both transducers (``positions`` [N, 2]) — no occupied cell of
+    ``occluders`` [m, 2] lies nearer than the point by more than ``margin_m`` (default
+    :data:`SIGHT_MARGIN_CELLS` cells) in the point's direction, from T and from R."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    margin = SIGHT_MARGIN_CELLS * cell if margin_m is None else margin_m
+    keep = np.ones(len(points), dtype=bool)
+    if len(points) == 0 or len(occluders) == 0:
+        return keep
+    bins = round(2 * math.pi / SIGHT_BIN_RAD)
+    for s in np.unique(np.concatenate([tx, rx])):
+        mine = np.flatnonzero((tx == s) | (rx == s))
+        origin = positions[s]
+        hits = first_hits(origin, occluders, cell)
+        q = points[mine]
+        dist = np.hypot(*(q - origin).T)
+        keep[mine[dist > hits[_bin(origin, q, bins, SIGHT_BIN_RAD)] + margin]] = False
+    return keep
+
+
+def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
+                    tx: np.ndarray, rx: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """:func:`line_of_sight` against the map the ``points`` make themselves: the occluders
+    are the occupied cells of their point ``counts`` [ny, nx] after the low-pass and the
+    automatic level (post.occupancy_level), as the pipeline would draw them."""
+    filtered = post.low_pass(counts) if scene.post.filter == "mean3" else counts
+    occupied = post.binarize(filtered, post.occupancy_level(filtered, scene.post, True))
+    iy, ix = np.nonzero(occupied)
+    occluders = np.stack([scene.extent[0] + (ix + 0.5) * scene.cell,
+                          scene.extent[1] + (iy + 0.5) * scene.cell], axis=-1)
+    return line_of_sight(points, tx, rx, positions, occluders, scene.cell)
+
+
+# --------------------------------------------------------------------------- walls
+
+#: Split-and-merge tolerance: a curve is cut where it leaves its chord by more than this.
+SPLIT_TOL_M = 0.01
+
+#: A piece is a straight wall when the RMS distance of its points to their
+#: total-least-squares line is at most this (sub-cell points of a wall scatter ~1 mm; a
+#: 0.5 m chord of a 2 m cylinder leaves 6 mm).
+WALL_RESIDUAL_M = 0.0025
+
+#: Shortest straight piece taken for a wall.
+MIN_WALL_M = 0.1
+
+#: Pieces within this angle and distance of each other's line are one wall.
+COLLINEAR_DEG = 3.0
+COLLINEAR_M = 0.02
+
+#: Walls meet at a vertex only if their lines cross at more than this angle.
+MIN_VERTEX_DEG = 20.0
+
+#: Walls meet at a vertex only if both are at least this long: the short, nearly straight
+#: patches a ring sees of a cylinder must not be joined into a polygon.
+MIN_JOIN_WALL_M = 0.5
+
+
+@dataclass
+class Wall:
+    """A straight wall: the total-least-squares line of its ``points`` through ``centre``
+    along unit ``direction``, spanning ``[lo, hi]`` of the coordinate along it."""
+
+    points: np.ndarray
+    centre: np.ndarray
+    direction: np.ndarray
+    lo: float
+    hi: float
+    residual: float
+    joins: int = 0  # ends extended or trimmed to a vertex
+
+    @classmethod
+    def fit(cls, points: np.ndarray) -> Wall:
+        p = np.asarray(points, dtype=np.float64)
+        centre = p.mean(axis=0)
+        _, sv, vt = np.linalg.svd(p - centre, full_matrices=False)
+        u = vt[0]
+        t = (p - centre) @ u
+        residual = float(sv[1] / math.sqrt(len(p))) if len(sv) > 1 else 0.0
+        return cls(p, centre, u, float(t.min()), float(t.max()), residual)
+
+    @property
+    def length(self) -> float:
+        return self.hi - self.lo
+
+    def at(self, t: float) -> np.ndarray:
+        return self.centre + t * self.direction
+
+    def offset(self, q: np.ndarray) -> float:
+        """Distance of point ``q`` from the wall's line."""
+        d = q - self.centre
+        return abs(d[0] * self.direction[1] - d[1] * self.direction[0])
+
+    def sample(self, spacing: float) -> np.ndarray:
+        n = max(2, math.ceil(self.length / spacing) + 1)
+        return self.at(0.0)[None] + np.linspace(self.lo, self.hi, n)[:, None] * self.direction
+
+
+def split_straight(curve: np.ndarray, tol: float = SPLIT_TOL_M) -> list[tuple[int, int]]:
+    """Index ranges ``[i, j]`` (inclusive) of the pieces of ``curve`` [n, 2] that each stay
+    within ``tol`` of their chord (Douglas–Peucker split; a closed curve is first cut at
+    the point farthest from its start)."""
+    n = len(curve)
+    if n < 3:
+        return [(0, n - 1)]
+    stack = [(0, n - 1)]
+    out = []
+    while stack:
+        i, j = stack.pop()
+        if j - i < 2:
+            out.append((i, j))
+            continue
+        a, b = curve[i], curve[j]
+        ab = b - a
+        norm = math.hypot(*ab)
+        seg = curve[i + 1:j] - a
+        dev = (np.abs(seg[:, 0] * ab[1] - seg[:, 1] * ab[0]) / norm if norm > 1e-12
+               else np.hypot(seg[:, 0], seg[:, 1]))
+        k = int(np.argmax(dev))
+        if dev[k] > tol:
+            stack += [(i + 1 + k, j), (i, i + 1 + k)]
+        else:
+            out.append((i, j))
+    return sorted(out)
+
+
+def _pieces(curves: list[np.ndarray]) -> tuple[list[Wall], list[np.ndarray]]:
+    """Straight walls and the remaining curved runs of the linked ``curves``."""
+    walls, bends = [], []
+    for c in curves:
+        run: list[np.ndarray] = []
+        for i, j in split_straight(c):
+            piece = c[i:j + 1]
+            wall = Wall.fit(piece) if len(piece) >= 3 else None
+            if wall is not None and wall.length >= MIN_WALL_M and wall.residual <= WALL_RESIDUAL_M:
+                walls.append(wall)
+                if run:
+                    bends.append(np.concatenate(run))
+                run = []
+            else:
+                run.append(piece)
+        if run:
+            bends.append(np.concatenate(run))
+    return walls, bends
+
+
+def merge_collinear(walls: list[Wall], max_gap: float) -> list[Wall]:
+    """Walls on one line (within :data:`COLLINEAR_DEG` and :data:`COLLINEAR_M`) whose spans
+    overlap or lie within ``max_gap`` of each other become one wall, refitted."""
+    walls = list(walls)
+    cos_tol = math.cos(math.radians(COLLINEAR_DEG))
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(walls)):
+            for j in range(i + 1, len(walls)):
+                a, b = walls[i], walls[j]
+                if abs(a.direction @ b.direction) < cos_tol:
+                    continue
+                if a.offset(b.centre) > COLLINEAR_M or b.offset(a.centre) > COLLINEAR_M:
+                    continue
+                t = (b.points - a.centre) @ a.direction
+                if t.min() > a.hi + max_gap or t.max() < a.lo - max_gap:
+                    continue
+                walls[i] = Wall.fit(np.concatenate([a.points, b.points]))
+                del walls[j]
+                merged = True
+                break
+            if merged:
+                break
+    return walls
+
+
+def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
+    cross = a.direction[0] * b.direction[1] - a.direction[1] * b.direction[0]
+    if abs(cross) < math.sin(math.radians(MIN_VERTEX_DEG)):
+        return None
+    d = b.centre - a.centre
+    t = (d[0] * b.direction[1] - d[1] * b.direction[0]) / cross
+    return a.at(t)
+
+
+def join_walls(walls: list[Wall], join_m: float) -> np.ndarray:
+    """Extend or trim adjoining walls to the intersection of their lines — a corner or an
+    edge — when it lies within ``join_m`` of an end of each (pairs of long walls first,
+    then the nearest, each end at most once: a short chamfer across a corner must not take
+    the ends of the two walls that meet there). Changes the walls' spans; returns the
+    vertices [k, 2]."""
+    candidates = []
+    for i in range(len(walls)):
+        for j in range(i + 1, len(walls)):
+            if min(walls[i].length, walls[j].length) < MIN_JOIN_WALL_M:
+                continue
+            x = _intersection(walls[i], walls[j])
+            if x is None:
+                continue
+            ends = []
+            for w in (walls[i], walls[j]):
+                t = (x - w.centre) @ w.direction
+                end = 0 if abs(t - w.lo) <= abs(t - w.hi) else 1
+                ends.append((end, t, abs(t - (w.lo, w.hi)[end])))
+            if ends[0][2] <= join_m and ends[1][2] <= join_m:
+                shorter = min(walls[i].length, walls[j].length)
+                candidates.append((-shorter, ends[0][2] + ends[1][2], i, j, x, ends))
+    used: set[tuple[int, int]] = set()
+    vertices = []
+    for *_, i, j, x, ends in sorted(candidates, key=lambda c: c[:2]):
+        if (i, ends[0][0]) in used or (j, ends[1][0]) in used:
+            continue
+        for k, (end, t, _) in zip((i, j), ends, strict=True):
+            used.add((k, end))
+            walls[k].joins += 1
+            if end == 0:
+                walls[k].lo = t
+            else:
+                walls[k].hi = t
+        vertices.append(x)
+    return np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
+
+
+def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) -> Profile:
+    """A room's profile from its linked, refined ``curves`` (metres): straight walls where
+    the data are straight, joined at corners and edges (:func:`join_walls`, within
+    ``settings.join_m``), and a smoothing spline through each
+    curved run that is not the rounding of a found vertex."""
+    walls, bends = _pieces(curves)
+    walls = merge_collinear(walls, settings.max_gap_m)
+    vertices = join_walls(walls, settings.join_m)
+
+    def rounding(points: np.ndarray) -> bool:
+        """All within join_m of a vertex: the rounded-off or chamfered corner or edge that
+        the vertex replaces."""
+        if len(vertices) == 0:
+            return False
+        d = np.hypot(*(points[:, None] - vertices[None]).transpose(2, 0, 1))
+        return bool(np.all(d.min(axis=1) <= settings.join_m))
+
+    out = [w.sample(spacing) for w in walls
+           if w.joins or not (w.length < settings.join_m and rounding(w.points))]
+    out += [fit_spline(bend, spacing, spacing / 2) for bend in bends if not rounding(bend)]
+    return Profile(tuple(out), vertices)
+
+
+__all__ = ["Wall", "first_hits", "fit_walls", "in_sight_of_map", "join_walls", "line_of_sight",
+           "merge_collinear", "split_straight"]
