@@ -323,3 +323,11 @@ def ray_distance(geom: Geometry, origins: np.ndarray, directions: np.ndarray) ->
 
 def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def true_vertices(geom: Geometry) -> np.ndarray:
+    """[k, 2] the true corners and edges: polyline vertices that a free side sees as a
+    concave corner or a convex edge (flat joints and free ends left out)."""
+    kinds = [CORNER, EDGE]
+    seen = np.isin(geom.vertex_left, kinds) | np.isin(geom.vertex_right, kinds)
+    return geom.vertices[seen]

@@ -652,7 +652,8 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
     over which it stays within ``max_bias_m`` of its tangent. With ``isolated_bias_m`` > 0
     a locus that crosses no neighbour contributes the middle of its in-beam arc,
     ±sqrt(2·r·isolated_bias_m): a surface facing the beams' middle (the line of sight,
-    thesis §2.1.1 part 1) is there to within that.
+    thesis §2.1.1 part 1) is there to within that — or, for a T = R locus of a moving
+    ring, the same stretch around its point of the scan's envelope (:func:`scan_envelope`).
     """
     loci = as_loci(loci)
     if len(loci) < 2:
@@ -701,12 +702,122 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
             idx = (centre_k + np.arange(-half, half + 1)) % LOCUS_SAMPLES
             found.append(pi[idx[inside[i, idx]]])
             source.append(np.full(len(found[-1]), i))
-    for i in np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0)):
-        found.append(_middle_of_arc(p[i], inside[i], a[i], isolated_bias_m))
+    isolated = np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0))
+    env = scan_envelope(scene, sensors, _subset(loci, isolated)) if len(isolated) else None
+    for k, i in enumerate(isolated):
+        mine = np.flatnonzero(env[0] == k) if env is not None else ()
+        if len(mine) == 0:
+            found.append(_middle_of_arc(p[i], inside[i], a[i], isolated_bias_m))
+        else:  # around the scan envelope's points, inside the element's beam
+            arcs = np.concatenate([_arc_around(env[1][m], env[2][m], env[3][m],
+                                               isolated_bias_m) for m in mine])
+            found.append(arcs[_in_beams(arcs, T[i], axes[loci.tx[i]], cut_sin2)])
         source.append(np.full(len(found[-1]), i))
     if not found:
         return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
     return np.concatenate(found), np.concatenate(source).astype(np.int64)
+
+
+#: How much nearer than its range an envelope point may be to a transducer (rounding).
+ENVELOPE_TOL_M = 0.002
+
+#: Envelope points within 30° of the scan direction are left out: there the offset across
+#: the scan, sqrt(ρ² − along²), multiplies the error of ``along`` by along/across > 1.7.
+ENVELOPE_MAX_ALONG = math.cos(math.radians(30.0))
+
+
+def scan_envelope(scene: Scene, sensors: SensorArray, loci
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Surface points of the T = R loci of a moving array (a wall-following ring): the
+    envelope of the loci of one element at consecutive poses.
+
+    The loci ``|q − T(s)| = ρ(s)`` of one element moved along the scan touch the surface
+    where ``(q − T)·T′ = −ρ·ρ′`` (differentiating in s), q on the side the element faces.
+    Differences over consecutive poses give it to O(step²): at each pose from the poses
+    before and after (``D = T₊ − T₋``, ``(q − T)·D̂ = −ρ·(ρ₊ − ρ₋)/|D|``), and between
+    each two consecutive poses from the locus midway (``T = (T₁ + T₂)/2``,
+    ``ρ = (ρ₁ + ρ₂)/2``, ``D = T₂ − T₁``), which also serves the poses at the ends of a
+    stretch where the surface is in the beam. Unlike the middle of the in-beam arc it is
+    right for oblique walls and cylinders (exact for a plane). Only each element's first
+    echo is used (the nearest surface in its beam, the thesis' T = R rule), and
+    neighbouring ranges must be able to come from one surface, ``|ρ₂ − ρ₁| ≤ |T₂ − T₁|``.
+
+    Returns ``(locus [m], centre [m, 2], radius [m], point [m, 2])``: the locus each
+    point is credited to, the (possibly midway) locus circle and the envelope point on it.
+    """
+    loci = as_loci(loci)
+    groups = sensors.groups
+    starts = {int(g): int(np.flatnonzero(groups == g)[0]) for g in np.unique(groups)}
+    element = np.arange(len(groups)) - np.array([starts[int(g)] for g in groups], dtype=int)
+    ranges = 0.5 * scene.medium.c * loci.tof_s
+    pos, axes = sensors.positions, sensors.axes
+    by_key: dict[tuple[int, int], list[int]] = {}  # the first echo of each element
+    for i in np.flatnonzero(loci.tx == loci.rx):
+        t = int(loci.tx[i])
+        key = (int(groups[t]), int(element[t]))
+        if key not in by_key or ranges[i] < ranges[by_key[key][0]]:
+            by_key[key] = [int(i)]
+
+    def partner(i: int, others: list[int] | None) -> int | None:
+        if others is None:
+            return None
+        gap = np.hypot(*(pos[loci.tx[others[0]]] - pos[loci.tx[i]]))
+        diff = np.abs(ranges[others] - ranges[i])
+        k = int(np.argmin(diff))
+        return others[k] if diff[k] <= gap else None
+
+    out: list[tuple[int, np.ndarray, float, np.ndarray]] = []
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+
+    def envelope(i: int, j: int, centre: np.ndarray, r: float, d: np.ndarray,
+                 dr: float) -> None:
+        """Add the envelope point from loci i and j; it must lie in both beams and no
+        nearer to either transducer than its range (a range is the distance to the
+        nearest point of the surface it came from)."""
+        length = float(np.hypot(*d))
+        along = -r * dr / length if length > 0 else np.inf
+        if abs(along) > ENVELOPE_MAX_ALONG * r:
+            return  # the surface lies ahead along the scan: its side is ill-conditioned
+        u = d / length
+        v = np.array([-u[1], u[0]])
+        if v @ axes[loci.tx[i]] < 0:
+            v = -v
+        q = centre + along * u + np.sqrt(r * r - along * along) * v
+        for k in (i, j):
+            t = pos[loci.tx[k]]
+            if (np.hypot(*(q - t)) < ranges[k] - ENVELOPE_TOL_M
+                    or not _in_beams(q, t, axes[loci.tx[k]], cut_sin2)):
+                return
+        out.append((i, centre, r, q))
+
+    for (g, e), members in by_key.items():
+        for i in members:
+            before = partner(i, by_key.get((g - 1, e)))
+            after = partner(i, by_key.get((g + 1, e)))
+            t = pos[loci.tx[i]]
+            if before is not None and after is not None:
+                envelope(i, after, t, ranges[i],
+                         pos[loci.tx[after]] - pos[loci.tx[before]],
+                         ranges[after] - ranges[before])
+            if after is not None:
+                ta = pos[loci.tx[after]]
+                envelope(i, after, 0.5 * (t + ta), 0.5 * (ranges[i] + ranges[after]), ta - t,
+                         ranges[after] - ranges[i])
+    if not out:
+        return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2))
+    idx, centre, radius, point = zip(*out, strict=True)
+    return (np.asarray(idx, np.int64), np.asarray(centre), np.asarray(radius),
+            np.asarray(point))
+
+
+def _arc_around(centre: np.ndarray, radius: float, point: np.ndarray,
+                bias: float) -> np.ndarray:
+    """Samples (every 0.25°) of the circle (``centre``, ``radius``) within ±sqrt(2·r·bias)
+    of arc around its ``point``: where it stays within ``bias`` of its tangent there."""
+    step = 2 * np.pi / LOCUS_SAMPLES
+    half = int(np.sqrt(2.0 * bias / radius) / step)
+    phi = np.arctan2(*(point - centre)[::-1]) + step * np.arange(-half, half + 1)
+    return centre + radius * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
 
 
 def _middle_of_arc(samples: np.ndarray, inside: np.ndarray, a: float,

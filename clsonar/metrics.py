@@ -11,7 +11,10 @@
   of an echo return inside both beams (:func:`insonified`): the parts of the scene the
   echoes speak of, so what a perfect map could recover; ``coverage`` is their share of all
   the true geometry;
-- spurious share: the share of estimated points farther than 5 cm from every true surface.
+- spurious share: the share of estimated points farther than 5 cm from every true surface;
+- rooms (thesis §3.6): each true corner and edge against the nearest vertex the profile
+  located (:func:`vertex_errors`; found within 3 cm), and the share of each cylinder's
+  perimeter with an estimated point within 2 cm (:func:`cylinder_coverage`).
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import physics
-from .geometry import Geometry, curve_point, nearest_surface_point
+from .geometry import Geometry, curve_point, nearest_surface_point, true_vertices
 from .scene import Polyline, Scene, Sinusoid
 from .sensors import SensorArray
 
@@ -34,6 +37,12 @@ SPURIOUS_M = 0.05
 
 #: A true point within about this range of an echo's locus is insonified by it, metres.
 LOCUS_TOL_M = 0.01
+
+#: A true corner or edge is found when a located vertex lies within this, metres.
+VERTEX_FOUND_M = 0.03
+
+#: A cylinder's perimeter point is covered when an estimated point lies within this.
+CYLINDER_TOL_M = 0.02
 
 
 def truth_points(scene: Scene, geom: Geometry, spacing: float) -> np.ndarray:
@@ -128,12 +137,43 @@ def rms_along_wall(scene: Scene, points: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean((c_true - c_est) ** 2)))
 
 
+def vertex_errors(geom: Geometry, located: np.ndarray) -> list[dict[str, object]]:
+    """For each true corner and edge (geometry.true_vertices): its position, the distance
+    to the nearest ``located`` vertex [k, 2] (None if none) and whether that is within
+    :data:`VERTEX_FOUND_M`."""
+    truth = true_vertices(geom)
+    located = np.asarray(located, dtype=np.float64).reshape(-1, 2)
+    gap = (cKDTree(located).query(truth)[0] if len(located) and len(truth)
+           else np.full(len(truth), np.inf))
+    return [{"x": float(v[0]), "y": float(v[1]),
+             "error_m": float(g) if np.isfinite(g) else None,
+             "found": bool(g <= VERTEX_FOUND_M)} for v, g in zip(truth, gap, strict=True)]
+
+
+def cylinder_coverage(geom: Geometry, points: np.ndarray, spacing: float) -> list[dict]:
+    """For each circle of the scene: the share of its perimeter (sampled every ``spacing``)
+    with an estimated point within :data:`CYLINDER_TOL_M`."""
+    out = []
+    tree = cKDTree(points) if len(points) else None
+    for cx, cy, r in geom.circles:
+        n = max(8, math.ceil(2 * math.pi * r / spacing))
+        a = 2 * math.pi * (np.arange(n) + 0.5) / n
+        perimeter = np.stack([cx + r * np.cos(a), cy + r * np.sin(a)], axis=-1)
+        gap = tree.query(perimeter)[0] if tree is not None else np.full(n, np.inf)
+        out.append({"x": float(cx), "y": float(cy), "radius_m": float(r),
+                    "coverage_2cm": float(np.mean(gap <= CYLINDER_TOL_M))})
+    return out
+
+
 def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
-             points: np.ndarray) -> dict[str, object]:
+             points: np.ndarray, vertices: np.ndarray | None = None) -> dict[str, object]:
     """All metrics of the estimated profile ``points`` [n, 2] (module docstring), as a
     JSON-ready dict: ``rms_m`` (eq. 2.6 or None), ``accuracy_m`` {rms, p95},
     ``completeness`` {"1cm", "2cm", "5cm"}, ``spurious_share``, ``insonified_m`` (length of
-    the insonified true geometry), ``coverage`` (its share of all of it) and ``points``."""
+    the insonified true geometry), ``coverage`` (its share of all of it), ``points``, and
+    for scenes with corners, edges or cylinders ``vertices`` (:func:`vertex_errors` of the
+    located ``vertices``, with ``vertices_found`` and ``vertex_error_max_m``) and
+    ``cylinders`` (:func:`cylinder_coverage`)."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     spacing = min(scene.cell, 0.005)
     truth = truth_points(scene, geom, spacing)
@@ -157,4 +197,12 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
                                for r in COMPLETENESS_RADII}
     else:
         out["completeness"] = {f"{round(r * 100)}cm": None for r in COMPLETENESS_RADII}
+    corners = vertex_errors(geom, np.zeros((0, 2)) if vertices is None else vertices)
+    if corners:
+        errors = [v["error_m"] for v in corners]
+        out["vertices"] = corners
+        out["vertices_found"] = f"{sum(v['found'] for v in corners)}/{len(corners)}"
+        out["vertex_error_max_m"] = None if None in errors else max(errors)
+    if len(geom.circles):
+        out["cylinders"] = cylinder_coverage(geom, points, spacing)
     return out

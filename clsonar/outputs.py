@@ -57,8 +57,8 @@ def render(result: RunResult) -> dict[str, bytes]:
                                       f"{s.name}: low-pass filtered (eq. 2.4)"),
         "thin.png": plots.map_png(s, g, result.thin, f"{s.name}: thinned ({s.post.thinning})",
                                   binary=True),
-        "profile.png": plots.map_png(s, g, result.thin, f"{s.name}: profile, {summary}",
-                                     binary=True, points=points, sensors=result.sensors),
+        "profile.png": plots.profile_png(s, g, result.thin, f"{s.name}: profile, {summary}",
+                                         result.profile, result.sensors),
     }
 
 

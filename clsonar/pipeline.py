@@ -129,12 +129,12 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         if scene.mapping.mode == "tangents":
             points, source = mapping.tangent_points(
                 scene, sensors, loci, isolated_bias_m=scene.mapping.isolated_bias_m)
-            raw, point_sums = mapping.point_map(scene, points)
             if scene.mapping.line_of_sight:
                 seen = rooms.in_sight_of_map(scene, sensors.positions, points,
-                                             loci.tx[source], loci.rx[source], raw)
+                                             loci.tx[source], loci.rx[source])
                 ghosts = int(np.count_nonzero(~seen))
-                raw, point_sums = mapping.point_map(scene, points[seen])
+                points = points[seen]
+            raw, point_sums = mapping.point_map(scene, points)
         elif scene.mapping.combine == "viewpoints":
             raw = mapping.count_viewpoints(
                 scene, sensors, loci, lambda part: mapping.accumulate(scene, sensors, part,
@@ -151,7 +151,8 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
                                    raw if point_sums is not None else None, point_sums)
     clock.start("metrics")
-    result_metrics = metrics.evaluate(scene, geom, sensors, echoes, profile.points)
+    result_metrics = metrics.evaluate(scene, geom, sensors, echoes, profile.points,
+                                      profile.vertices)
     seconds = clock.stop()
 
     counts = {

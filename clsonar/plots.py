@@ -13,8 +13,8 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from scipy import ndimage
 
-from .geometry import Geometry, curve_point
-from .scene import Scene
+from .geometry import Geometry, curve_point, true_vertices
+from .scene import PerWall, Scene, WallFollowing
 
 TRUTH_STYLE = {"color": "tab:red", "linewidth": 0.8, "alpha": 0.8}
 
@@ -53,9 +53,8 @@ def png_bytes(fig) -> bytes:
     return buf.getvalue()
 
 
-def map_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, *,
-            binary: bool = False, sensors=None, points: np.ndarray | None = None) -> bytes:
-    """A map stage (``[iy, ix]``) as a PNG, the true geometry in red over it."""
+def _map_axes(scene: Scene, geom: Geometry, image: np.ndarray, title: str, binary: bool):
+    """A figure showing a map stage (``[iy, ix]``) with the true geometry in red over it."""
     fig, ax = _figure(scene, title)
     xmin, ymin = scene.extent[:2]
     ny, nx = image.shape
@@ -69,6 +68,13 @@ def map_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, *,
     if not binary:
         fig.colorbar(im, ax=ax, shrink=0.8, label="votes")
     draw_truth(ax, scene, geom)
+    return fig, ax
+
+
+def map_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, *,
+            binary: bool = False, sensors=None, points: np.ndarray | None = None) -> bytes:
+    """A map stage (``[iy, ix]``) as a PNG, the true geometry in red over it."""
+    fig, ax = _map_axes(scene, geom, image, title, binary)
     if sensors is not None and len(sensors):
         ax.plot(sensors.positions[:, 0], sensors.positions[:, 1], ".", color="tab:blue",
                 markersize=1.5)
@@ -77,9 +83,56 @@ def map_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, *,
     return png_bytes(fig)
 
 
+def profile_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, profile,
+                sensors) -> bytes:
+    """The thinned map with the profile (``post.Profile``) in black, its corners and edges
+    as red crosses, the true ones as grey circles, and the sensors drawn lightly."""
+    fig, ax = _map_axes(scene, geom, image, title, binary=True)
+    if len(sensors):
+        ax.plot(sensors.positions[:, 0], sensors.positions[:, 1], ".", color="tab:blue",
+                alpha=0.5, markersize=1.0)
+    draw_poses(ax, scene, sensors.poses, light=True)
+    points = profile.points
+    if len(points):
+        ax.plot(points[:, 0], points[:, 1], ".", color="black", markersize=1.0)
+    truth = true_vertices(geom)
+    if len(truth):
+        ax.plot(truth[:, 0], truth[:, 1], "o", markersize=5, markerfacecolor="none",
+                markeredgecolor="0.5", markeredgewidth=0.8, label="true corners and edges")
+    if len(profile.vertices):
+        ax.plot(profile.vertices[:, 0], profile.vertices[:, 1], "x", color="red",
+                markersize=6, markeredgewidth=1.2, label="corners and edges")
+    _legend(ax)
+    return png_bytes(fig)
+
+
+def draw_poses(ax, scene: Scene, poses: np.ndarray, *, light: bool = False) -> None:
+    """Draw the placement's poses: ring centres joined along their path (wall-following,
+    closed; circular), or the centres of the per-wall arrays as separate markers."""
+    if not len(poses):
+        return
+    if isinstance(scene.sensors.placement, PerWall):
+        label, style = "array centres", {"linestyle": "none", "marker": "s", "markersize": 3}
+    else:
+        label, style = "ring poses", {"linestyle": "-", "marker": "o", "markersize": 2,
+                                      "linewidth": 0.6}
+        if isinstance(scene.sensors.placement, WallFollowing):
+            poses = np.concatenate([poses, poses[:1]])  # the path closes on its start
+    ax.plot(poses[:, 0], poses[:, 1], color="tab:green", label=label,
+            alpha=0.4 if light else 1.0, **style)
+
+
+def _legend(ax) -> None:
+    """A legend of the labelled artists, if any, below the axes (not over the map)."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.figure.legend(handles, labels, loc="outside lower center", ncols=len(handles),
+                         fontsize=7, frameon=False)
+
+
 def scene_png(scene: Scene, geom: Geometry, sensors, echo_points: np.ndarray) -> bytes:
-    """The scene: true geometry, transducers with short axis ticks, ring poses, and the
-    reflection points of all echoes."""
+    """The scene: true geometry, transducers with short axis ticks, the placement's poses
+    (ring poses or array centres), and the reflection points of all echoes."""
     fig, ax = _figure(scene, f"{scene.name}: {len(sensors)} transducers, "
                              f"{len(echo_points)} echoes")
     draw_truth(ax, scene, geom)
@@ -87,12 +140,9 @@ def scene_png(scene: Scene, geom: Geometry, sensors, echo_points: np.ndarray) ->
     ends = sensors.positions + tick * sensors.axes
     for p, e in zip(sensors.positions, ends, strict=True):
         ax.plot([p[0], e[0]], [p[1], e[1]], color="tab:blue", linewidth=0.5)
-    if len(sensors.poses):
-        ax.plot(sensors.poses[:, 0], sensors.poses[:, 1], "-o", color="tab:green",
-                markersize=2, linewidth=0.6, label="ring poses")
+    draw_poses(ax, scene, sensors.poses)
     if len(echo_points):
         ax.plot(echo_points[:, 0], echo_points[:, 1], "x", color="tab:orange", markersize=3,
                 label="reflection points")
-    if len(sensors.poses) or len(echo_points):
-        ax.legend(loc="upper left", fontsize=7)
+    _legend(ax)
     return png_bytes(fig)

@@ -83,15 +83,22 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
 
 
 def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
-                    tx: np.ndarray, rx: np.ndarray, counts: np.ndarray) -> np.ndarray:
+                    tx: np.ndarray, rx: np.ndarray) -> np.ndarray:
     """:func:`line_of_sight` against the map the ``points`` make themselves: the occluders
-    are the occupied cells of their point ``counts`` [ny, nx] after the low-pass and the
-    automatic level (post.occupancy_level), as the pipeline would draw them."""
+    are the occupied cells of their point map (low-pass and automatic level, as the
+    pipeline draws it) and the profile extracted from it — where the profile bridges the
+    gaps between the patches of a wall (``fit = "walls"``), a ghost cannot slip through."""
+    from .mapping import point_map
+
+    counts, sums = point_map(scene, points)
     filtered = post.low_pass(counts) if scene.post.filter == "mean3" else counts
     occupied = post.binarize(filtered, post.occupancy_level(filtered, scene.post, True))
+    profile = post.extract_profile(post.thin_map(occupied, scene.post), scene.extent,
+                                   scene.cell, scene.post, filtered, counts, sums)
     iy, ix = np.nonzero(occupied)
-    occluders = np.stack([scene.extent[0] + (ix + 0.5) * scene.cell,
-                          scene.extent[1] + (iy + 0.5) * scene.cell], axis=-1)
+    cells = np.stack([scene.extent[0] + (ix + 0.5) * scene.cell,
+                      scene.extent[1] + (iy + 0.5) * scene.cell], axis=-1)
+    occluders = np.concatenate([cells, profile.points])
     return line_of_sight(points, tx, rx, positions, occluders, scene.cell)
 
 
@@ -209,8 +216,9 @@ def _pieces(curves: list[np.ndarray]) -> tuple[list[Wall], list[np.ndarray]]:
 
 
 def merge_collinear(walls: list[Wall], max_gap: float) -> list[Wall]:
-    """Walls on one line (within :data:`COLLINEAR_DEG` and :data:`COLLINEAR_M`) whose spans
-    overlap or lie within ``max_gap`` of each other become one wall, refitted."""
+    """Walls on one line (within :data:`COLLINEAR_DEG`, and the shorter's ends within
+    :data:`COLLINEAR_M` of the longer's line) whose spans overlap or lie within ``max_gap``
+    of each other become one wall, refitted."""
     walls = list(walls)
     cos_tol = math.cos(math.radians(COLLINEAR_DEG))
     merged = True
@@ -221,7 +229,9 @@ def merge_collinear(walls: list[Wall], max_gap: float) -> list[Wall]:
                 a, b = walls[i], walls[j]
                 if abs(a.direction @ b.direction) < cos_tol:
                     continue
-                if a.offset(b.centre) > COLLINEAR_M or b.offset(a.centre) > COLLINEAR_M:
+                long, short = (a, b) if a.length >= b.length else (b, a)
+                if max(long.offset(short.at(short.lo)), long.offset(short.at(short.hi))
+                       ) > COLLINEAR_M:
                     continue
                 t = (b.points - a.centre) @ a.direction
                 if t.min() > a.hi + max_gap or t.max() < a.lo - max_gap:
@@ -282,11 +292,124 @@ def join_walls(walls: list[Wall], join_m: float) -> np.ndarray:
     return np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
 
 
+# --------------------------------------------------------------------------- circles
+
+#: Pieces whose points lie within this RMS distance of a circle belong to it.
+CIRCLE_RESIDUAL_M = 0.004
+
+#: A circle needs at least this many pieces (patches seen from different poses).
+MIN_CIRCLE_PIECES = 3
+
+#: Radii considered for cylinders, metres.
+CIRCLE_RADII_M = (0.05, 20.0)
+
+
+@dataclass
+class Arc:
+    """A circle (``centre``, ``radius``) fitted to the ``points`` of several pieces."""
+
+    centre: np.ndarray
+    radius: float
+    points: np.ndarray
+
+    def residual(self, points: np.ndarray) -> float:
+        d = np.hypot(*(points - self.centre).T) - self.radius
+        return float(np.sqrt(np.mean(d * d)))
+
+    def sample(self, spacing: float, max_gap: float) -> list[np.ndarray]:
+        """The arcs the points cover, gaps up to ``max_gap`` of arc length bridged, sampled
+        every ``spacing``."""
+        d = self.points - self.centre
+        theta = np.sort(np.arctan2(d[:, 1], d[:, 0]))
+        gaps = np.diff(np.r_[theta, theta[0] + 2 * math.pi])
+        open_gaps = np.flatnonzero(gaps * self.radius > max_gap)
+        if len(open_gaps) == 0:
+            runs = [(theta[0], theta[0] + 2 * math.pi)]
+        else:
+            starts = theta[(open_gaps + 1) % len(theta)]
+            ends = theta[open_gaps]
+            ends = np.roll(ends, -1)
+            runs = [(a, b if b >= a else b + 2 * math.pi) for a, b in zip(starts, ends,
+                                                                          strict=True)]
+        out = []
+        for a, b in runs:
+            n = max(2, math.ceil((b - a) * self.radius / spacing) + 1)
+            t = np.linspace(a, b, n)
+            out.append(self.centre + self.radius * np.stack([np.cos(t), np.sin(t)], axis=-1))
+        return out
+
+
+def _circle_through(a: Wall, b: Wall) -> tuple[np.ndarray, float] | None:
+    """The circle that both pieces would be patches of: their normals' crossing and the
+    mean distance to it (None when the normals are nearly parallel or the distances
+    disagree)."""
+    na = np.array([-a.direction[1], a.direction[0]])
+    nb = np.array([-b.direction[1], b.direction[0]])
+    cross = na[0] * nb[1] - na[1] * nb[0]
+    if abs(cross) < math.sin(math.radians(3.0)):
+        return None
+    d = b.centre - a.centre
+    s = (d[0] * nb[1] - d[1] * nb[0]) / cross
+    centre = a.centre + s * na
+    ra, rb = math.hypot(*(a.centre - centre)), math.hypot(*(b.centre - centre))
+    if abs(ra - rb) > 4 * CIRCLE_RESIDUAL_M or not CIRCLE_RADII_M[0] <= ra <= CIRCLE_RADII_M[1]:
+        return None
+    return centre, 0.5 * (ra + rb)
+
+
+def _refine_circle(points: np.ndarray, centre: np.ndarray, radius: float
+                   ) -> tuple[np.ndarray, float]:
+    """Geometric least-squares circle through ``points`` from a first guess."""
+    from scipy.optimize import least_squares
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return np.hypot(points[:, 0] - x[0], points[:, 1] - x[1]) - x[2]
+
+    x = least_squares(residuals, np.r_[centre, radius]).x
+    return x[:2], float(abs(x[2]))
+
+
+def find_circles(pieces: list[np.ndarray]) -> tuple[list[Arc], list[np.ndarray]]:
+    """Cylinders among short, unjoined ``pieces`` (the patches a moving ring sees of a
+    convex curved surface, each around a specular point whose normal points at the ring):
+    the normals of patches of one circle meet at its centre. Each pair of pieces proposes
+    the circle through both; the circle with the most pieces within
+    :data:`CIRCLE_RESIDUAL_M` is refined by least squares and kept if it has at least
+    :data:`MIN_CIRCLE_PIECES`; repeated on the rest. Returns the circles and the pieces
+    left over."""
+    fits = [Wall.fit(p) for p in pieces]
+    left = [k for k in range(len(pieces)) if len(pieces[k]) >= 3]
+    arcs = []
+    while len(left) >= MIN_CIRCLE_PIECES:
+        best: list[int] = []
+        best_circle = None
+        for i_pos, i in enumerate(left):
+            for j in left[i_pos + 1:]:
+                circle = _circle_through(fits[i], fits[j])
+                if circle is None:
+                    continue
+                trial = Arc(circle[0], circle[1], np.zeros((0, 2)))
+                members = [k for k in left if trial.residual(pieces[k]) <= CIRCLE_RESIDUAL_M]
+                if len(members) > len(best):
+                    best, best_circle = members, circle
+        if len(best) < MIN_CIRCLE_PIECES or best_circle is None:
+            break
+        points = np.concatenate([pieces[k] for k in best])
+        centre, radius = _refine_circle(points, *best_circle)
+        arcs.append(Arc(centre, radius, points))
+        left = [k for k in left if k not in best]
+    taken = {k for k in range(len(pieces))} - set(left)
+    taken -= {k for k in range(len(pieces)) if len(pieces[k]) < 3}
+    return arcs, [p for k, p in enumerate(pieces) if k not in taken]
+
+
 def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) -> Profile:
     """A room's profile from its linked, refined ``curves`` (metres): straight walls where
     the data are straight, joined at corners and edges (:func:`join_walls`, within
-    ``settings.join_m``), and a smoothing spline through each
-    curved run that is not the rounding of a found vertex."""
+    ``settings.join_m``), circles where several short pieces are patches of one
+    (:func:`find_circles`; gaps up to ``settings.max_gap_m`` of arc bridged), and a
+    smoothing spline through each remaining piece that is not the rounding of a found
+    vertex."""
     walls, bends = _pieces(curves)
     walls = merge_collinear(walls, settings.max_gap_m)
     vertices = join_walls(walls, settings.join_m)
@@ -299,9 +422,13 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) 
         d = np.hypot(*(points[:, None] - vertices[None]).transpose(2, 0, 1))
         return bool(np.all(d.min(axis=1) <= settings.join_m))
 
-    out = [w.sample(spacing) for w in walls
-           if w.joins or not (w.length < settings.join_m and rounding(w.points))]
-    out += [fit_spline(bend, spacing, spacing / 2) for bend in bends if not rounding(bend)]
+    long = [w for w in walls if w.joins or w.length >= MIN_JOIN_WALL_M]
+    short = [w.points for w in walls if not (w.joins or w.length >= MIN_JOIN_WALL_M)]
+    arcs, rest = find_circles([p for p in short + bends if not rounding(p)])
+    out = [w.sample(spacing) for w in long]
+    for arc in arcs:
+        out += arc.sample(spacing, settings.max_gap_m)
+    out += [fit_spline(p, spacing, spacing / 2) for p in rest]
     return Profile(tuple(out), vertices)
 
 
