@@ -703,14 +703,15 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
             found.append(pi[idx[inside[i, idx]]])
             source.append(np.full(len(found[-1]), i))
     isolated = np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0))
-    env = scan_envelope(scene, sensors, _subset(loci, isolated)) if len(isolated) else None
-    for k, i in enumerate(isolated):
-        mine = np.flatnonzero(env[0] == k) if env is not None else ()
+    env = scan_envelope(scene, sensors, loci) if len(isolated) else None
+    for i in isolated:
+        mine = np.flatnonzero(env[0] == i) if env is not None else ()
         if len(mine) == 0:
             found.append(_middle_of_arc(p[i], inside[i], a[i], isolated_bias_m))
         else:  # around the scan envelope's points, inside the element's beam
             arcs = np.concatenate([_arc_around(env[1][m], env[2][m], env[3][m],
-                                               isolated_bias_m) for m in mine])
+                                               min(isolated_bias_m, ENVELOPE_ARC_BIAS_M))
+                                   for m in mine])
             found.append(arcs[_in_beams(arcs, T[i], axes[loci.tx[i]], cut_sin2)])
         source.append(np.full(len(found[-1]), i))
     if not found:
@@ -720,6 +721,11 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
 
 #: How much nearer than its range an envelope point may be to a transducer (rounding).
 ENVELOPE_TOL_M = 0.002
+
+#: The stretch of locus kept around an envelope point: where it stays within this of the
+#: surface's tangent, for a plane; a convex surface bends away twice as fast, so keep it
+#: short — the envelope points themselves come every half step.
+ENVELOPE_ARC_BIAS_M = 0.001
 
 #: Envelope points within 30° of the scan direction are left out: there the offset across
 #: the scan, sqrt(ρ² − along²), multiplies the error of ``along`` by along/across > 1.7.
@@ -743,7 +749,8 @@ def scan_envelope(scene: Scene, sensors: SensorArray, loci
     neighbouring ranges must be able to come from one surface, ``|ρ₂ − ρ₁| ≤ |T₂ − T₁|``.
 
     Returns ``(locus [m], centre [m, 2], radius [m], point [m, 2])``: the locus each
-    point is credited to, the (possibly midway) locus circle and the envelope point on it.
+    point is credited to (a midway point to both of its loci), the (possibly midway)
+    locus circle and the envelope point on it.
     """
     loci = as_loci(loci)
     groups = sensors.groups
@@ -770,10 +777,11 @@ def scan_envelope(scene: Scene, sensors: SensorArray, loci
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
 
     def envelope(i: int, j: int, centre: np.ndarray, r: float, d: np.ndarray,
-                 dr: float) -> None:
-        """Add the envelope point from loci i and j; it must lie in both beams and no
-        nearer to either transducer than its range (a range is the distance to the
-        nearest point of the surface it came from)."""
+                 dr: float, centred: bool) -> None:
+        """Add the envelope point from loci i and j, credited to i (``centred``: at i's
+        pose) or to both (midway); it must lie in both beams and be no nearer to either
+        transducer than its range (the distance to the nearest point of the surface it
+        came from)."""
         length = float(np.hypot(*d))
         along = -r * dr / length if length > 0 else np.inf
         if abs(along) > ENVELOPE_MAX_ALONG * r:
@@ -788,7 +796,7 @@ def scan_envelope(scene: Scene, sensors: SensorArray, loci
             if (np.hypot(*(q - t)) < ranges[k] - ENVELOPE_TOL_M
                     or not _in_beams(q, t, axes[loci.tx[k]], cut_sin2)):
                 return
-        out.append((i, centre, r, q))
+        out.extend((k, centre, r, q) for k in ((i,) if centred else (i, j)))
 
     for (g, e), members in by_key.items():
         for i in members:
@@ -798,11 +806,11 @@ def scan_envelope(scene: Scene, sensors: SensorArray, loci
             if before is not None and after is not None:
                 envelope(i, after, t, ranges[i],
                          pos[loci.tx[after]] - pos[loci.tx[before]],
-                         ranges[after] - ranges[before])
+                         ranges[after] - ranges[before], centred=True)
             if after is not None:
                 ta = pos[loci.tx[after]]
                 envelope(i, after, 0.5 * (t + ta), 0.5 * (ranges[i] + ranges[after]), ta - t,
-                         ranges[after] - ranges[i])
+                         ranges[after] - ranges[i], centred=False)
     if not out:
         return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2))
     idx, centre, radius, point = zip(*out, strict=True)

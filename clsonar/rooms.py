@@ -108,9 +108,9 @@ def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
 SPLIT_TOL_M = 0.01
 
 #: A piece is a straight wall when the RMS distance of its points to their
-#: total-least-squares line is at most this (sub-cell points of a wall scatter ~1 mm; a
-#: 0.5 m chord of a 2 m cylinder leaves 6 mm).
-WALL_RESIDUAL_M = 0.0025
+#: total-least-squares line is at most this (sub-cell points of a wall scatter 1–3 mm; a
+#: 0.5 m arc of a 2 m cylinder leaves about 5 mm).
+WALL_RESIDUAL_M = 0.004
 
 #: Shortest straight piece taken for a wall.
 MIN_WALL_M = 0.1
@@ -294,8 +294,15 @@ def join_walls(walls: list[Wall], join_m: float) -> np.ndarray:
 
 # --------------------------------------------------------------------------- circles
 
-#: Pieces whose points lie within this RMS distance of a circle belong to it.
-CIRCLE_RESIDUAL_M = 0.004
+#: Pieces whose points lie within this median distance of a circle belong to it.
+CIRCLE_RESIDUAL_M = 0.008
+
+#: Gaps between a circle's patches up to this angle are bridged (besides ``max_gap_m``):
+#: a fitted circle says what lies between patches seen all around it.
+CIRCLE_MAX_GAP_DEG = 60.0
+
+#: Pieces wholly this close to a found circle, but not on it, are dropped with it.
+CIRCLE_ABSORB_M = 0.25
 
 #: A circle needs at least this many pieces (patches seen from different poses).
 MIN_CIRCLE_PIECES = 3
@@ -312,17 +319,20 @@ class Arc:
     radius: float
     points: np.ndarray
 
-    def residual(self, points: np.ndarray) -> float:
-        d = np.hypot(*(points - self.centre).T) - self.radius
-        return float(np.sqrt(np.mean(d * d)))
+    def holds(self, points: np.ndarray) -> bool:
+        """Whether ``points`` lie wholly within :data:`CIRCLE_ABSORB_M` of the circle: a
+        locus's tangent stretch drawn through it, not a surface of its own."""
+        d = np.abs(np.hypot(*(points - self.centre).T) - self.radius)
+        return bool(np.all(d <= CIRCLE_ABSORB_M))
 
     def sample(self, spacing: float, max_gap: float) -> list[np.ndarray]:
-        """The arcs the points cover, gaps up to ``max_gap`` of arc length bridged, sampled
-        every ``spacing``."""
+        """The arcs the points cover, gaps up to ``max_gap`` of arc length or
+        :data:`CIRCLE_MAX_GAP_DEG` bridged, sampled every ``spacing``."""
         d = self.points - self.centre
         theta = np.sort(np.arctan2(d[:, 1], d[:, 0]))
         gaps = np.diff(np.r_[theta, theta[0] + 2 * math.pi])
-        open_gaps = np.flatnonzero(gaps * self.radius > max_gap)
+        open_gaps = np.flatnonzero((gaps * self.radius > max_gap)
+                                   & (gaps > math.radians(CIRCLE_MAX_GAP_DEG)))
         if len(open_gaps) == 0:
             runs = [(theta[0], theta[0] + 2 * math.pi)]
         else:
@@ -373,34 +383,44 @@ def find_circles(pieces: list[np.ndarray]) -> tuple[list[Arc], list[np.ndarray]]
     """Cylinders among short, unjoined ``pieces`` (the patches a moving ring sees of a
     convex curved surface, each around a specular point whose normal points at the ring):
     the normals of patches of one circle meet at its centre. Each pair of pieces proposes
-    the circle through both; the circle with the most pieces within
-    :data:`CIRCLE_RESIDUAL_M` is refined by least squares and kept if it has at least
-    :data:`MIN_CIRCLE_PIECES`; repeated on the rest. Returns the circles and the pieces
-    left over."""
-    fits = [Wall.fit(p) for p in pieces]
-    left = [k for k in range(len(pieces)) if len(pieces[k]) >= 3]
+    the circle through both; the circle that most pieces agree with (median distance
+    within :data:`CIRCLE_RESIDUAL_M`) is refined by least squares on their points and kept
+    if at least :data:`MIN_CIRCLE_PIECES` agree; repeated on the rest. Pieces lying
+    wholly within :data:`CIRCLE_ABSORB_M` of a kept circle but not on it — a locus's
+    tangent stretch drawn through a curved surface — are dropped with it. Returns the
+    circles and the pieces left over."""
+    fits = [Wall.fit(p) if len(p) >= 3 else None for p in pieces]
+    left = [k for k, f in enumerate(fits) if f is not None]
     arcs = []
     while len(left) >= MIN_CIRCLE_PIECES:
         best: list[int] = []
         best_circle = None
-        for i_pos, i in enumerate(left):
-            for j in left[i_pos + 1:]:
-                circle = _circle_through(fits[i], fits[j])
+        for n, i in enumerate(left):
+            for j in left[n + 1:]:
+                circle = _circle_through(fits[i], fits[j])  # type: ignore[arg-type]
                 if circle is None:
                     continue
-                trial = Arc(circle[0], circle[1], np.zeros((0, 2)))
-                members = [k for k in left if trial.residual(pieces[k]) <= CIRCLE_RESIDUAL_M]
+                members = [k for k in left if _on_circle(pieces[k], *circle)]
                 if len(members) > len(best):
                     best, best_circle = members, circle
         if len(best) < MIN_CIRCLE_PIECES or best_circle is None:
             break
-        points = np.concatenate([pieces[k] for k in best])
-        centre, radius = _refine_circle(points, *best_circle)
-        arcs.append(Arc(centre, radius, points))
-        left = [k for k in left if k not in best]
-    taken = {k for k in range(len(pieces))} - set(left)
-    taken -= {k for k in range(len(pieces)) if len(pieces[k]) < 3}
-    return arcs, [p for k, p in enumerate(pieces) if k not in taken]
+        centre, radius = _refine_circle(np.concatenate([pieces[k] for k in best]),
+                                        *best_circle)
+        on = [k for k in left if _on_circle(pieces[k], centre, radius)]
+        arc = Arc(centre, radius, np.concatenate([pieces[k] for k in on or best]))
+        near = [k for k in left if arc.holds(pieces[k])]
+        arcs.append(arc)
+        left = [k for k in left if k not in set(best) | set(on) | set(near)]
+    used = {k for k, f in enumerate(fits) if f is not None} - set(left)
+    return arcs, [p for k, p in enumerate(pieces) if k not in used]
+
+
+def _on_circle(points: np.ndarray, centre: np.ndarray, radius: float) -> bool:
+    """Whether the median distance of ``points`` to the circle is within
+    :data:`CIRCLE_RESIDUAL_M`."""
+    d = np.abs(np.hypot(*(points - centre).T) - radius)
+    return bool(np.median(d) <= CIRCLE_RESIDUAL_M)
 
 
 def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) -> Profile:
@@ -425,6 +445,7 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) 
     long = [w for w in walls if w.joins or w.length >= MIN_JOIN_WALL_M]
     short = [w.points for w in walls if not (w.joins or w.length >= MIN_JOIN_WALL_M)]
     arcs, rest = find_circles([p for p in short + bends if not rounding(p)])
+    long = [w for w in long if w.joins or not any(arc.holds(w.points) for arc in arcs)]
     out = [w.sample(spacing) for w in long]
     for arc in arcs:
         out += arc.sample(spacing, settings.max_gap_m)
