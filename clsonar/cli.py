@@ -18,7 +18,7 @@ import io
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from . import __version__
 from .errors import ClsonarError
@@ -62,6 +62,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scenes", metavar="DIR", help="scene folder (default: the bundled ones)")
     _device_args(p)
     p.set_defaults(func=_cmd_reproduce)
+
+    p = sub.add_parser("bench", help="time the pipeline against its error, and the "
+                                     "accumulation against NumPy",
+                       description="Whole-pipeline seconds per stage and error under the "
+                                   "thesis' and our settings, and the locus accumulation on "
+                                   "OpenCL (float32, float64) against the NumPy float64 "
+                                   "reference; writes bench.md and bench.json into DIR.")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--scenes", metavar="NAMES",
+                   help="comma-separated bundled scene names (default: the thesis' shapes "
+                        "and two rooms)")
+    p.add_argument("--repeat", type=int, default=3, help="timed runs, best kept (default 3)")
+    p.add_argument("--no-numpy", action="store_true",
+                   help="skip the NumPy baseline (slow on large maps)")
+    _device_args(p)
+    p.set_defaults(func=_cmd_bench)
 
     p = sub.add_parser("echoes", help="print the echo table of a scene as CSV",
                        description="Compute every echo return of every transmitter→receiver "
@@ -138,19 +154,52 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     if args.seeds < 1:
         raise ClsonarError(f"--seeds must be >= 1, not {args.seeds}")
-    show = sys.stderr.isatty()
-
-    def progress(i: int, n: int, what: str) -> None:
-        if show:
-            print(f"\r[{i}/{n}] {what:<40}", end="", file=sys.stderr, flush=True)
-
+    progress, done = _progress_line()
     try:
         reproduce(Path(args.out), Path(args.scenes) if args.scenes else None,
                   seeds=args.seeds, device=args.device, progress=progress)
     finally:
+        done()
+    print(f"wrote {args.out}/reproduce.md, reproduce.json and the figures' PNGs")
+    return 0
+
+
+def _progress_line() -> tuple[Callable[[int, int, str], None], Callable[[], None]]:
+    """A one-line progress display on a terminal (nothing otherwise) and its closer."""
+    show = sys.stderr.isatty()
+
+    def progress(i: int, n: int, what: str) -> None:
+        if show:
+            print(f"\r[{i}/{n}] {what:<48}", end="", file=sys.stderr, flush=True)
+
+    def done() -> None:
         if show:
             print(file=sys.stderr)
-    print(f"wrote {args.out}/reproduce.md, reproduce.json and the figures' PNGs")
+
+    return progress, done
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .bench import DEFAULT_SCENES, bench
+    from .reproduce import bundled_scenes
+
+    if args.repeat < 1:
+        raise ClsonarError(f"--repeat must be >= 1, not {args.repeat}")
+    names = tuple(n.strip() for n in args.scenes.split(",")) if args.scenes else DEFAULT_SCENES
+    missing = [n for n in names if not (bundled_scenes() / f"{n}.json").is_file()]
+    if missing:
+        raise ClsonarError(f"--scenes: no bundled scene {', '.join(missing)}")
+    command = "clsonar bench --out " + args.out + (f" --scenes {args.scenes}"
+                                                   if args.scenes else "")
+    progress, done = _progress_line()
+    try:
+        bench(Path(args.out), names=names, repeat=args.repeat, numpy=not args.no_numpy,
+              device=args.device, progress=progress, command=command)
+    finally:
+        done()
+    print(f"wrote {args.out}/bench.md and bench.json")
     return 0
 
 
