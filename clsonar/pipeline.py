@@ -158,6 +158,10 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     counts = {
         "transducers": len(sensors),
         "pairs": len(pairs(sensors)),
+        # noise-free pairs without an echo, left out of detection (signals.scanned_slots)
+        "pairs_skipped_silent": (0 if scene.signal.noise_std > 0 else len(pairs(sensors))
+                                 - len({(int(t), int(r)) for t, r in zip(
+                                     echoes.tx, echoes.rx, strict=True)})),
         "echoes": len(echoes),
         "detections": len(detections),
         "map_cells": int(raw.size),

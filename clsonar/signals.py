@@ -793,16 +793,27 @@ def _context(context, device):
     return context if context is not None else get_context(device)
 
 
+def scanned_slots(model: SignalModel, pe: _PairEchoes) -> np.ndarray:
+    """The pair slots whose signal must be scanned: all of them when there is noise, else
+    only those with an echo — a noise-free pair without one receives nothing, crosses no
+    threshold and has no envelope peak, so skipping it changes no detection."""
+    slots = np.arange(len(pe.pairs), dtype=np.int64)
+    return slots if model.noise_std > 0 else slots[pe.hi > pe.lo]
+
+
 def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, context=None,
            device: str | None = None, precision: str = "float32",
            window_s: float | None = None, chunk: int | None = None,
-           work_group: int | None = None, capacity: int | None = None) -> Detections:
+           work_group: int | None = None, capacity: int | None = None,
+           skip_silent: bool = True) -> Detections:
     """The detections of every fired pair, computed by the kernels of ``kernels/signals.cl``.
 
     ``context`` or ``device`` chooses the OpenCL device (:func:`clsonar.opencl.get_context`);
     ``precision="float64"`` needs ``cl_khr_fp64``. ``window_s`` overrides t_max; ``chunk``
     (samples per work item), ``work_group`` and ``capacity`` (first-pass candidates per pair)
-    tune the launch and never change the result. Same model as :func:`detect_reference`.
+    tune the launch and never change the result; nor does ``skip_silent``, which leaves out
+    the noise-free pairs without an echo (:func:`scanned_slots`). Same model as
+    :func:`detect_reference`.
     """
     model, pe = _inputs(scene, sensors, echoes, window_s)
     if len(pe.pairs) == 0:
@@ -810,24 +821,28 @@ def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, cont
     run = _Runner(model, pe, _context(context, device), precision, chunk, work_group)
     cap = int(capacity) if capacity is not None else DEFAULT_CAPACITY[model.mode]
     cap = max(1, cap)
-    slots = np.arange(len(pe.pairs), dtype=np.int64)
+    slots = scanned_slots(model, pe) if skip_silent else np.arange(len(pe.pairs))
+    if len(slots) == 0:
+        return _empty_detections()
     if model.mode == "threshold":
         counts, cand, _ = run.scan(slots, cap, None, histogram=False)
-        over = slots[counts > cap]
-        if len(over):
-            _, extra, _ = run.scan(over, int(counts[over].max()), None, histogram=False)
-            cand = _merge(cand, extra, over)
+        over = counts > cap  # per scanned slot
+        if over.any():
+            _, extra, _ = run.scan(slots[over], int(counts[over].max()), None,
+                                   histogram=False)
+            cand = _merge(cand, extra, slots[over])
         return _finish_threshold(model, pe, cand)
-    floor = np.full(len(slots), max(model.min_envelope, ENVELOPE_FLOOR * model.amplitude))
+    floor = np.full(len(pe.pairs), max(model.min_envelope, ENVELOPE_FLOOR * model.amplitude))
     counts, cand, hist = run.scan(slots, cap, floor, histogram=True)
-    thresholds = envelope_thresholds(model, hist)
-    over = slots[counts > cap]
-    if len(over):
+    thresholds = np.full(len(pe.pairs), np.inf)  # indexed by slot; unscanned slots: none
+    thresholds[slots] = envelope_thresholds(model, hist)
+    over = counts > cap
+    if over.any():
         # the same local maxima, now only those above the final threshold (a hair lower, so
         # float32 rounding of thr² cannot drop one the host keeps)
         floor2 = thresholds * (1.0 - 1e-6)
-        _, extra, _ = run.scan(over, int(counts[over].max()), floor2, histogram=False)
-        cand = _merge(cand, extra, over)
+        _, extra, _ = run.scan(slots[over], int(counts[over].max()), floor2, histogram=False)
+        cand = _merge(cand, extra, slots[over])
     return _finish_envelope(model, pe, cand, thresholds)
 
 

@@ -370,3 +370,24 @@ def test_envelope_with_zero_min_envelope_stays_finite_and_matches():
         got = sig.detect(sc, sensors(2), ech, context=context(), window_s=4e-3)
         assert_same(ref, got)
         assert len(ref) == 2  # the weak echo too: the threshold adapts to the tiny noise
+
+
+@pytest.mark.parametrize("name", ["room", "sinusoid-1m"])
+@pytest.mark.parametrize("preset", [None, "thesis"])
+def test_skipping_silent_pairs_changes_no_detection(name, preset):
+    """A noise-free pair without an echo is not scanned (signals.scanned_slots): the
+    detections are the same, value for value, as when every pair is scanned."""
+    import clsonar
+    from clsonar.echoes import compute_echoes
+    from clsonar.pipeline import apply_preset
+    from clsonar.reproduce import bundled_scenes
+    from clsonar.sensors import place_sensors
+
+    scene = apply_preset(clsonar.load_scene(bundled_scenes() / f"{name}.json"), preset)
+    sensors = place_sensors(scene)
+    echoes = compute_echoes(scene, sensors)
+    every = sig.detect(scene, sensors, echoes, skip_silent=False)
+    skipped = sig.detect(scene, sensors, echoes)
+    assert len(every.tof_s) > 0
+    for key in ("tx", "rx", "tof_s", "amplitude"):
+        assert np.array_equal(np.asarray(getattr(every, key)), np.asarray(getattr(skipped, key)))
