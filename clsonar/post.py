@@ -110,24 +110,35 @@ def _simple_table() -> np.ndarray:
 _SIMPLE = _simple_table()
 
 
-def _neighbour_code(b: np.ndarray) -> np.ndarray:
-    return ndimage.correlate(b.astype(np.uint8), _NEIGHBOUR_BITS, mode="constant")
-
-
-def _redundant(b: np.ndarray) -> np.ndarray:
-    """Pixels that make a curve thicker than one pixel in the 8-connected sense: those with
-    two orthogonal 4-neighbours set (a staircase corner, or part of a 2×2 block)."""
+def _codes_at(b: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
+    """The neighbour code (the correlation with :data:`_NEIGHBOUR_BITS`) of the pixels
+    ``(iy, ix)`` of ``b`` only — thinning needs it at set pixels, a few per cent of a map."""
     p = np.pad(b, 1)
-    north, south = p[2:, 1:-1], p[:-2, 1:-1]
-    east, west = p[1:-1, 2:], p[1:-1, :-2]
-    return b & ((north | south) & (east | west))
+    code = np.zeros(len(iy), dtype=np.int64)
+    for i in range(3):
+        for j in range(3):
+            if _NEIGHBOUR_BITS[i, j]:
+                code += int(_NEIGHBOUR_BITS[i, j]) * p[iy + i, ix + j]
+    return code
+
+
+def _redundant_at(b: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
+    """Whether the set pixels ``(iy, ix)`` make a curve thicker than one pixel in the
+    8-connected sense: two orthogonal 4-neighbours set (a staircase corner, or part of a
+    2×2 block)."""
+    p = np.pad(b, 1)
+    north, south = p[iy + 2, ix + 1], p[iy, ix + 1]
+    east, west = p[iy + 1, ix + 2], p[iy + 1, ix]
+    return (north | south) & (east | west)
 
 
 def _guo_hall(skeleton: np.ndarray, max_iterations: int) -> np.ndarray:
     for _ in range(max_iterations):
         before = np.count_nonzero(skeleton)
         for table in (_DELETE_FIRST, _DELETE_SECOND):
-            skeleton &= ~table[_neighbour_code(skeleton)]
+            iy, ix = np.nonzero(skeleton)
+            gone = table[_codes_at(skeleton, iy, ix)]
+            skeleton[iy[gone], ix[gone]] = False
         if np.count_nonzero(skeleton) == before:
             break
     return skeleton
@@ -141,17 +152,19 @@ def thin(binary: np.ndarray, max_iterations: int = 10_000) -> np.ndarray:
     to convergence; it can leave 2×2 blocks and staircase corners, whose *simple* pixels
     (deleting them keeps the topology) are then deleted one parity subfield at a time —
     pixels of one subfield are never neighbours, so deleting them together cannot
-    disconnect anything. Both steps repeat until nothing changes.
+    disconnect anything. Both steps repeat until nothing changes. Each step looks only at
+    the set pixels.
     """
     skeleton = np.asarray(binary, dtype=bool).copy()
-    iy, ix = np.indices(skeleton.shape)
-    subfields = [(iy % 2 == a) & (ix % 2 == b) for a in (0, 1) for b in (0, 1)]
     for _ in range(max_iterations):
         before = np.count_nonzero(skeleton)
         skeleton = _guo_hall(skeleton, max_iterations)
-        for subfield in subfields:
-            code = _neighbour_code(skeleton)
-            skeleton &= ~(subfield & _redundant(skeleton) & _SIMPLE[code])
+        for a, b in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            iy, ix = np.nonzero(skeleton)
+            mine = (iy % 2 == a) & (ix % 2 == b)
+            iy, ix = iy[mine], ix[mine]
+            gone = _redundant_at(skeleton, iy, ix) & _SIMPLE[_codes_at(skeleton, iy, ix)]
+            skeleton[iy[gone], ix[gone]] = False
         if np.count_nonzero(skeleton) == before:
             break
     return skeleton
@@ -357,19 +370,29 @@ def thin_map(occupied: np.ndarray, settings: PostSettings) -> np.ndarray:
     return thin_thesis(occupied) if settings.thinning == "thesis" else thin(occupied)
 
 
+def _around(cells: np.ndarray, shape: tuple[int, ...], radius: int):
+    """For each offset (dy, dx) of the (2·radius + 1)² window: the offset, the indices
+    ``(iy, ix)`` of the cells' neighbours, and which of them lie inside the map (no padded
+    copy of the map: this runs once per linked curve)."""
+    for dy in range(-radius, radius + 1):
+        for dx in range(-radius, radius + 1):
+            iy, ix = cells[:, 0] + dy, cells[:, 1] + dx
+            inside = (iy >= 0) & (iy < shape[0]) & (ix >= 0) & (ix < shape[1])
+            yield dy, dx, np.where(inside, iy, 0), np.where(inside, ix, 0), inside
+
+
 def refine_cells(cells: np.ndarray, weights: np.ndarray, radius: int = 1) -> np.ndarray:
     """[n, 2] sub-cell ``(iy, ix)`` of ``cells`` [n, 2]: the centroid of ``weights`` (the
     filtered map) over the (2·radius + 1)² cells around each. A vote ridge symmetric about
     the true surface puts the centroid on it, to a fraction of a cell."""
     cells = np.asarray(cells, dtype=np.int64)
-    w = np.pad(np.asarray(weights, dtype=np.float64), radius)
+    w = np.asarray(weights, dtype=np.float64)
     total = np.zeros(len(cells))
     moment = np.zeros((len(cells), 2))
-    for dy in range(-radius, radius + 1):
-        for dx in range(-radius, radius + 1):
-            v = w[cells[:, 0] + radius + dy, cells[:, 1] + radius + dx]
-            total += v
-            moment += v[:, None] * np.array([dy, dx])
+    for dy, dx, iy, ix, inside in _around(cells, w.shape, radius):
+        v = np.where(inside, w[iy, ix], 0.0)
+        total += v
+        moment += v[:, None] * np.array([dy, dx])
     shift = np.where(total[:, None] > 0, moment / np.maximum(total, 1e-300)[:, None], 0.0)
     return cells + shift
 
@@ -379,15 +402,12 @@ def refine_to_points(cells: np.ndarray, counts: np.ndarray, sums: np.ndarray,
     """[n, 2] metres: the mean of the points counted in the (2·radius + 1)² cells around each
     of ``cells`` (``counts`` per cell and ``sums`` [ny, nx, 2] of their coordinates); cells
     with no point nearby are dropped (None if none is left)."""
-    c = np.pad(counts, radius)
-    s = np.pad(sums, ((radius, radius), (radius, radius), (0, 0)))
+    cells = np.asarray(cells, dtype=np.int64)
     n = np.zeros(len(cells))
     total = np.zeros((len(cells), 2))
-    for dy in range(-radius, radius + 1):
-        for dx in range(-radius, radius + 1):
-            iy, ix = cells[:, 0] + radius + dy, cells[:, 1] + radius + dx
-            n += c[iy, ix]
-            total += s[iy, ix]
+    for _, _, iy, ix, inside in _around(cells, counts.shape, radius):
+        n += np.where(inside, counts[iy, ix], 0.0)
+        total += np.where(inside[:, None], sums[iy, ix], 0.0)
     keep = n > 0
     return total[keep] / n[keep, None] if keep.any() else None
 

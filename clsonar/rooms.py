@@ -85,17 +85,19 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
 def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
                     tx: np.ndarray, rx: np.ndarray) -> np.ndarray:
     """:func:`line_of_sight` against the map the ``points`` make themselves: the occluders
-    are the occupied cells of their point map (low-pass and automatic level, as the
-    pipeline draws it) and the profile extracted from it — where the profile bridges the
-    gaps between the patches of a wall (``fit = "walls"``), a ghost cannot slip through."""
+    are the thinned cells of their point map (low-pass, automatic level and thinning, as
+    the pipeline draws it; an 8-connected one-cell curve covers every z-buffer bin it
+    spans) and the profile extracted from it — where the profile bridges the gaps between
+    the patches of a wall (``fit = "walls"``), a ghost cannot slip through."""
     from .mapping import point_map
 
     counts, sums = point_map(scene, points)
     filtered = post.low_pass(counts) if scene.post.filter == "mean3" else counts
     occupied = post.binarize(filtered, post.occupancy_level(filtered, scene.post, True))
-    profile = post.extract_profile(post.thin_map(occupied, scene.post), scene.extent,
-                                   scene.cell, scene.post, filtered, counts, sums)
-    iy, ix = np.nonzero(occupied)
+    thin = post.thin_map(occupied, scene.post)
+    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
+                                   counts, sums)
+    iy, ix = np.nonzero(thin)  # one-cell curves leave no gap between z-buffer bins
     cells = np.stack([scene.extent[0] + (ix + 0.5) * scene.cell,
                       scene.extent[1] + (iy + 0.5) * scene.cell], axis=-1)
     occluders = np.concatenate([cells, profile.points])
