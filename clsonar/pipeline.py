@@ -71,6 +71,7 @@ class RunResult:
     seconds: dict[str, float]
     counts: dict[str, int]
     device: str
+    point_sums: np.ndarray | None = None  # tangent-point sums per cell (sub-cell profile)
 
     def report(self) -> dict[str, object]:
         """The JSON-ready ``report.json`` of DESIGN.md's ``clsonar run``."""
@@ -141,20 +142,6 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
                                                                       context=ctx))
         else:
             raw = mapping.accumulate(scene, sensors, loci, context=ctx)
-    clock.start("filter")
-    filtered = post.low_pass(raw) if scene.post.filter == "mean3" else np.asarray(raw, float)
-    level = post.occupancy_level(filtered, scene.post, points=point_sums is not None)
-    occupied = post.binarize(filtered, level)
-    clock.start("thinning")
-    thin = post.thin_map(occupied, scene.post)
-    clock.start("profile")
-    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
-                                   raw if point_sums is not None else None, point_sums)
-    clock.start("metrics")
-    result_metrics = metrics.evaluate(scene, geom, sensors, echoes, profile.points,
-                                      profile.vertices)
-    seconds = clock.stop()
-
     counts = {
         "transducers": len(sensors),
         "pairs": len(pairs(sensors)),
@@ -167,13 +154,49 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         "map_cells": int(raw.size),
         "cells_voted": int(np.count_nonzero(raw)),
         "ghost_points": ghosts,
-        "occupied_cells": int(np.count_nonzero(occupied)),
-        "thin_cells": int(np.count_nonzero(thin)),
-        "profile_curves": len(profile.curves),
-        "profile_points": len(profile.points),
     }
-    return RunResult(scene, geom, sensors, echoes, detections, raw, filtered, occupied, thin,
-                     profile, result_metrics, seconds, counts, _device_name(ctx))
+    front = RunResult(scene, geom, sensors, echoes, detections, raw, raw, raw, raw,
+                      post.Profile(()), {}, clock.stop(), counts, _device_name(ctx),
+                      point_sums)
+    return rerun_post(front, scene.post, progress=progress)
+
+
+def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
+               progress: Progress | None = None) -> RunResult:
+    """``result`` with post-processing (filter → thinning → profile → metrics) run again.
+
+    The stages before it (sensors, echoes, detection, accumulation) are reused as they are,
+    so changing a :class:`~clsonar.scene.PostSettings` value costs only post-processing.
+    """
+    scene = result.scene if settings is None else dataclasses.replace(result.scene,
+                                                                      post=settings)
+    raw, point_sums = result.raw, result.point_sums
+    clock = _Stopwatch(progress)
+    clock.start("filter")
+    filtered = post.low_pass(raw) if scene.post.filter == "mean3" else np.asarray(raw, float)
+    level = post.occupancy_level(filtered, scene.post, points=point_sums is not None)
+    occupied = post.binarize(filtered, level)
+    clock.start("thinning")
+    thin = post.thin_map(occupied, scene.post)
+    clock.start("profile")
+    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
+                                   raw if point_sums is not None else None, point_sums)
+    clock.start("metrics")
+    result_metrics = metrics.evaluate(scene, result.geometry, result.sensors, result.echoes,
+                                      profile.points, profile.vertices)
+    seconds = {k: v for k, v in result.seconds.items() if k in STAGES[:4]}
+    seconds.update(clock.stop())
+    counts = {**{k: v for k, v in result.counts.items() if k not in _POST_COUNTS},
+              "occupied_cells": int(np.count_nonzero(occupied)),
+              "thin_cells": int(np.count_nonzero(thin)),
+              "profile_curves": len(profile.curves),
+              "profile_points": len(profile.points)}
+    return dataclasses.replace(result, scene=scene, filtered=filtered, occupied=occupied,
+                               thin=thin, profile=profile, metrics=result_metrics,
+                               seconds=seconds, counts=counts)
+
+
+_POST_COUNTS = ("occupied_cells", "thin_cells", "profile_curves", "profile_points")
 
 
 class _Stopwatch:

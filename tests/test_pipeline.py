@@ -1,6 +1,7 @@
 """The whole pipeline on the thesis' scenes: issue 3's accuracy targets, the CLI's `run`
 outputs and the Python API example of the README."""
 
+import dataclasses
 import json
 import re
 import subprocess
@@ -13,6 +14,7 @@ import pytest
 import clsonar
 from clsonar.cli import main
 from clsonar.opencl import get_context
+from clsonar.pipeline import rerun_post
 from clsonar.reproduce import at_distance, with_seed
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -104,3 +106,20 @@ def test_readme_python_example_runs():
     text = (ROOT / "README.md").read_text()
     block = re.search(r"## Python API.*?```python\n(.*?)```", text, re.S).group(1)
     exec(compile(block, "README.md", "exec"), {"__name__": "readme"})
+
+
+def test_rerun_post_reuses_the_front_stages_and_matches_a_full_run():
+    scene = clsonar.load_scene(SCENES / "plane-2m.json")
+    ctx = get_context()
+    full = clsonar.run(scene, context=ctx)
+    again = rerun_post(full)
+    assert np.array_equal(again.thin, full.thin)
+    assert again.metrics == full.metrics
+    assert again.seconds["accumulation"] == full.seconds["accumulation"]  # not re-run
+    plain = dataclasses.replace(scene.post, filter="none")
+    changed = rerun_post(full, plain)
+    assert changed.scene.post.filter == "none" and changed.raw is full.raw
+    assert np.array_equal(changed.filtered, full.raw.astype(float))
+    direct = clsonar.run(dataclasses.replace(scene, post=plain), context=ctx)
+    assert np.array_equal(changed.thin, direct.thin)
+    assert changed.counts == direct.counts
