@@ -89,19 +89,38 @@ def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
     tx, rx = np.asarray(echoes.tx)[keep], np.asarray(echoes.rx)[keep]
     path = np.asarray(echoes.tof_s)[keep] * c
     cut_sin2 = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
-    pos, axes = sensors.positions, sensors.axes
     lit = np.zeros(len(points), dtype=bool)
-
-    def in_beam(sensor: np.ndarray, d: np.ndarray, dist: np.ndarray) -> np.ndarray:
-        cos = d @ axes[sensor]
-        cross = axes[sensor][0] * d[:, 1] - axes[sensor][1] * d[:, 0]
-        return (cos > 0) & (cross * cross <= cut_sin2 * dist * dist)
-
-    for i in range(len(path)):
-        dt, dr = points - pos[tx[i]], points - pos[rx[i]]
-        lt, lr = np.hypot(dt[:, 0], dt[:, 1]), np.hypot(dr[:, 0], dr[:, 1])
-        near = np.abs(lt + lr - path[i]) <= 2 * LOCUS_TOL_M
-        lit |= near & in_beam(tx[i], dt, lt) & in_beam(rx[i], dr, lr)
+    if len(path) == 0 or len(points) == 0:
+        return lit
+    # Each sensor that heard an echo looks only at the points within its longest path
+    # (a point of the locus of (T, R, τ) is at most c·τ from T and from R: a slice of the
+    # points sorted by x) and inside its beam; an echo then tests the points both of its
+    # sensors see.
+    order = np.argsort(points[:, 0], kind="stable")
+    pts = points[order]
+    reach = np.zeros(len(sensors.positions))
+    np.maximum.at(reach, tx, path)
+    np.maximum.at(reach, rx, path)
+    seen: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for s in np.unique(np.concatenate([tx, rx])):
+        origin, axis = sensors.positions[s], sensors.axes[s]
+        lo, hi = np.searchsorted(pts[:, 0], [origin[0] - reach[s], origin[0] + reach[s]],
+                                 side="left")
+        d = pts[lo:hi] - origin
+        dist = np.hypot(d[:, 0], d[:, 1])
+        cross = axis[0] * d[:, 1] - axis[1] * d[:, 0]
+        beam = (d @ axis > 0) & (cross * cross <= cut_sin2 * dist * dist)
+        seen[int(s)] = (lo + np.flatnonzero(beam), dist[beam])
+    lit_sorted = np.zeros(len(pts), dtype=bool)
+    for t, r, length in zip(tx, rx, path, strict=True):
+        (it, dt), (ir, dr) = seen[int(t)], seen[int(r)]
+        if len(it) == 0 or len(ir) == 0:
+            continue
+        at = np.minimum(np.searchsorted(ir, it), len(ir) - 1)  # both index lists are sorted
+        both = ir[at] == it
+        on = np.abs(dt[both] + dr[at[both]] - length) <= 2 * LOCUS_TOL_M
+        lit_sorted[it[both][on]] = True
+    lit[order] = lit_sorted
     return lit
 
 

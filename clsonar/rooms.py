@@ -34,20 +34,29 @@ SIGHT_MARGIN_CELLS = 4
 
 
 def first_hits(origin: np.ndarray, occluders: np.ndarray, cell: float,
-               bin_rad: float = SIGHT_BIN_RAD) -> np.ndarray:
+               bin_rad: float = SIGHT_BIN_RAD, *, within: float = math.inf,
+               wanted: np.ndarray | None = None) -> np.ndarray:
     """[B] distance from ``origin`` [2] to the nearest of the occupied cells ``occluders``
     [m, 2] (their centres) in each direction bin of ``bin_rad``; inf where none. A cell
-    covers every bin within its angular half-width 0.75·cell/d."""
+    covers every bin within its angular half-width 0.75·cell/d.
+
+    Only what a caller asks for is computed: cells farther than ``within`` and cells that
+    cover none of the ``wanted`` bins (bool [B]) are left out (their bins may read inf)."""
     bins = round(2 * math.pi / bin_rad)
     hits = np.full(bins, np.inf)
     d = occluders - origin
     dist = np.hypot(d[:, 0], d[:, 1])
-    ok = dist > 0.5 * cell
+    ok = (dist > 0.5 * cell) & (dist <= within)
     dist, d = dist[ok], d[ok]
     theta = np.arctan2(d[:, 1], d[:, 0])
     half = 0.75 * cell / dist
     lo = np.floor((theta - half) / bin_rad).astype(np.int64)
     width = np.floor((theta + half) / bin_rad).astype(np.int64) - lo
+    if wanted is not None:  # keep cells whose bins lo .. lo+width meet a wanted bin
+        count = np.concatenate([[0], np.cumsum(np.tile(wanted, 2))])
+        start = lo % bins
+        use = count[start + width + 1] - count[start] > 0
+        dist, lo, width = dist[use], lo[use], width[use]
     for off in range(int(width.max(initial=-1)) + 1):
         sel = width >= off
         np.minimum.at(hits, (lo[sel] + off) % bins, dist[sel])
@@ -75,10 +84,13 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
     for s in np.unique(np.concatenate([tx, rx])):
         mine = np.flatnonzero((tx == s) | (rx == s))
         origin = positions[s]
-        hits = first_hits(origin, occluders, cell)
         q = points[mine]
         dist = np.hypot(*(q - origin).T)
-        keep[mine[dist > hits[_bin(origin, q, bins, SIGHT_BIN_RAD)] + margin]] = False
+        where = _bin(origin, q, bins, SIGHT_BIN_RAD)
+        wanted = np.zeros(bins, dtype=bool)
+        wanted[where] = True
+        hits = first_hits(origin, occluders, cell, within=dist.max() - margin, wanted=wanted)
+        keep[mine[dist > hits[where] + margin]] = False
     return keep
 
 

@@ -235,11 +235,13 @@ def wall_following_substep(p: WallFollowing) -> float:
     return min(p.clearance_m / 4.0, p.step_m / 4.0, 0.02)
 
 
-def _project(geom: Geometry, point: np.ndarray, c: float) -> tuple[np.ndarray, float]:
+def _project(geom: Geometry, point: np.ndarray, c: float
+             ) -> tuple[np.ndarray, float, np.ndarray]:
     """Move ``point`` to distance ``c`` from the nearest surface, along the line from the
     nearest surface point; repeat while another surface becomes the nearest (concave
-    corners). Returns the point and its final distance error."""
+    corners). Returns the point, its final distance error and its nearest surface point."""
     err = math.inf
+    q = point
     for _ in range(16):
         dist, near = nearest_surface_point(geom, point[None])
         d, q = float(dist[0]), near[0]
@@ -247,7 +249,7 @@ def _project(geom: Geometry, point: np.ndarray, c: float) -> tuple[np.ndarray, f
         if err <= _ON_CURVE_TOL * 0.01 or not math.isfinite(d) or d <= 1e-12:
             break
         point = q + (point - q) * (c / d)
-    return point, err
+    return point, err, q
 
 
 def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
@@ -292,7 +294,7 @@ def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
     dist, near = nearest_surface_point(geom, start[None])
     if dist[0] <= 1e-9:
         raise fail(f"start ({start[0]:g}, {start[1]:g}) lies on a surface")
-    p0, err = _project(geom, near[0] + (start - near[0]) * (c / dist[0]), c)
+    p0, err, wall = _project(geom, near[0] + (start - near[0]) * (c / dist[0]), c)
     if err > _ON_CURVE_TOL:
         raise fail(f"no place at clearance_m = {c:g} from the surfaces near the start "
                    f"({start[0]:g}, {start[1]:g})")
@@ -311,8 +313,7 @@ def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
     left = False
     point = p0
     for _ in range(max_substeps):
-        _, near = nearest_surface_point(geom, point[None])
-        to_wall = near[0] - point
+        to_wall = wall - point
         phi0 = math.atan2(to_wall[1], to_wall[0])
         angles = phi0 + sweep
         ring_pts = point + h * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
@@ -326,7 +327,7 @@ def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
         a_prev = angles[k - 1] if k > 0 else phi0
         frac = g_prev / (g_prev - g[k]) if g[k] != g_prev else 1.0
         a = a_prev + frac * (angles[k] - a_prev)
-        nxt, err = _project(geom, point + h * np.array([math.cos(a), math.sin(a)]), c)
+        nxt, err, next_wall = _project(geom, point + h * np.array([math.cos(a), math.sin(a)]), c)
         step = float(np.hypot(*(nxt - point)))
         if err > _ON_CURVE_TOL or step < 0.25 * h:
             raise fail(f"stuck at ({point[0]:.3f}, {point[1]:.3f}): the curve at "
@@ -347,7 +348,7 @@ def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
             left = True
         path.append(nxt)
         arc.append(arc[-1] + step)
-        point = nxt
+        point, wall = nxt, next_wall
         if arc[-1] > max_length:
             break
     raise fail(f"the trace did not return to its start within max_poses = {p.max_poses} "
