@@ -79,6 +79,27 @@ def build_parser() -> argparse.ArgumentParser:
     _device_args(p)
     p.set_defaults(func=_cmd_bench)
 
+    p = sub.add_parser("sweep", help="run a Monte-Carlo sweep: scenes × parameter grid × "
+                                     "seeds, locally or on a Dask cluster",
+                       description="Every (scene, grid point, seed) of the sweep spec (TOML "
+                                   "or JSON, docs/sweep.md) is one pipeline run and one row "
+                                   "of DIR/table.csv; rows are saved as runs finish, so a "
+                                   "sweep run again resumes where it stopped.")
+    p.add_argument("spec", metavar="SPEC")
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run on this existing Dask cluster (needs clsonar[dask])")
+    _device_args(p)
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    p.set_defaults(func=_cmd_sweep)
+
+    p = sub.add_parser("plot", help="plot a sweep's metrics against its parameters",
+                       description="One PNG per metric and swept parameter: mean over seeds "
+                                   "with the spread (min–max) shaded, one line per value of "
+                                   "the other parameters; written into DIR/plots/.")
+    p.add_argument("folder", metavar="DIR", help="a folder written by clsonar sweep")
+    p.set_defaults(func=_cmd_plot)
+
     p = sub.add_parser("echoes", help="print the echo table of a scene as CSV",
                        description="Compute every echo return of every transmitter→receiver "
                                    "pair and print tx,rx,tof_s,amplitude,kind,order.")
@@ -200,6 +221,32 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     finally:
         done()
     print(f"wrote {args.out}/bench.md and bench.json")
+    return 0
+
+
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from .sweep import ProgressBar, connect, load_spec, sweep
+
+    spec = load_spec(args.spec)  # a bad spec fails here, before anything is written
+    client = connect(args.scheduler) if args.scheduler else None
+    progress = ProgressBar(not args.quiet)
+    try:
+        rows = sweep(spec, args.out, device=args.device, client=client, progress=progress)
+    finally:
+        progress.done()
+        if client is not None:
+            client.close()
+    if not args.quiet:
+        print(f"{spec.name}: {len(rows)} runs in {args.out}/table.csv "
+              f"(clsonar plot {args.out} draws them)")
+    return 0
+
+
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from .sweepplot import plot_sweep
+
+    paths = plot_sweep(args.folder)
+    print(f"wrote {len(paths)} PNGs in {args.folder}/plots/")
     return 0
 
 

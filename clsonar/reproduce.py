@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .scene import RandomLines, Scene, Signal, load_scene, write_atomic
+from .scene import PerWall, RandomLines, Scene, Signal, load_scene, write_atomic
 
 #: The thesis' RMS errors in cm (chapter 3: Figs 3.2–3.4 and 3.16–3.18).
 THESIS_RMS_CM = {("plane", 2.0): 0.72, ("plane", 4.0): 3.14, ("plane", 8.0): 6.69,
@@ -98,10 +98,11 @@ def at_distance(scene: Scene, scene_distance: float, distance: float) -> Scene:
 
 
 def with_seed(scene: Scene, k: int, noise_std: float | None = None) -> Scene:
-    """``scene`` with placement and noise seeds advanced by ``k`` (and the noise σ set)."""
+    """``scene`` with placement and noise seeds advanced by ``k`` (and the noise σ set);
+    placements without randomness (``circular``, ``wall-following``) are kept."""
     p = scene.sensors.placement
     sensors = scene.sensors
-    if isinstance(p, RandomLines):
+    if isinstance(p, (RandomLines, PerWall)):
         sensors = dataclasses.replace(sensors, placement=dataclasses.replace(p, seed=p.seed + k))
     sig = scene.signal
     signal = Signal(noise_std=sig.noise_std if noise_std is None else noise_std,
