@@ -7,12 +7,14 @@ import functools
 import io
 import itertools
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import clsonar
 import clsonar.echoes as echoes
 from clsonar import physics
 from clsonar.echoes import KINDS, compute_echoes, reference_echoes
@@ -591,3 +593,44 @@ def test_right_angled_corner_returns_the_monostatic_echo_through_its_vertex(impl
     half = 3.0 * math.tan(math.radians(30))
     sixty, _ = echoes(((7.0, 5.0 - half), (10.0, 5.0), (7.0, 5.0 + half)))
     assert not np.any(sixty.kind_names() == "corner")
+
+
+@st.composite
+def open_scenes(draw) -> Scene:
+    """A few open surfaces (walls, circles, a sinusoid) and sensors aimed anywhere: many
+    pairs whose beams miss every surface."""
+    surfaces: list = []
+    for _ in range(draw(st.integers(1, 3))):
+        kind = draw(st.sampled_from(["wall", "circle", "sinusoid"]))
+        a = (draw(st.floats(0.5, 5.5)), draw(st.floats(0.5, 5.5)))
+        b = (draw(st.floats(0.5, 5.5)), draw(st.floats(0.5, 5.5)))
+        if kind == "circle":
+            surfaces.append(Circle(a, draw(st.floats(0.05, 0.4))))
+        elif math.dist(a, b) > 0.3:
+            surfaces.append(Polyline((a, b)) if kind == "wall" else
+                            Sinusoid(a, b, draw(st.floats(-0.2, 0.2)), draw(st.floats(0.3, 2.0))))
+    transducers = [(draw(st.floats(0.2, 5.8)), draw(st.floats(0.2, 5.8)),
+                    draw(st.floats(-180.0, 180.0)), 0) for _ in range(draw(st.integers(2, 8)))]
+    return make_scene(surfaces, transducers, extent=(0.0, 0.0, 6.0, 6.0),
+                      max_order=draw(st.sampled_from([1, 2])))
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.one_of(open_scenes(), random_scenes()))
+def test_pairs_out_of_view_have_no_echo(scene):
+    """pairs_in_view drops only pairs the float64 reference gives no echo at all."""
+    pb = echoes._prepare_problem(scene)
+    keep = echoes.pairs_in_view(pb)
+    ref = reference_echoes(scene)
+    dropped = {(int(t), int(r)) for t, r in pb.pairs[~keep]}
+    assert not dropped & {(int(t), int(r)) for t, r in zip(ref.tx, ref.rx, strict=True)}
+
+
+def test_skipping_pairs_out_of_view_leaves_the_table_unchanged():
+    scene = clsonar.load_scene(Path(__file__).resolve().parents[1] / "scenes/cylinder-2.1m.json")
+    stats: dict = {}
+    skipped = compute_echoes(scene, context=get_context(), stats=stats)
+    full = compute_echoes(scene, context=get_context(), skip_empty_pairs=False)
+    assert stats["pairs_skipped_empty"] > 400 and stats["echo_families_run"] == 1
+    for column in ("tx", "rx", "tof_s", "amplitude", "kind", "order", "point", "element"):
+        assert np.array_equal(getattr(skipped, column), getattr(full, column)), column
