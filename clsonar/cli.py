@@ -100,6 +100,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("folder", metavar="DIR", help="a folder written by clsonar sweep")
     p.set_defaults(func=_cmd_plot)
 
+    p = sub.add_parser("stress", help="stress-test the float32 kernels against float64",
+                       description="Run the numerical-stability generators (far and tiny "
+                                   "scenes, coincident transducers, grazing incidence, "
+                                   "caustics, ±180° headings, a million loci, …) on the "
+                                   "device and write the worst error per property into "
+                                   "DIR/stress.md and DIR/stress.json.")
+    p.add_argument("--count", type=int, default=1000, help="cases to run (default 1000)")
+    p.add_argument("--out", default="stress", metavar="DIR",
+                   help="output folder (default ./stress)")
+    _device_args(p)
+    p.set_defaults(func=_cmd_stress)
+
     p = sub.add_parser("echoes", help="print the echo table of a scene as CSV",
                        description="Compute every echo return of every transmitter→receiver "
                                    "pair and print tx,rx,tof_s,amplitude,kind,order.")
@@ -248,6 +260,29 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     paths = plot_sweep(args.folder)
     print(f"wrote {len(paths)} PNGs in {args.folder}/plots/")
     return 0
+
+
+def _cmd_stress(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .stress import passed, stress
+
+    if args.count < 1:
+        raise ClsonarError(f"--count must be >= 1, not {args.count}")
+    command = f"clsonar stress --count {args.count} --out {args.out}"
+    progress, done = _progress_line()
+    try:
+        found = stress(Path(args.out), args.count, device=args.device, progress=progress,
+                       command=command)
+    finally:
+        done()
+    fraction = found.differing / max(found.pixels, 1)
+    print(f"{found.cases} cases: {found.nonfinite} with NaN/Inf, max |Δτ| "
+          f"{found.tof_max_s * 1e6:.4f} µs, {fraction:.4%} of map pixels differ "
+          f"({found.differing_off_edge} off an edge), {found.work_group_mismatches} "
+          f"work-group mismatches: {'pass' if passed(found) else 'FAIL'}")
+    print(f"wrote {args.out}/stress.md and stress.json")
+    return 0 if passed(found) else 1
 
 
 def _cmd_echoes(args: argparse.Namespace) -> int:

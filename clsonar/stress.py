@@ -1,0 +1,191 @@
+"""``clsonar stress``: the numerical-stability property suite at scale on the user's device.
+
+Runs ``count`` cases of the generators of :mod:`clsonar.stability` — echo families and map
+families in turn, seeds 0, 1, 2, … — on one OpenCL device, the float32 kernels against the
+float64 references, and writes the worst error found per property and the bounds they are
+held to into ``stress.md`` and ``stress.json`` (atomically). One case in ``work_group_every``
+also reruns the kernels with other work-group sizes. The ``million`` map family draws
+:data:`clsonar.stability.MILLION` loci on one map; the ``many`` echo family one group of
+``many`` transducers.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from . import stability
+from .scene import write_atomic
+from .stability import BOUNDS, ECHO_FAMILIES, MAP_FAMILIES, Findings
+
+#: Cases of the ``million`` family run: one in this many map cases at most (they are slow).
+MILLION_EVERY = 200
+
+
+def schedule(count: int) -> list[tuple[str, str, int]]:
+    """``count`` cases ``(kind, family, seed)``: echo and map families in turn, each
+    family's seeds counting up; ``million`` maps are capped to one per :data:`MILLION_EVERY`
+    map cases (at least one)."""
+    cases, seeds = [], {}
+    families = [("echo", f) for f in ECHO_FAMILIES] + [("map", f) for f in MAP_FAMILIES]
+    i = 0
+    while len(cases) < count:
+        kind, family = families[i % len(families)]
+        i += 1
+        if family == "million":
+            n_maps = sum(1 for c in cases if c[0] == "map")
+            if seeds.get((kind, family), 0) > n_maps // MILLION_EVERY:
+                continue
+        seed = seeds.get((kind, family), 0)
+        seeds[kind, family] = seed + 1
+        cases.append((kind, family, seed))
+    return cases
+
+
+def run_stress(count: int, context, *, many: int = 200, million: int | None = None,
+               work_group_every: int = 25,
+               progress: Callable[[int, int, str], None] | None = None,
+               ) -> tuple[dict[str, Findings], float]:
+    """Run :func:`schedule` (``count``) on ``context``; returns findings per
+    ``kind family`` and the seconds taken."""
+    million = stability.MILLION if million is None else million
+    start = time.perf_counter()
+    per_family: dict[str, Findings] = {}
+    plan = schedule(count)
+    for n, (kind, family, seed) in enumerate(plan):
+        if progress:
+            progress(n + 1, len(plan), f"{kind} {family} seed={seed}")
+        groups = n % work_group_every == 0
+        if kind == "echo":
+            f = stability.check_echo_case(family, seed, context, many=many, work_groups=groups)
+        else:
+            f = stability.check_map_case(family, seed, context, million=million,
+                                         work_groups=groups)
+        per_family.setdefault(f"{kind} {family}", Findings()).merge(f)
+    return per_family, time.perf_counter() - start
+
+
+def total(per_family: dict[str, Findings]) -> Findings:
+    """All families' findings merged."""
+    out = Findings()
+    for f in per_family.values():
+        out.merge(f)
+    return out
+
+
+def passed(f: Findings) -> bool:
+    """Whether ``f`` holds every bound (:data:`clsonar.stability.BOUNDS`)."""
+    return (not f.failures and f.nonfinite == 0
+            and f.differing <= BOUNDS["map_differing_fraction"] * max(f.pixels, 1))
+
+
+def _us(seconds: float) -> str:
+    return f"{seconds * 1e6:.4f} µs"
+
+
+def markdown(per_family: dict[str, Findings], device: str, seconds: float,
+             command: str) -> str:
+    """The report: bounds, totals, then one row per family."""
+    t = total(per_family)
+    fraction = t.differing / max(t.pixels, 1)
+    lines = [
+        "# Numerical stability: float32 kernels against float64",
+        "",
+        f"Regenerate with `{command}` ({t.cases} cases on {device}, {seconds:.0f} s).",
+        "The generators and the judge are `clsonar/stability.py`; the CI property suite",
+        "(`tests/test_stability.py`) runs the same generators on fewer cases.",
+        "",
+        f"**Result: {'all bounds hold' if passed(t) else 'BOUNDS VIOLATED'}.**",
+        "",
+        "| property | bound | worst found |",
+        "| --- | --- | --- |",
+        f"| NaN or Inf in any echo table or map | none | {t.nonfinite} cases |",
+        f"| float32 − float64 time of flight, matched echoes ({t.echoes} echoes) | ≤ 1 µs | "
+        f"{_us(t.tof_max_s)} ({t.tof_worst or 'n/a'}) |",
+        f"| echo in one table only, float64 decision flips under a float32-sized nudge | "
+        f"allowed | {t.unmatched_edge} |",
+        f"| echo in one table only, weaker than {BOUNDS['weak_echo']:.0%} of A0 | allowed | "
+        f"{t.unmatched_weak} |",
+        f"| echo in one table only, otherwise | none | {t.unmatched_other} |",
+        f"| float32 − float64 amplitude, relative (reported, no bound) | — | "
+        f"{t.amp_max_rel:.3g} ({t.amp_worst or 'n/a'}) |",
+        f"| map pixels differing ({t.pixels} pixels) | ≤ 0.1 % | {t.differing} "
+        f"({fraction:.5%}); worst map {t.worst_fraction:.4%} ({t.worst_fraction_case or 'n/a'}) |",
+        f"| differing pixels not on a band or beam edge | none | {t.differing_off_edge} |",
+        f"| other work-group sizes give another result | never | {t.work_group_mismatches} |",
+        "",
+        "## Per family",
+        "",
+        "| family | cases | NaN/Inf | echoes | max Δτ | one-table echoes (edge / weak / other) "
+        "| pixels | differing (off edge) | work-group mismatches |",
+        "| --- | ---: | ---: | ---: | ---: | --- | ---: | --- | ---: |",
+    ]
+    for name, f in per_family.items():
+        lines.append(
+            f"| {name} | {f.cases} | {f.nonfinite} | {f.echoes} | "
+            f"{_us(f.tof_max_s) if f.echoes else '—'} | "
+            f"{f.unmatched_edge} / {f.unmatched_weak} / {f.unmatched_other} | {f.pixels} | "
+            f"{f.differing} ({f.differing_off_edge}) | {f.work_group_mismatches} |")
+    if t.failures:
+        lines += ["", "## Failures", ""] + [f"- {x}" for x in t.failures[:50]]
+    lines += ["", "## What is checked", "", DEFINITIONS]
+    return "\n".join(lines) + "\n"
+
+
+DEFINITIONS = f"""\
+- **Echoes** (`kernels/echoes.cl`, float32) against `echoes.reference_echoes` (NumPy
+  float64), rows matched on (tx, rx, kind, order, element). A matched pair's times of flight
+  must agree within {BOUNDS['tof_abs_s'] * 1e6:g} µs. An echo present in one table only must
+  be a knife-edge decision: the float64 reference itself gains or loses it when every
+  transducer moves and turns by {BOUNDS['edge_roundings']} float32 roundings of the scene's
+  local coordinates (six random nudges), or it is weaker than {BOUNDS['weak_echo']:.0%} of
+  the transmitted amplitude A0 (a beam edge or grazing incidence).
+- **Maps** (`kernels/accumulate.cl`, float32) against `mapping.accumulate_reference` /
+  `backproject_reference` (float64; for the `million` family the float64 kernel, which
+  tests/test_mapping.py shows is bit-identical to the reference). A pixel differs when its
+  values disagree by more than float32 summation rounding (√n·64ε relative, at least
+  {BOUNDS['value_rtol']:g}; back-projection adds each envelope's slope times the delay's
+  float32 error). Every differing pixel must lie, for some locus, within
+  {BOUNDS['edge_roundings']} float32 roundings of its band edge (| |p−T|+|p−R| − c·τ | =
+  band/2) or of a beam edge (axis·d = 0, (axis×d)² = cut·|d|²), computed in float64; at
+  most {BOUNDS['map_differing_fraction']:.1%} of all pixels may differ.
+- **Work groups**: one case in 25 is rerun with echo work groups of
+  {', '.join(map(str, stability.ALT_ECHO_GROUPS))} and map launches (pixels per item,
+  group) {', '.join(map(str, stability.ALT_MAP_LAUNCH))}; the outputs must be bit-identical.
+- **Families**: echo — {', '.join(ECHO_FAMILIES)}; map — {', '.join(MAP_FAMILIES)}
+  (clsonar/stability.py describes each).
+"""
+
+
+def report_json(per_family: dict[str, Findings], device: str, seconds: float,
+                command: str) -> str:
+    t = total(per_family)
+    data = {
+        "command": command, "device": device, "seconds": round(seconds, 1),
+        "passed": passed(t), "bounds": BOUNDS,
+        "total": dataclasses.asdict(t),
+        "families": {k: dataclasses.asdict(v) for k, v in per_family.items()},
+    }
+    return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+
+
+def stress(out: Path, count: int, *, device: str | None = None, many: int = 200,
+           progress: Callable[[int, int, str], None] | None = None,
+           command: str = "clsonar stress") -> Findings:
+    """Run ``count`` cases and write ``out/stress.md`` and ``out/stress.json``; returns the
+    merged findings."""
+    from .opencl import get_context
+
+    context = get_context(device)
+    per_family, seconds = run_stress(count, context, many=many, progress=progress)
+    name = context.devices[0].name.strip()
+    out.mkdir(parents=True, exist_ok=True)
+    write_atomic(out / "stress.md", markdown(per_family, name, seconds, command).encode())
+    write_atomic(out / "stress.json", report_json(per_family, name, seconds, command).encode())
+    return total(per_family)
+
+
+__all__ = ["markdown", "passed", "report_json", "run_stress", "schedule", "stress", "total"]
