@@ -60,6 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="DIR", help="output folder")
     p.add_argument("--seeds", type=int, default=5, help="runs per experiment (default 5)")
     p.add_argument("--scenes", metavar="DIR", help="scene folder (default: the bundled ones)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run the trials on this existing Dask cluster (needs clsonar[dask])")
     _device_args(p)
     p.set_defaults(func=_cmd_reproduce)
 
@@ -187,12 +189,19 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
     if args.seeds < 1:
         raise ClsonarError(f"--seeds must be >= 1, not {args.seeds}")
+    client = None
+    if args.scheduler:
+        from .sweep import connect
+
+        client = connect(args.scheduler)
     progress, done = _progress_line()
     try:
         reproduce(Path(args.out), Path(args.scenes) if args.scenes else None,
-                  seeds=args.seeds, device=args.device, progress=progress)
+                  seeds=args.seeds, device=args.device, progress=progress, client=client)
     finally:
         done()
+        if client is not None:
+            client.close()
     print(f"wrote {args.out}/reproduce.md, reproduce.json and the figures' PNGs")
     return 0
 

@@ -29,10 +29,14 @@ import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .scene import PerWall, RandomLines, Scene, Signal, load_scene, write_atomic
+
+if TYPE_CHECKING:
+    from .sweep import Run
 
 #: The thesis' RMS errors in cm (chapter 3: Figs 3.2–3.4 and 3.16–3.18).
 THESIS_RMS_CM = {("plane", 2.0): 0.72, ("plane", 4.0): 3.14, ("plane", 8.0): 6.69,
@@ -125,15 +129,15 @@ class Trial:
     seconds: float
 
 
-def run_trial(scene: Scene, family: str, distance: float, preset: str, seed: int,
-              context) -> Trial:
-    from .pipeline import run
+#: The metrics each trial keeps (:func:`clsonar.sweep.metric_value` names).
+METRICS = ("rms_m", "accuracy_m.rms", "completeness.2cm")
 
-    result = run(scene, context=context, preset=preset)
-    m = result.metrics
-    return Trial(family, distance, scene.signal.noise_std, preset, seed, m["rms_m"],
-                 m["accuracy_m"]["rms"], m["completeness"]["2cm"],
-                 float(sum(result.seconds.values())))
+
+def trial_of(row: dict) -> Trial:
+    """The :class:`Trial` of one row of the sweep table (:mod:`clsonar.sweep`)."""
+    return Trial(row["family"], row["distance_m"], row["noise_std"], row["preset"],
+                 row["seed"], row["rms_m"], row["accuracy_m.rms"], row["completeness.2cm"],
+                 row["seconds.total"])
 
 
 @dataclass(frozen=True)
@@ -187,18 +191,26 @@ def rooms_markdown(trials: list[RoomTrial]) -> str:
     return "\n".join(lines)
 
 
-def plan(scenes_dir: Path, seeds: int) -> list[tuple[str, float, Scene, str, int]]:
-    """Every (family, distance, scene, preset, seed) of the table and the curves, once."""
-    jobs: dict[tuple, tuple] = {}
+def plan(scenes_dir: Path, seeds: int) -> list[Run]:
+    """Every (family, distance, noise, preset, seed) of the table and the curves, once, as
+    the runs of a sweep (:mod:`clsonar.sweep`) with those as its parameters."""
+    from .sweep import make_run
+
+    jobs: dict[tuple, Run] = {}
     bases = {name: load_scene(scenes_dir / f"{name}.json")
              for name in {t[1] for t in TABLE} | {c[2] for c in CURVES}}
 
     def add(family, base, d0, distance, noise):
         moved = at_distance(bases[base], d0, distance)
+        moved = dataclasses.replace(moved, signal=dataclasses.replace(moved.signal,
+                                                                      noise_std=noise))
         for preset in PRESETS:
+            params = {"family": family, "distance_m": distance, "noise_std": noise,
+                      "preset": preset}
             for k in range(seeds):
                 key = (family, distance, noise, preset, k)
-                jobs.setdefault(key, (family, distance, with_seed(moved, k, noise), preset, k))
+                if key not in jobs:
+                    jobs[key] = make_run(len(jobs), base, moved, params, k, preset)
 
     for family, base, d0, distances in TABLE:
         for d in distances:
@@ -266,23 +278,20 @@ def curve_png(figure: str, family: str, varies: str, values, trials: list[Trial]
     from matplotlib.figure import Figure
 
     from .plots import png_bytes
+    from .sweepplot import draw_spread
 
     fig = Figure(figsize=(6, 4), dpi=120, layout="constrained")
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
     for preset, style in (("thesis", "o-"), ("best", "s-")):
-        means, lo, hi = [], [], []
+        samples = []
         for v in values:
             sel = (_select(trials, family=family, distance_m=v, noise_std=0.0, preset=preset)
                    if varies == "distance_m" else
                    _select(trials, family=family, distance_m=NOISE_DISTANCE_M, noise_std=v,
                            preset=preset))
-            rms = [t.rms_m * 100 for t in sel if t.rms_m is not None]
-            means.append(np.mean(rms) if rms else np.nan)
-            lo.append(np.min(rms) if rms else np.nan)
-            hi.append(np.max(rms) if rms else np.nan)
-        ax.plot(values, means, style, label=f"clsonar, {preset} settings")
-        ax.fill_between(values, lo, hi, alpha=0.2)
+            samples.append([t.rms_m * 100 for t in sel if t.rms_m is not None])
+        draw_spread(ax, values, samples, style, f"clsonar, {preset} settings")
     marks = [(d, v) for (f, d), v in THESIS_RMS_CM.items() if f == family]
     if varies == "distance_m" and marks:
         ax.plot(*zip(*marks, strict=True), "k*", markersize=10, label="thesis")
@@ -328,18 +337,35 @@ def bundled_scenes() -> Path:
 
 def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = 5,
               device: str | None = None,
-              progress: Callable[[int, int, str], None] | None = None) -> list[Trial]:
+              progress: Callable[[int, int, str], None] | None = None,
+              client=None) -> list[Trial]:
     """Run every experiment and write ``reproduce.md``, ``reproduce.json`` and the figures'
-    PNGs into ``out``; returns the trials."""
+    PNGs into ``out``; returns the trials.
+
+    The trials run as a sweep (:mod:`clsonar.sweep`) whose table is ``out/runs.jsonl``: an
+    interrupted reproduce, run again, redoes only the trials it had not finished (the table
+    is removed once everything is written). With a
+    ``dask.distributed.Client`` they run on its cluster.
+    """
     from .opencl import get_context
+    from .sweep import RunTable, run_dask, run_local
 
     context = get_context(device)
     jobs = plan(scenes_dir or bundled_scenes(), seeds)
-    trials = []
-    for i, (family, distance, scene, preset, k) in enumerate(jobs):
+    out.mkdir(parents=True, exist_ok=True)
+    table = RunTable(out)
+    table.repair()
+
+    def tell(i: int, n: int, run) -> None:
         if progress is not None:
-            progress(i + 1, len(jobs), f"{scene.name} σ={scene.signal.noise_std:g} {preset}")
-        trials.append(run_trial(scene, family, distance, preset, k, context))
+            progress(i, n, f"{run.scene.name} σ={run.scene.signal.noise_std:g} {run.preset}")
+
+    if client is None:
+        run_local(jobs, table, METRICS, context=context, progress=tell)
+    else:
+        run_dask(jobs, table, METRICS, client, device=device, progress=tell)
+    done = table.rows()
+    trials = [trial_of(done[job.run_id]) for job in jobs]
     rooms, pictures = [], {}
     for i, (figure, name, _) in enumerate(ROOMS):
         if progress is not None:
@@ -348,7 +374,6 @@ def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = 5,
                               figure, context)
         rooms.append(trial)
         pictures[f"room_{name}.png"] = png
-    out.mkdir(parents=True, exist_ok=True)
     device_name = context.devices[0].name.strip()
     text = "\n".join([
         "# The thesis' experiments, reproduced",
@@ -370,4 +395,5 @@ def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = 5,
     for figure, family, _, _, varies, values in CURVES:
         name = f"fig{figure.replace('.', '_')}.png"
         write_atomic(out / name, curve_png(figure, family, varies, values, trials))
+    table.path.unlink()  # it only serves to resume an interrupted reproduce
     return trials
