@@ -43,6 +43,7 @@ origin, the shape a tiled version will launch per tile.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Callable
@@ -77,6 +78,21 @@ LAUNCH = {
 #: Most loci (or back-projection pairs) per kernel launch; fewer where the device's
 #: ``__constant`` memory is smaller (half of it is used).
 MAX_ROWS_PER_LAUNCH = 4096
+
+#: Tile shape (pixels along x, along y) of the tiled accumulation (kernel ``loci_tiles``)
+#: by device kind: one work-group per tile, TILE_W/VEC × TILE_H work items.
+TILES = {"CPU": (32, 32), "GPU": (32, 8), "other": (32, 8)}
+
+#: Loci a work-group copies into local memory at a time (kernel ``loci_tiles``).
+TILE_CHUNK = 64
+
+#: Largest device buffer the tiled accumulation draws into at once: a larger map is drawn in
+#: bands of whole tile rows, each copied into the host map (fewer where the device's largest
+#: buffer is smaller).
+MAX_BAND_BYTES = 256 << 20
+
+#: (locus, tile) candidates the binning examines at once (bounds its temporary memory).
+BIN_CANDIDATES = 1 << 21
 
 #: Reals per locus row in the kernels: (T, R), (axis T, axis R), (c·τ, weight, 0, 0).
 LOCUS_COLUMNS = 12
@@ -452,6 +468,171 @@ def backproject_reference(scene: Scene, sensors: SensorArray, pairs, envelopes, 
         prepare_backprojection(scene, sensors, pairs, envelopes, dt, settings))
 
 
+# --------------------------------------------------------------------------- tiles
+
+#: float32 roundings (of the coordinates' scale) added to every bound of the binning, so
+#: that a pixel the float32 kernel decides to vote for is never left out by it.
+BIN_ROUNDINGS = 256
+
+
+@dataclass(frozen=True, eq=False)
+class TileBins:
+    """Loci binned to the tiles of a map, as CSR: tile ``k`` (row-major over ``shape``
+    = (tiles along y, along x); tile (ty, tx) holds pixels ``[ty·th, ty·th + th)`` ×
+    ``[tx·tw, tx·tw + tw)``) may get votes only from loci ``members[start[k]:start[k + 1]]``,
+    in ascending order (the order the dense kernel adds them)."""
+
+    shape: tuple[int, int]
+    tile: tuple[int, int]  # (tw, th) pixels along x, along y
+    start: np.ndarray  # [tiles + 1] int64
+    members: np.ndarray  # [m] int64
+
+    @property
+    def counts(self) -> np.ndarray:
+        """[tiles] loci per tile."""
+        return np.diff(self.start)
+
+
+def _sector_boxes(apex: np.ndarray, axis: np.ndarray, alpha: float,
+                  radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding boxes ``(lo [n, 2], hi [n, 2])`` of the circular sectors with ``apex``,
+    unit ``axis``, half-angle ``alpha`` (≤ π) and ``radius``: the apex, the two edge ends
+    and the ends of the ±x, ±y radii that lie within the sector."""
+    phi = np.arctan2(axis[:, 1], axis[:, 0])
+    angles = [phi - alpha, phi + alpha]
+    points = [apex] + [apex + radius[:, None] * np.stack([np.cos(a), np.sin(a)], axis=1)
+                       for a in angles]
+    for k, direction in enumerate(((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))):
+        off = np.angle(np.exp(1j * (k * math.pi / 2 - phi)))  # wrapped to (−π, π]
+        end = apex + radius[:, None] * np.asarray(direction)
+        points.append(np.where((np.abs(off) <= alpha)[:, None], end, apex))
+    stack = np.stack(points)
+    return stack.min(axis=0), stack.max(axis=0)
+
+
+def _beam_may_hold(centre: np.ndarray, apex: np.ndarray, axis: np.ndarray, alpha: float,
+                   radius: np.ndarray) -> np.ndarray:
+    """Whether a disc (``centre``, ``radius``) may hold points of the beam (a cone of
+    half-angle ``alpha`` about ``axis`` from ``apex``): the angle to the disc's centre is at
+    most alpha plus the disc's angular radius, or the disc holds the apex."""
+    d = centre - apex
+    dist = np.hypot(d[:, 0], d[:, 1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cos = (axis[:, 0] * d[:, 0] + axis[:, 1] * d[:, 1]) / dist
+        spread = np.arcsin(np.minimum(1.0, radius / dist))
+        angle = np.arccos(np.clip(cos, -1.0, 1.0))
+    return (dist <= radius) | (angle <= alpha + spread)
+
+
+def bin_loci(pb: MapProblem, tile: tuple[int, int]) -> TileBins:
+    """Bin ``pb``'s loci to the map's tiles of ``tile`` = (tw, th) pixels, conservatively:
+    a tile lists every locus that may vote for one of its pixels (thesis §2.1.1 part 4: the
+    band ``| |p−T| + |p−R| − c·τ | ≤ band/2`` inside both beams).
+
+    Per locus, the candidate tiles are those meeting the bounding box of its band (the
+    outer ellipse, path c·τ + band/2) intersected with the bounding boxes of the two beams
+    (sectors of half-angle α out to the farthest point of that ellipse) and with the map.
+    A candidate tile, whose pixel centres lie within h (its half-diagonal) of its centre c,
+    keeps the locus iff ``| |c−T| + |c−R| − c·τ | ≤ band/2 + 2h`` (each distance changes by
+    at most h across the tile) and c's direction from each transducer is within α plus
+    asin(h/|c−T|) of its axis. Every bound is widened by half a cell and
+    :data:`BIN_ROUNDINGS` float32 roundings of the coordinates' scale, so the float32
+    kernel's decisions near an edge are covered too.
+    """
+    g = pb.grid
+    tw, th = tile
+    ntx, nty = -(-g.nx // tw), -(-g.ny // th)
+    n_tiles = ntx * nty
+    rows = pb.rows
+    pairs_tile: list[np.ndarray] = []
+    pairs_locus: list[np.ndarray] = []
+    if len(rows):
+        cell = g.cell
+        T, R, aT, aR, L = rows[:, 0:2], rows[:, 2:4], rows[:, 4:6], rows[:, 6:8], rows[:, 8]
+        corner = np.abs(np.array([[g.col0, g.row0], [g.col0 + g.nx - 1, g.row0 + g.ny - 1]],
+                                 dtype=np.float64) * cell).max(axis=0)
+        scale = (math.hypot(*corner) + np.hypot(T[:, 0], T[:, 1]) + np.hypot(R[:, 0], R[:, 1])
+                 + np.abs(L))
+        pad = 0.5 * cell + BIN_ROUNDINGS * float(np.finfo(np.float32).eps) * scale
+        hb = pb.half_band
+        alpha = math.asin(math.sqrt(min(max(pb.cut_sin2, 0.0), 1.0)))
+        # bounding box of the outer ellipse |p−T| + |p−R| = 2a (foci 2f apart)
+        a = 0.5 * (L + hb) + pad
+        f = 0.5 * np.hypot(*(R - T).T)
+        b = np.sqrt(np.maximum(a * a - f * f, 0.0))
+        u = np.where((f > 0)[:, None], (R - T) / np.maximum(2.0 * f, 1e-300)[:, None],
+                     np.array([1.0, 0.0]))
+        half = np.stack([np.hypot(a * u[:, 0], b * u[:, 1]), np.hypot(a * u[:, 1], b * u[:, 0])],
+                        axis=1)
+        lo, hi = 0.5 * (T + R) - half, 0.5 * (T + R) + half
+        for apex, axis in ((T, aT), (R, aR)):  # ∩ each beam out to the ellipse's reach a + f
+            s_lo, s_hi = _sector_boxes(apex, axis, alpha, a + f)
+            lo, hi = np.maximum(lo, s_lo - pad[:, None]), np.minimum(hi, s_hi + pad[:, None])
+        origin = np.array([g.col0, g.row0], dtype=np.float64)
+        size = np.array([g.nx, g.ny])
+        first = np.clip(np.ceil(lo / cell - origin), -1, size)  # pixel index ranges
+        last = np.clip(np.floor(hi / cell - origin), -1, size)
+        reach = (a >= f)[:, None] & (first <= last) & (last >= 0) & (first <= size - 1)
+        reach = reach.all(axis=1)
+        step = np.array([tw, th])
+        t_first = (np.clip(first, 0, size - 1) // step).astype(np.int64)
+        t_last = (np.clip(last, 0, size - 1) // step).astype(np.int64)
+        span = np.where(reach[:, None], t_last - t_first + 1, 0)
+        count = span[:, 0] * span[:, 1]
+        h = 0.5 * cell * math.hypot(tw - 1, th - 1)
+        ends = np.cumsum(count)
+        i0 = 0
+        while i0 < len(rows):  # loci in chunks of about BIN_CANDIDATES candidates
+            base = ends[i0 - 1] if i0 else 0
+            i1 = max(i0 + 1, int(np.searchsorted(ends, base + BIN_CANDIDATES, side="right")))
+            i1 = min(i1, len(rows))
+            cnt = count[i0:i1]
+            li = np.repeat(np.arange(i0, i1), cnt)
+            k = np.arange(len(li)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+            tx = t_first[li, 0] + k % span[li, 0]
+            ty = t_first[li, 1] + k // span[li, 0]
+            centre = np.stack([(g.col0 + tx * tw + 0.5 * (tw - 1)) * cell,
+                               (g.row0 + ty * th + 0.5 * (th - 1)) * cell], axis=1)
+            reach_h = h + pad[li]
+            path = (np.hypot(*(centre - T[li]).T) + np.hypot(*(centre - R[li]).T))
+            keep = np.abs(path - L[li]) <= hb + 2.0 * reach_h
+            keep &= _beam_may_hold(centre, T[li], aT[li], alpha, reach_h)
+            keep &= _beam_may_hold(centre, R[li], aR[li], alpha, reach_h)
+            pairs_tile.append((ty * ntx + tx)[keep])
+            pairs_locus.append(li[keep])
+            i0 = i1
+    tile_of = np.concatenate(pairs_tile) if pairs_tile else np.zeros(0, np.int64)
+    locus = np.concatenate(pairs_locus) if pairs_locus else np.zeros(0, np.int64)
+    order = np.argsort(tile_of, kind="stable")  # loci ascending within each tile
+    start = np.zeros(n_tiles + 1, dtype=np.int64)
+    np.cumsum(np.bincount(tile_of, minlength=n_tiles), out=start[1:])
+    return TileBins((nty, ntx), (tw, th), start, locus[order].astype(np.int64))
+
+
+@dataclass(frozen=True)
+class AccumulationStats:
+    """What one accumulation did (for ``report.json``): ``tiles_total`` tiles of the map
+    (0 when dense), ``tiles_skipped`` of them empty (no locus can vote there: not
+    launched), ``pixel_locus_tests`` the pixel-locus tests the kernel made (tiles launched ×
+    pixels per tile × loci listed; dense: the padded map × every locus), ``dense_tests``
+    what the dense kernel makes (the padded map × every locus), ``bands`` device buffers
+    the map was drawn in, ``tile`` the tile shape (pixels along x, y) or None."""
+
+    tiled: bool
+    tile: tuple[int, int] | None
+    tiles_total: int
+    tiles_skipped: int
+    pixel_locus_tests: int
+    dense_tests: int
+    bands: int
+
+    def as_dict(self) -> dict[str, object]:
+        """The counters as a JSON-ready dict."""
+        d = dataclasses.asdict(self)
+        d["tile"] = list(self.tile) if self.tile is not None else None
+        return d
+
+
 # --------------------------------------------------------------------------- OpenCL
 
 
@@ -467,6 +648,7 @@ def _program(context, precision: str, weight_beam: bool, vec: int):
         "BEAM_TERMS": len(coeffs),
         "BEAM_SERIES": "{" + ",".join(repr(float(v)) for v in coeffs) + "}",
         "MAX_FOCUS_GAIN": float(physics.MAX_FOCUS_GAIN),
+        "TILE_CHUNK": TILE_CHUNK,
     }
     if precision == "float64":
         defines["REAL_DOUBLE"] = 1
@@ -529,10 +711,106 @@ def _run(ctx, pb: MapProblem, precision: str, name: str) -> np.ndarray:
     return np.ascontiguousarray(host[:g.ny, :g.nx])
 
 
+def _dense_stats(ctx, pb: MapProblem, precision: str) -> AccumulationStats:
+    vec, (wgx, wgy) = LAUNCH[device_kind(ctx.devices[0]), precision]
+    items_x, items_y = _items(pb.grid.nx, pb.grid.ny, vec, wgx, wgy)
+    tests = items_x * vec * items_y * len(pb.rows)
+    return AccumulationStats(False, None, 0, 0, tests, tests, 1)
+
+
+def _tile_shape(kernel, device, vec: int) -> tuple[int, int]:
+    """:data:`TILES` for ``device``, its height cut to the kernel's largest work-group."""
+    import pyopencl as cl
+
+    tw, th = TILES[device_kind(device)]
+    tw = max(tw, vec) // vec * vec
+    limit = int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, device))
+    return tw, max(1, min(th, limit // (tw // vec)))
+
+
+def _run_tiles(ctx, pb: MapProblem, precision: str) -> tuple[np.ndarray, AccumulationStats]:
+    """Draw the loci map tile by tile (kernel ``loci_tiles``, one work-group per tile that
+    :func:`bin_loci` lists any locus for), in bands of whole tile rows of at most
+    :data:`MAX_BAND_BYTES` (and the device's largest buffer), each copied into the host map."""
+    import pyopencl as cl
+
+    device = ctx.devices[0]
+    vec, _ = LAUNCH[device_kind(device), precision]
+    real = PRECISIONS[precision]
+    itemsize = np.dtype(real).itemsize
+    g = pb.grid
+    kernel = _kernel(_program(ctx, precision, pb.weight == "beam", vec), "loci_tiles")
+    tw, th = _tile_shape(kernel, device, vec)
+    bins = bin_loci(pb, (tw, th))
+    nty, ntx = bins.shape
+    counts = bins.counts
+    dense = _dense_stats(ctx, pb, precision).dense_tests
+    pitch = ntx * tw
+    limit = min(MAX_BAND_BYTES, int(device.max_mem_alloc_size), int(device.global_mem_size) // 2)
+    band = max(1, min(nty, limit // (pitch * th * itemsize)))
+    result = np.zeros((g.ny, g.nx), dtype=real)
+    stats = AccumulationStats(True, (tw, th), ntx * nty, int(np.count_nonzero(counts == 0)),
+                              int(counts.sum()) * tw * th, dense, -(-nty // band))
+    if not counts.any():
+        return result, stats
+    queue = queue_of(ctx)
+    mf = cl.mem_flags
+    rows_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                         hostbuf=np.ascontiguousarray(pb.rows, dtype=real))
+    out = cl.Buffer(ctx, mf.READ_WRITE, band * th * pitch * itemsize)
+    host = np.empty((band * th, pitch), dtype=real)
+    constants = (real(g.cell), real(pb.half_band), real(pb.cut_sin2), real(pb.beam_u),
+                 np.int32(g.col0))
+    group = (tw // vec, th)
+    for b0 in range(0, nty, band):
+        b1 = min(nty, b0 + band)
+        ids = np.arange(b0 * ntx, b1 * ntx)
+        live = ids[counts[ids] > 0]
+        y0, y1 = b0 * th, min(g.ny, b1 * th)
+        if len(live) == 0:
+            continue  # the host map is zero there already
+        s0, s1 = int(bins.start[b0 * ntx]), int(bins.start[b1 * ntx])
+        members = np.ascontiguousarray(bins.members[s0:s1], dtype=np.int32)
+        start = np.append(bins.start[live] - s0, s1 - s0).astype(np.int32)
+        at = np.stack([(live % ntx) * tw, (live // ntx - b0) * th], axis=1).astype(np.int32)
+        bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
+                for a in (members, start, np.ascontiguousarray(at))]
+        cl.enqueue_fill_buffer(queue, out, np.zeros(1, dtype=real), 0,
+                               (b1 - b0) * th * pitch * itemsize)
+        kernel(queue, (len(live) * group[0], group[1]), group, rows_buf, *bufs, *constants,
+               np.int32(g.row0 + y0), out, np.int64(0), np.int32(pitch))
+        cl.enqueue_copy(queue, host, out)
+        queue.finish()
+        result[y0:y1] = host[:y1 - y0, :g.nx]
+    return result, stats
+
+
+def accumulate_with_stats(scene: Scene, sensors: SensorArray, loci, *, context=None,
+                          device: str | None = None, precision: str | None = None,
+                          settings: MappingSettings | None = None, tiles: bool = True
+                          ) -> tuple[np.ndarray, AccumulationStats]:
+    """:func:`accumulate`'s map and the :class:`AccumulationStats` of drawing it."""
+    settings = settings if settings is not None else scene.mapping
+    precision = precision or settings.precision
+    ctx = context_for(context, device, precision)
+    if tiles:  # the device holds one band at a time; the host the map
+        check_map_memory(scene, precision,
+                         host_bytes_per_cell=np.dtype(PRECISIONS[precision]).itemsize)
+    else:
+        check_map_memory(scene, precision, ctx.devices[0])
+    pb = prepare_loci(scene, sensors, loci, settings)
+    if tiles:
+        return _run_tiles(ctx, pb, precision)
+    return _run(ctx, pb, precision, "loci_map"), _dense_stats(ctx, pb, precision)
+
+
 def accumulate(scene: Scene, sensors: SensorArray, loci, *, context=None,
                device: str | None = None, precision: str | None = None,
-               settings: MappingSettings | None = None) -> np.ndarray:
-    """The loci map ``[ny, nx]`` of ``scene`` drawn by the OpenCL kernel ``loci_map``.
+               settings: MappingSettings | None = None, tiles: bool = True) -> np.ndarray:
+    """The loci map ``[ny, nx]`` of ``scene`` drawn by the OpenCL kernel ``loci_tiles``
+    (``tiles``, default: each tile of the map tests only the loci that can reach it, empty
+    tiles are skipped, a map larger than a device buffer is drawn in bands) or ``loci_map``
+    (not ``tiles``: every pixel tests every locus). Both give the same map, to the bit.
 
     ``loci``: any object with ``tx``, ``rx``, ``tof_s`` and ``amplitude`` arrays
     (:class:`Loci`, the detector's table, an echo table); ``sensors`` the
@@ -541,14 +819,11 @@ def accumulate(scene: Scene, sensors: SensorArray, loci, *, context=None,
     ``precision``); its ``mode`` is the caller's business: this draws loci. float32 maps come
     back as float32, float64 (needs ``cl_khr_fp64``) as float64. A map that cannot fit in
     the device's or this machine's memory raises :class:`~clsonar.errors.ClsonarError`.
-    Same model as :func:`accumulate_reference`.
+    Same model as :func:`accumulate_reference`. :func:`accumulate_with_stats` also returns
+    the counters (tiles skipped, tests made).
     """
-    settings = settings if settings is not None else scene.mapping
-    precision = precision or settings.precision
-    ctx = context_for(context, device, precision)
-    check_map_memory(scene, precision, ctx.devices[0])
-    pb = prepare_loci(scene, sensors, loci, settings)
-    return _run(ctx, pb, precision, "loci_map")
+    return accumulate_with_stats(scene, sensors, loci, context=context, device=device,
+                                 precision=precision, settings=settings, tiles=tiles)[0]
 
 
 def backproject(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float, *,
@@ -569,8 +844,9 @@ def backproject(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float,
     return _run(ctx, pb, precision, "backproject_map")
 
 
-__all__ = ["Loci", "MapGrid", "MapProblem", "accumulate", "accumulate_reference", "as_loci",
-           "backproject", "backproject_reference", "band_m", "cell_centres",
+__all__ = ["AccumulationStats", "Loci", "MapGrid", "MapProblem", "TileBins", "accumulate",
+           "accumulate_reference", "accumulate_with_stats", "as_loci", "backproject",
+           "backproject_reference", "band_m", "bin_loci", "cell_centres",
            "check_map_memory", "map_grid", "prepare_backprojection", "prepare_loci"]
 
 

@@ -137,19 +137,67 @@ inline realv joint_beam(pixel_view v, real beam_u) {
 // | |p − T| + |p − R| − L | ≤ half_band inside both beams; the vote is w (1 or the
 // amplitude, from the host) or, with WEIGHT_BEAM, b(θ_T)·b(θ_R).
 // loci[3i] = (Tx, Ty, Rx, Ry), loci[3i + 1] = (axis T, axis R), loci[3i + 2] = (L, w, 0, 0).
+inline realv add_vote(realv acc, realv px, real py, real4 tr, real4 axes, real4 extra,
+                      real half_band, real cut_sin2, real beam_u) {
+    pixel_view v = view_pixel(px, py, tr, axes, cut_sin2);
+    maskv vote = (fabs(v.path - extra.x) <= half_band) & v.inside;
+#if WEIGHT_BEAM
+    if (ANY(vote)) acc += vote ? joint_beam(v, beam_u) : (realv)(R(0.0));
+#else
+    acc += vote ? (realv)(extra.y) : (realv)(R(0.0));
+#endif
+    return acc;
+}
+
 __kernel void loci_map(__constant real4 *loci, int n_loci, real cell, real half_band,
                        real cut_sin2, real beam_u, int col0, int row0, int first,
                        __global real *out, long out_offset, int pitch) {
     PIXELS_OF_WORK_ITEM
-    for (int i = 0; i < n_loci; ++i) {
-        real4 extra = loci[3 * i + 2];
-        pixel_view v = view_pixel(px, py, loci[3 * i], loci[3 * i + 1], cut_sin2);
-        maskv vote = (fabs(v.path - extra.x) <= half_band) & v.inside;
-#if WEIGHT_BEAM
-        if (ANY(vote)) acc += vote ? joint_beam(v, beam_u) : (realv)(R(0.0));
-#else
-        acc += vote ? (realv)(extra.y) : (realv)(R(0.0));
+    for (int i = 0; i < n_loci; ++i)
+        acc = add_vote(acc, px, py, loci[3 * i], loci[3 * i + 1], loci[3 * i + 2], half_band,
+                       cut_sin2, beam_u);
+    STOREV(acc, o);
+}
+
+// Tiled loci: the same votes, each tile of the map testing only the loci whose band can
+// reach it (clsonar/mapping.py bins them on the host, conservatively). One work-group per
+// non-empty tile: work item (lx, ly) of group t owns the VEC pixels of buffer row
+// at[t].y + ly from column at[t].x + lx·VEC (the group is TILE_W/VEC × TILE_H items);
+// columns and rows count from (col0, row0) relative to the origin pixel as above. The
+// tile's loci are loci[members[k]] for k = start[t] .. start[t + 1] − 1, in the original
+// order, so every pixel adds the same votes in the same order as loci_map: the same map, to
+// the bit. They are copied TILE_CHUNK at a time into local memory by the whole group (one
+// global read per locus and group, then every work item reads local memory). The sum
+// starts at 0; tiles not launched are left as the host cleared them.
+#ifndef TILE_CHUNK
+#define TILE_CHUNK 64
 #endif
+
+__kernel void loci_tiles(__global const real4 *loci, __global const int *members,
+                         __global const int *start, __global const int2 *at, real cell,
+                         real half_band, real cut_sin2, real beam_u, int col0, int row0,
+                         __global real *out, long out_offset, int pitch) {
+    __local real4 chunk[3 * TILE_CHUNK];
+    size_t t = get_group_id(0);
+    int lx = (int)get_local_id(0), ly = (int)get_local_id(1);
+    int me = ly * (int)get_local_size(0) + lx;
+    int items = (int)(get_local_size(0) * get_local_size(1));
+    int2 a = at[t];
+    int bx = a.x + lx * VEC, by = a.y + ly;
+    __global real *o = out + out_offset + (size_t)by * (size_t)pitch + (size_t)bx;
+    realv px = ((realv)((real)(col0 + bx)) + LANES) * cell;
+    real py = (real)(row0 + by) * cell;
+    realv acc = (realv)(R(0.0));
+    int end = start[t + 1];
+    for (int c = start[t]; c < end; c += TILE_CHUNK) {
+        int n = min(TILE_CHUNK, end - c);
+        for (int k = me; k < 3 * n; k += items)
+            chunk[k] = loci[3 * (size_t)members[c + k / 3] + (size_t)(k % 3)];
+        barrier(CLK_LOCAL_MEM_FENCE);
+        for (int i = 0; i < n; ++i)
+            acc = add_vote(acc, px, py, chunk[3 * i], chunk[3 * i + 1], chunk[3 * i + 2],
+                           half_band, cut_sin2, beam_u);
+        barrier(CLK_LOCAL_MEM_FENCE);
     }
     STOREV(acc, o);
 }
