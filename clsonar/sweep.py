@@ -65,7 +65,6 @@ SCENE_ENTRY_KEYS = ("scene", "distance_m")
 TABLE_JSONL = "runs.jsonl"
 TABLE_CSV = "table.csv"
 SWEEP_JSON = "sweep.json"
-LOCK = ".lock"
 
 
 class SpecError(SceneError):
@@ -523,10 +522,11 @@ Progress = Callable[[int, int, Run], None]  # (runs finished, runs planned, the 
 
 
 class _Lock:
-    """An exclusive lock on ``DIR/.lock``: one sweep writes to a folder at a time."""
+    """An exclusive lock on the folder's table (``flock``): one sweep writes to a folder at
+    a time."""
 
     def __init__(self, folder: Path) -> None:
-        self.path = folder / LOCK
+        self.path = folder / TABLE_JSONL
         self.fd: int | None = None
 
     def __enter__(self) -> _Lock:
