@@ -49,6 +49,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="detection/mapping/post settings: the thesis' methods or ours "
                         "(default: the scene file's settings, which default to ours)")
     _device_args(p)
+    p.add_argument("--no-skip", action="append", default=[], metavar="WORK",
+                   choices=("all", "empty_pairs", "silent_pairs", "tiles", "empty_cells"),
+                   help="do work the scene does not need anyway (to measure what skipping "
+                        "saves; the output is the same): empty_pairs, silent_pairs, tiles, "
+                        "empty_cells or all; repeatable")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
     p.set_defaults(func=_cmd_run)
 
@@ -110,7 +115,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "DIR/stress.md and DIR/stress.json.")
     p.add_argument("--count", type=int, default=1000, help="cases to run (default 1000)")
     p.add_argument("--out", default="stress", metavar="DIR",
-                   help="output folder (default ./stress)")
+                   help="output folder (default ./stress), or a FILE.md to write with "
+                        "FILE.json beside it")
     _device_args(p)
     p.set_defaults(func=_cmd_stress)
 
@@ -157,11 +163,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
     from .outputs import write_outputs
-    from .pipeline import run
+    from .pipeline import SKIP_NAMES, Skips, run
 
+    off = SKIP_NAMES if "all" in args.no_skip else args.no_skip
+    skips = Skips(**{name: name not in off for name in SKIP_NAMES})
     progress = _ProgressLine(not args.quiet)
     try:
-        result = run(scene, device=args.device, preset=args.preset, progress=progress)
+        result = run(scene, device=args.device, preset=args.preset, progress=progress,
+                     skips=skips)
     finally:
         progress.done()
     paths = write_outputs(result, args.out)
@@ -290,7 +299,8 @@ def _cmd_stress(args: argparse.Namespace) -> int:
           f"{found.tof_max_s * 1e6:.4f} µs, {fraction:.4%} of map pixels differ "
           f"({found.differing_off_edge} off an edge), {found.work_group_mismatches} "
           f"work-group mismatches: {'pass' if passed(found) else 'FAIL'}")
-    print(f"wrote {args.out}/stress.md and stress.json")
+    print(f"wrote {args.out}" + ("" if args.out.endswith(".md") else "/stress.md")
+          + " and its .json")
     return 0 if passed(found) else 1
 
 

@@ -10,15 +10,18 @@ defaults of a scene file).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import __version__, metrics, post, rooms
+from . import __version__, mapping, metrics, post, rooms, signals
 from .echoes import EchoTable, compute_echoes
 from .geometry import Geometry, build_geometry
+from .opencl import get_context
 from .scene import DetectionSettings, MappingSettings, PostSettings, Scene, scene_to_dict
 from .sensors import SensorArray, pairs, place_sensors
 
@@ -92,77 +95,181 @@ def _device_name(context) -> str:
     return f"{d.name.strip()} ({d.platform.name.strip()})"
 
 
+@dataclass(frozen=True)
+class Skips:
+    """Work the pipeline leaves out because the scene does not need it; none of it changes
+    the result. A switch set False does that work anyway, so ``clsonar bench`` can show
+    what each saves; ``report.json`` counts what was skipped (``counts``)."""
+
+    #: echoes: pairs whose beams meet no surface are not evaluated (echoes.pairs_in_view)
+    empty_pairs: bool = True
+    #: detection: noise-free pairs without an echo are not scanned (signals.scanned_slots)
+    silent_pairs: bool = True
+    #: accumulation: loci drawn tile by tile, empty tiles skipped (mapping.accumulate)
+    tiles: bool = True
+    #: post-processing: only the box of the voted cells is filtered and thinned
+    #: (post.voted_box; line of sight's own pass too)
+    empty_cells: bool = True
+
+    @classmethod
+    def none(cls) -> Skips:
+        """Every switch off: the work a scene does not need is done anyway."""
+        return cls(**{f.name: False for f in dataclasses.fields(cls)})
+
+
+SKIP_NAMES = tuple(f.name for f in dataclasses.fields(Skips))
+
+
+class StageCache:
+    """A content-keyed cache of the stages before post-processing (sensors, echoes,
+    detection, accumulation): a stage is reused when every scene key it reads, the device
+    and the skips are unchanged. Keeps the last ``size`` results of each stage."""
+
+    def __init__(self, size: int = 4) -> None:
+        self.size = size
+        self._entries: dict[str, dict[str, object]] = {}
+
+    def get(self, stage: str, key: str) -> object | None:
+        return self._entries.get(stage, {}).get(key)
+
+    def put(self, stage: str, key: str, value: object) -> None:
+        entries = self._entries.setdefault(stage, {})
+        entries.pop(key, None)
+        entries[key] = value
+        while len(entries) > self.size:
+            entries.pop(next(iter(entries)))
+
+
+#: The scene-file keys each stage reads (and, through its inputs, every earlier stage's).
+STAGE_KEYS = {
+    "sensors": ("extent", "surfaces", "sensors"),
+    "echoes": ("medium", "transducer", "echo"),
+    "detection": ("signal", "detection"),
+    "accumulation": ("cell", "mapping"),
+}
+
+
+def stage_keys(scene: Scene, device: str, skips: Skips) -> dict[str, str]:
+    """The cache key of each stage: a hash of the scene keys it and the stages before it
+    read (:data:`STAGE_KEYS`), the device and the skips. Tangent points checked for line of
+    sight also read the post-processing settings (rooms.in_sight_of_map)."""
+    data = scene_to_dict(scene)
+    keys, seen = {}, [device, repr(skips)]
+    for stage, names in STAGE_KEYS.items():
+        seen += [data.get(n) for n in names]
+        if stage == "accumulation" and scene.mapping.mode == "tangents" \
+                and scene.mapping.line_of_sight:
+            seen.append(data.get("post"))
+        keys[stage] = hashlib.sha256(json.dumps(seen, sort_keys=True).encode()).hexdigest()
+    return keys
+
+
 def run(scene: Scene, *, device: str | None = None, context=None, preset: str | None = None,
-        progress: Progress | None = None) -> RunResult:
+        progress: Progress | None = None, skips: Skips = Skips(),
+        cache: StageCache | None = None) -> RunResult:
     """Run the whole pipeline on ``scene`` and return every stage (:class:`RunResult`).
 
     ``device``/``context`` choose the OpenCL device (:func:`clsonar.opencl.get_context`);
     ``preset`` applies :data:`PRESETS` first; ``progress(stage, i, n)`` is called as each
-    stage starts.
+    stage starts. ``skips`` (:class:`Skips`) says which unneeded work to leave out;
+    ``cache`` (:class:`StageCache`) reuses the stages whose inputs are unchanged.
     """
-    from . import mapping, signals
-    from .opencl import get_context
-
     scene = apply_preset(scene, preset)
     ctx = context if context is not None else get_context(device)
     # Refuse a grid that cannot be held before any work is done (one clear message).
     mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
                              host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
+    device_name = _device_name(ctx)
+    keys = stage_keys(scene, device_name, skips)
     clock = _Stopwatch(progress)
+    reused: list[str] = []
 
-    clock.start("sensors")
-    geom = build_geometry(scene)
-    sensors = place_sensors(scene, geom)
-    clock.start("echoes")
-    echoes = compute_echoes(scene, sensors, context=ctx)
-    clock.start("detection")
-    detections = signals.detect(scene, sensors, echoes, context=ctx)
-    clock.start("accumulation")
-    point_sums = None
-    ghosts = 0
-    if scene.mapping.mode == "backprojection":
-        dt, env = signals.envelopes(scene, sensors, echoes, context=ctx)
-        raw = mapping.backproject(scene, sensors, pairs(sensors), env, dt, context=ctx)
-    else:
-        loci = mapping.as_loci(detections)
-        if scene.mapping.reciprocal == "merge":
-            loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
-        if scene.mapping.mode == "tangents":
-            points, source = mapping.tangent_points(
-                scene, sensors, loci, isolated_bias_m=scene.mapping.isolated_bias_m)
-            if scene.mapping.line_of_sight:
-                seen = rooms.in_sight_of_map(scene, sensors.positions, points,
-                                             loci.tx[source], loci.rx[source])
-                ghosts = int(np.count_nonzero(~seen))
-                points = points[seen]
-            raw, point_sums = mapping.point_map(scene, points)
-        elif scene.mapping.combine == "viewpoints":
-            raw = mapping.count_viewpoints(
-                scene, sensors, loci, lambda part: mapping.accumulate(scene, sensors, part,
-                                                                      context=ctx))
+    def stage(name: str, compute: Callable[[], tuple]) -> tuple:
+        clock.start(name)
+        value = cache.get(name, keys[name]) if cache is not None else None
+        if value is None:
+            value = compute()
+            if cache is not None:
+                cache.put(name, keys[name], value)
         else:
-            raw = mapping.accumulate(scene, sensors, loci, context=ctx)
+            reused.append(name)
+        return value
+
+    geom, sensors = stage("sensors", lambda: _sensors(scene))
+    echoes, echo_stats = stage("echoes", lambda: _echoes(scene, sensors, ctx, skips))
+    detections, detect_stats = stage("detection",
+                                     lambda: _detect(scene, sensors, echoes, ctx, skips))
+    raw, point_sums, ghosts = stage("accumulation",
+                                    lambda: _accumulate(scene, sensors, echoes, detections,
+                                                        ctx, skips))
     counts = {
         "transducers": len(sensors),
         "pairs": len(pairs(sensors)),
-        # noise-free pairs without an echo, left out of detection (signals.scanned_slots)
-        "pairs_skipped_silent": (0 if scene.signal.noise_std > 0 else len(pairs(sensors))
-                                 - len({(int(t), int(r)) for t, r in zip(
-                                     echoes.tx, echoes.rx, strict=True)})),
+        **echo_stats,
+        **detect_stats,
         "echoes": len(echoes),
         "detections": len(detections),
         "map_cells": int(raw.size),
         "cells_voted": int(np.count_nonzero(raw)),
         "ghost_points": ghosts,
+        "stages_reused": len(reused),
     }
     front = RunResult(scene, geom, sensors, echoes, detections, raw, raw, raw, raw,
-                      post.Profile(()), {}, clock.stop(), counts, _device_name(ctx),
-                      point_sums)
-    return rerun_post(front, scene.post, progress=progress)
+                      post.Profile(()), {}, clock.stop(), counts, device_name, point_sums)
+    return rerun_post(front, scene.post, progress=progress, skips=skips)
+
+
+def _sensors(scene: Scene) -> tuple[Geometry, SensorArray]:
+    geom = build_geometry(scene)
+    return geom, place_sensors(scene, geom)
+
+
+def _echoes(scene: Scene, sensors: SensorArray, ctx, skips: Skips) -> tuple:
+    stats: dict[str, int] = {}
+    table = compute_echoes(scene, sensors, context=ctx, skip_empty_pairs=skips.empty_pairs,
+                           stats=stats)
+    return table, stats
+
+
+def _detect(scene: Scene, sensors: SensorArray, echoes: EchoTable, ctx, skips: Skips) -> tuple:
+    n_pairs = len(pairs(sensors))
+    heard = len({(int(t), int(r)) for t, r in zip(echoes.tx, echoes.rx, strict=True)})
+    silent = (n_pairs - heard if skips.silent_pairs and scene.signal.noise_std == 0 else 0)
+    found = signals.detect(scene, sensors, echoes, context=ctx, skip_silent=skips.silent_pairs)
+    return found, {"pairs_skipped_silent": silent, "pairs_scanned": n_pairs - silent}
+
+
+def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detections,
+                ctx, skips: Skips) -> tuple:
+    """The raw map, the tangent-point sums (or None) and the number of ghost points."""
+    if scene.mapping.mode == "backprojection":
+        dt, env = signals.envelopes(scene, sensors, echoes, context=ctx)
+        return mapping.backproject(scene, sensors, pairs(sensors), env, dt, context=ctx), None, 0
+    loci = mapping.as_loci(detections)
+    if scene.mapping.reciprocal == "merge":
+        loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
+    if scene.mapping.mode == "tangents":
+        points, source = mapping.tangent_points(
+            scene, sensors, loci, isolated_bias_m=scene.mapping.isolated_bias_m)
+        ghosts = 0
+        if scene.mapping.line_of_sight:
+            seen = rooms.in_sight_of_map(scene, sensors.positions, points,
+                                         loci.tx[source], loci.rx[source],
+                                         box=skips.empty_cells)
+            ghosts = int(np.count_nonzero(~seen))
+            points = points[seen]
+        raw, point_sums = mapping.point_map(scene, points)
+        return raw, point_sums, ghosts
+    if scene.mapping.combine == "viewpoints":
+        raw = mapping.count_viewpoints(
+            scene, sensors, loci, lambda part: mapping.accumulate(scene, sensors, part,
+                                                                  context=ctx))
+        return raw, None, 0
+    return mapping.accumulate(scene, sensors, loci, context=ctx), None, 0
 
 
 def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
-               progress: Progress | None = None) -> RunResult:
+               progress: Progress | None = None, skips: Skips = Skips()) -> RunResult:
     """``result`` with post-processing (filter → thinning → profile → metrics) run again.
 
     The stages before it (sensors, echoes, detection, accumulation) are reused as they are,
@@ -173,11 +280,12 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
     raw, point_sums = result.raw, result.point_sums
     clock = _Stopwatch(progress)
     clock.start("filter")
-    filtered = post.low_pass(raw) if scene.post.filter == "mean3" else np.asarray(raw, float)
-    level = post.occupancy_level(filtered, scene.post, points=point_sums is not None)
-    occupied = post.binarize(filtered, level)
+    window, filtered, occupied = post.filter_box(raw, scene.post, point_sums is not None,
+                                                 box=skips.empty_cells)
     clock.start("thinning")
-    thin = post.thin_map(occupied, scene.post)
+    thin = post.embed(raw.shape, window, post.thin_map(occupied, scene.post))
+    filtered = post.embed(raw.shape, window, filtered)
+    occupied = post.embed(raw.shape, window, occupied)
     clock.start("profile")
     profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
                                    raw if point_sums is not None else None, point_sums)
@@ -187,6 +295,8 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
     seconds = {k: v for k, v in result.seconds.items() if k in STAGES[:4]}
     seconds.update(clock.stop())
     counts = {**{k: v for k, v in result.counts.items() if k not in _POST_COUNTS},
+              "cells_post_processed": int(window[0].stop - window[0].start)
+              * int(window[1].stop - window[1].start),
               "occupied_cells": int(np.count_nonzero(occupied)),
               "thin_cells": int(np.count_nonzero(thin)),
               "profile_curves": len(profile.curves),
@@ -196,7 +306,8 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
                                seconds=seconds, counts=counts)
 
 
-_POST_COUNTS = ("occupied_cells", "thin_cells", "profile_curves", "profile_points")
+_POST_COUNTS = ("cells_post_processed", "occupied_cells", "thin_cells", "profile_curves",
+                "profile_points")
 
 
 class _Stopwatch:

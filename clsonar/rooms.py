@@ -95,18 +95,17 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
 
 
 def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
-                    tx: np.ndarray, rx: np.ndarray) -> np.ndarray:
+                    tx: np.ndarray, rx: np.ndarray, box: bool = True) -> np.ndarray:
     """:func:`line_of_sight` against the map the ``points`` make themselves: the occluders
     are the thinned cells of their point map (low-pass, automatic level and thinning, as
     the pipeline draws it; an 8-connected one-cell curve covers every z-buffer bin it
     spans) and the profile extracted from it — where the profile bridges the gaps between
-    the patches of a wall (``fit = "walls"``), a ghost cannot slip through."""
+    the patches of a wall (``fit = "walls"``), a ghost cannot slip through. ``box``:
+    post-process only the voted cells' box (:func:`clsonar.post.filter_and_thin`)."""
     from .mapping import point_map
 
     counts, sums = point_map(scene, points)
-    filtered = post.low_pass(counts) if scene.post.filter == "mean3" else counts
-    occupied = post.binarize(filtered, post.occupancy_level(filtered, scene.post, True))
-    thin = post.thin_map(occupied, scene.post)
+    filtered, _, thin = post.filter_and_thin(counts, scene.post, points=True, box=box)
     profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
                                    counts, sums)
     iy, ix = np.nonzero(thin)  # one-cell curves leave no gap between z-buffer bins
