@@ -31,6 +31,11 @@ def _json_default(value):
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
+def profile_csv(points: np.ndarray) -> str:
+    """``profile.csv``: header ``x,y``, one estimated surface point (metres) a line."""
+    return "x,y\n" + "".join(f"{x:.6f},{y:.6f}\n" for x, y in points)
+
+
 def render(result: RunResult) -> dict[str, bytes]:
     """Every output file of ``result`` as bytes, by file name."""
     s, g = result.scene, result.geometry
@@ -39,8 +44,7 @@ def render(result: RunResult) -> dict[str, bytes]:
                         extent=np.asarray(s.extent), cell=np.asarray(s.cell))
     echoes = io.StringIO()
     result.echoes.write_csv(echoes)
-    points = result.profile.points
-    profile = "x,y\n" + "".join(f"{x:.6f},{y:.6f}\n" for x, y in points)
+    profile = profile_csv(result.profile.points)
     m = result.metrics
     rms = m.get("rms_m")
     summary = (f"RMS (eq. 2.6) {rms * 100:.2f} cm" if rms is not None

@@ -1,0 +1,155 @@
+"""The parameters panel: a pyqtgraph ``ParameterTree`` over the scene's settings.
+
+One group per settings block of scene format v1 (``medium``, ``transducer``, ``signal``,
+``echo``, ``detection``, ``mapping``, ``post``; see docs/scene-format.md), plus the scene's
+``name``/``cell`` and the sensor ``placement``. Values live in the scene, so they are saved
+in the scene file; each change is one undoable edit through :meth:`Document.apply`.
+Optional numbers show ``auto`` for null; points and ranges are ``x, y``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from pyqtgraph.parametertree import Parameter, ParameterTree
+from PySide6.QtCore import QObject, QTimer, Signal
+
+from ..errors import SceneError
+from ..scene import Scene
+from . import edits
+from .editor import Document
+
+NONE_TEXT = "auto"
+NO_PLACEMENT = "none"
+
+
+def to_param(name: str, value: Any, options: tuple[Any, ...] | None) -> dict[str, Any]:
+    """The pyqtgraph parameter spec showing one scene value."""
+    if options is not None:
+        return {"name": name, "type": "list", "limits": list(options), "value": value}
+    if isinstance(value, bool):
+        return {"name": name, "type": "bool", "value": value}
+    if isinstance(value, int):
+        return {"name": name, "type": "int", "value": value}
+    if isinstance(value, float):
+        return {"name": name, "type": "float", "value": value, "decimals": 8}
+    if isinstance(value, tuple):
+        return {"name": name, "type": "str", "value": ", ".join(f"{v:g}" for v in value)}
+    if value is None:
+        return {"name": name, "type": "str", "value": NONE_TEXT}
+    return {"name": name, "type": "str", "value": str(value)}
+
+
+def from_text(text: str, old: Any) -> Any:
+    """A value typed as text back in the type the scene keeps (``auto`` → None)."""
+    t = text.strip()
+    if t.lower() in (NONE_TEXT, "none", "null", "random", ""):
+        return None
+    if "," in t:
+        return tuple(float(v) for v in t.split(","))
+    if isinstance(old, str):
+        return t
+    return float(t)
+
+
+def group_spec(name: str, obj: Any) -> dict[str, Any]:
+    """A parameter group for one settings dataclass."""
+    children = [to_param(f.name, getattr(obj, f.name), edits.choices(type(obj), f.name))
+                for f in dataclasses.fields(obj) if f.name != "type"]
+    return {"name": name, "type": "group", "children": children}
+
+
+def placement_spec(scene: Scene) -> dict[str, Any]:
+    p = scene.sensors.placement
+    kinds = [NO_PLACEMENT, *edits.PLACEMENTS]
+    children = [{"name": "type", "type": "list", "limits": kinds,
+                 "value": NO_PLACEMENT if p is None else p.type}]
+    if p is not None:
+        children += group_spec("p", p)["children"]
+    return {"name": "placement", "type": "group", "children": children}
+
+
+def tree_spec(scene: Scene) -> list[dict[str, Any]]:
+    """Every group of the panel for ``scene``."""
+    top = {"name": "scene", "type": "group", "children": [
+        to_param("name", scene.name, None), to_param("cell", scene.cell, None)]}
+    return [top, *(group_spec(g, getattr(scene, g)) for g in edits.SETTING_GROUPS),
+            placement_spec(scene)]
+
+
+class ParamsPanel(QObject):
+    """Keeps a ``ParameterTree`` and the document's scene in step."""
+
+    message = Signal(str)
+
+    def __init__(self, doc: Document) -> None:
+        super().__init__()
+        self.tree = ParameterTree(showHeader=False)
+        self.params: Parameter | None = None
+        self._updating = False
+        self._pending = False
+        self.set_document(doc)
+
+    def set_document(self, doc: Document) -> None:
+        self.doc = doc
+        doc.sceneChanged.connect(self._schedule)
+        self.refresh()
+
+    def _schedule(self, *_: object) -> None:
+        # rebuilt on the next turn of the event loop, not inside the edited widget's signal
+        if not self._pending:
+            self._pending = True
+            QTimer.singleShot(0, self.refresh)
+
+    def refresh(self, *_: object) -> None:
+        """Show the document's scene (rebuilt: groups follow the placement's type)."""
+        self._pending = False
+        self._updating = True
+        try:
+            self.params = Parameter.create(name="settings", type="group",
+                                           children=tree_spec(self.doc.scene))
+            self.params.sigTreeStateChanged.connect(self._changed)
+            self.tree.setParameters(self.params, showTop=False)
+        finally:
+            self._updating = False
+
+    def set(self, group: str, key: str, value: Any) -> None:
+        """Set one parameter as if typed in the panel (tests, scripts)."""
+        self.params.child(group, key).setValue(value)
+
+    def _changed(self, _param, changes) -> None:
+        if self._updating:
+            return
+        for param, change, data in changes:
+            if change != "value":
+                continue
+            group, key = param.parent().name(), param.name()
+            try:
+                scene = self._edited(group, key, data)
+            except (ValueError, TypeError) as e:
+                self.message.emit(f"{group}.{key}: {e}")
+                self._schedule()
+                return
+            try:
+                self.doc.apply(scene, f"set {group}.{key}")
+            except SceneError as e:
+                self.message.emit(f"edit refused: {e}")
+                self._schedule()
+            return
+
+    def _edited(self, group: str, key: str, value: Any) -> Scene:
+        scene = self.doc.scene
+        if group == "placement":
+            if key == "type":
+                if value == NO_PLACEMENT:
+                    return edits.set_placement(scene, None)
+                return edits.set_placement(scene, value, **edits.default_placement(scene, value))
+            old = getattr(scene.sensors.placement, key)
+            if isinstance(value, str):
+                value = from_text(value, old)
+            return edits.set_placement(scene, scene.sensors.placement.type, **{key: value})
+        old = getattr(scene if group == "scene" else getattr(scene, group), key)
+        if isinstance(value, str) and not isinstance(old, str):
+            value = from_text(value, old)
+        return edits.set_setting(scene, group, key, value)

@@ -1,0 +1,171 @@
+"""The map stages of a run side by side or one at a time: raw accumulation, filtered,
+thinned and fitted profile (thesis §2.1.1 steps 3–5), each with the true geometry in red,
+a colour bar, and a readout of the position and votes under the cursor."""
+
+from __future__ import annotations
+
+import numpy as np
+import pyqtgraph as pg
+from PySide6.QtCore import QPointF, Signal
+from PySide6.QtWidgets import QComboBox, QGridLayout, QHBoxLayout, QLabel, QVBoxLayout, QWidget
+
+from ..pipeline import RunResult
+from .views import PROFILE_PEN, TRUTH_PEN, map_rect, truth_paths
+
+#: The stage views, by key, with their titles.
+STAGE_VIEWS = {"raw": "raw accumulation", "filtered": "low-pass filtered (eq. 2.4)",
+               "thin": "thinned", "profile": "fitted profile"}
+SIDE_BY_SIDE = "side by side"
+NO_RUN = "no run yet: press Run (F5)"
+#: Largest number of cells a side shown on screen (maxima of blocks beyond it).
+DISPLAY_CELLS = 500
+
+
+def cell_at(result: RunResult, x: float, y: float) -> tuple[int, int] | None:
+    """``(iy, ix)`` of the map cell holding point ``(x, y)`` (None outside the map)."""
+    xmin, ymin = result.scene.extent[:2]
+    ix = int(np.floor((x - xmin) / result.scene.cell))
+    iy = int(np.floor((y - ymin) / result.scene.cell))
+    ny, nx = result.raw.shape
+    return (iy, ix) if 0 <= ix < nx and 0 <= iy < ny else None
+
+
+def stage_image(result: RunResult, key: str) -> np.ndarray:
+    """The ``[iy, ix]`` array a stage view shows (the profile view shows the thin map)."""
+    image = {"raw": result.raw, "filtered": result.filtered, "thin": result.thin,
+             "profile": result.thin}[key]
+    return np.asarray(image, dtype=np.float32)
+
+
+def shown(image: np.ndarray, limit: int = DISPLAY_CELLS) -> np.ndarray:
+    """``image`` reduced to at most ``limit`` cells a side by block maxima, so that
+    one-cell curves and single votes stay visible on screen (as plots.map_png does)."""
+    k = max(1, -(-max(image.shape) // limit))
+    if k == 1:
+        return image
+    ny, nx = image.shape
+    pad = np.zeros((-(-ny // k) * k, -(-nx // k) * k), dtype=image.dtype)
+    pad[:ny, :nx] = image
+    return pad.reshape(pad.shape[0] // k, k, pad.shape[1] // k, k).max(axis=(1, 3))
+
+
+class StageView(pg.GraphicsLayoutWidget):
+    """One stage: the map in metres, the truth over it, a colour bar."""
+
+    hovered = Signal(str, float, float)  # stage, x, y
+
+    def __init__(self, key: str, parent=None) -> None:
+        super().__init__(parent)
+        self.key = key
+        self.plot = self.addPlot(title=STAGE_VIEWS[key])
+        self.plot.setAspectLocked(True)
+        self.plot.setLabel("bottom", "x", units="m")
+        self.plot.setLabel("left", "y", units="m")
+        self.image = pg.ImageItem(axisOrder="row-major")
+        self.plot.addItem(self.image)
+        binary = key in ("thin", "profile")
+        cmap = (pg.ColorMap([0.0, 1.0], [(255, 255, 255), (0, 0, 0)]) if binary
+                else pg.colormap.get("viridis"))
+        self.bar = pg.ColorBarItem(colorMap=cmap, label="cell set" if binary else "votes",
+                                   interactive=not binary, width=12)
+        self.bar.setImageItem(self.image, insert_in=self.plot)
+        self.truth = pg.PlotCurveItem(pen=TRUTH_PEN, connect="finite")
+        self.plot.addItem(self.truth)
+        self.profile = pg.PlotCurveItem(pen=PROFILE_PEN, connect="finite")
+        self.vertices = pg.ScatterPlotItem(symbol="x", size=10, pen=pg.mkPen("r", width=2))
+        if key == "profile":
+            self.plot.addItem(self.profile)
+            self.plot.addItem(self.vertices)
+        self.data: np.ndarray | None = None
+        self.scene().sigMouseMoved.connect(self._moved)
+
+    def show_result(self, result: RunResult) -> None:
+        image = stage_image(result, self.key)
+        self.data = image
+        view = shown(image)
+        self.image.setImage(view, autoLevels=False)
+        # a padded block-maxima image covers whole blocks: scale its rectangle to match
+        k = -(-max(image.shape) // max(view.shape))
+        self.image.setRect(map_rect(result.scene, (view.shape[0] * k, view.shape[1] * k)))
+        top = float(image.max()) if image.size else 1.0
+        self.bar.setLevels((0.0, top if top > 0 else 1.0))
+        self.truth.setData(*truth_paths(result.geometry))
+        if self.key == "profile":
+            curves = result.profile.curves
+            if curves:
+                gap = np.full((1, 2), np.nan)
+                xy = np.concatenate([q for c in curves for q in (c, gap)])
+                self.profile.setData(xy[:, 0], xy[:, 1])
+            else:
+                self.profile.setData([], [])
+            v = result.profile.vertices
+            self.vertices.setData(v[:, 0], v[:, 1])
+
+    def _moved(self, pos: QPointF) -> None:
+        if self.plot.sceneBoundingRect().contains(pos):
+            p = self.plot.vb.mapSceneToView(pos)
+            self.hovered.emit(self.key, float(p.x()), float(p.y()))
+
+
+class StagesPanel(QWidget):
+    """The four stage views, switchable or side by side, with the cursor readout."""
+
+    def __init__(self, parent=None) -> None:
+        super().__init__(parent)
+        self.result: RunResult | None = None
+        self.mode = QComboBox()
+        self.mode.addItems([SIDE_BY_SIDE, *STAGE_VIEWS])
+        self.mode.currentTextChanged.connect(self.set_mode)
+        self.readout = QLabel(NO_RUN)
+        top = QHBoxLayout()
+        top.addWidget(QLabel("show:"))
+        top.addWidget(self.mode)
+        top.addStretch(1)
+        self.views = {k: StageView(k) for k in STAGE_VIEWS}
+        grid = QGridLayout()
+        first = None
+        for n, (_k, v) in enumerate(self.views.items()):
+            grid.addWidget(v, n // 2, n % 2)
+            v.hovered.connect(self._readout)
+            if first is None:
+                first = v.plot
+            else:
+                v.plot.setXLink(first)
+                v.plot.setYLink(first)
+        layout = QVBoxLayout(self)
+        layout.addLayout(top)
+        layout.addLayout(grid, 1)
+        layout.addWidget(self.readout)
+
+    def set_mode(self, mode: str) -> None:
+        """Show all four views (``side by side``) or only stage ``mode``."""
+        if self.mode.currentText() != mode:
+            self.mode.setCurrentText(mode)
+        for k, v in self.views.items():
+            v.setVisible(mode in (SIDE_BY_SIDE, k))
+
+    def show_result(self, result: RunResult) -> None:
+        first = self.result is None or self.result.scene.extent != result.scene.extent
+        self.result = result
+        self.readout.setText("point at a map for the position and the votes under the cursor")
+        for v in self.views.values():
+            v.show_result(result)
+        if first:
+            x0, y0, x1, y1 = result.scene.extent
+            self.views["raw"].plot.setRange(xRange=(x0, x1), yRange=(y0, y1))
+
+    def readout_text(self, key: str, x: float, y: float) -> str:
+        """``x, y`` in metres and the value of stage ``key`` in the cell under them."""
+        r = self.result
+        text = f"x = {x:.3f} m, y = {y:.3f} m"
+        cell = None if r is None else cell_at(r, x, y)
+        if cell is None:
+            return text
+        iy, ix = cell
+        v = self.views[key].data
+        raw, filt = float(r.raw[iy, ix]), float(r.filtered[iy, ix])
+        here = f"; {key}: {v[iy, ix]:g}" if v is not None and key in ("thin", "profile") else ""
+        return f"{text}, cell [iy={iy}, ix={ix}]: votes {raw:g}, filtered {filt:.3g}{here}"
+
+    def _readout(self, key: str, x: float, y: float) -> None:
+        self.readout.setText(self.readout_text(key, x, y))

@@ -1,0 +1,72 @@
+"""Long work off the GUI thread: a :class:`Job` runs one function in a ``QThread``.
+
+The function gets a ``progress(stage, i, n)`` callback (the shape of
+:data:`clsonar.pipeline.Progress`); :meth:`Job.cancel` makes the next call of it raise
+:class:`Cancelled`, so a pipeline run stops between stages. The outcome comes back as
+exactly one of the signals ``succeeded(result)``, ``failed(message)`` or ``cancelled()``,
+delivered on the GUI thread; nothing the function raises can crash the GUI.
+"""
+
+from __future__ import annotations
+
+import threading
+import traceback
+from collections.abc import Callable
+from typing import Any
+
+from PySide6.QtCore import QThread, Signal
+
+from ..errors import ClsonarError
+
+Progress = Callable[[str, int, int], None]
+
+
+class Cancelled(Exception):
+    """Raised inside a job's progress callback after :meth:`Job.cancel`."""
+
+
+def error_line(e: BaseException) -> str:
+    """One line for the user: the message of an error they can act on, else its type too."""
+    if isinstance(e, (ClsonarError, ValueError)):
+        return str(e)
+    return f"{type(e).__name__}: {e}"
+
+
+class Job(QThread):
+    """Runs ``fn(progress)`` in its own thread; see the module docstring."""
+
+    progressed = Signal(str, int, int)
+    succeeded = Signal(object)
+    failed = Signal(str)
+    cancelled = Signal()
+
+    def __init__(self, fn: Callable[[Progress], Any], name: str = "run", parent=None) -> None:
+        super().__init__(parent)
+        self.fn = fn
+        self.name = name
+        self._cancel = threading.Event()
+        self.stages: list[str] = []  # the stages it reported, in order
+
+    def cancel(self) -> None:
+        """Ask the job to stop at its next progress report."""
+        self._cancel.set()
+
+    def _progress(self, stage: str, i: int, n: int) -> None:
+        if self._cancel.is_set():
+            raise Cancelled
+        self.stages.append(stage)
+        self.progressed.emit(stage, i, n)
+
+    def run(self) -> None:  # the thread's body
+        try:
+            result = self.fn(self._progress)
+        except Cancelled:
+            self.cancelled.emit()
+        except Exception as e:
+            traceback.print_exc()
+            self.failed.emit(error_line(e))
+        else:
+            if self._cancel.is_set():
+                self.cancelled.emit()
+            else:
+                self.succeeded.emit(result)

@@ -1,0 +1,355 @@
+"""The desktop GUI (issue 7) under pytest-qt, offscreen (tests/conftest.py sets
+QT_QPA_PLATFORM): open a bundled scene, add and drag a wall, undo and redo, place a ring,
+run to completion (waiting on a signal), check the four stage views, re-run only
+post-processing after a filter change, save and reload; crash recovery, the unsaved-changes
+prompt, dock layout, export, the worker's cancel and errors; and that the core imports no Qt.
+"""
+
+from __future__ import annotations
+
+import importlib.resources
+import json
+import pkgutil
+import subprocess
+import sys
+import threading
+
+import numpy as np
+import pyqtgraph as pg
+import pytest
+from PySide6.QtCore import QEvent, QPointF, QSettings, Qt
+from PySide6.QtGui import QMouseEvent
+from PySide6.QtWidgets import QApplication, QMessageBox
+
+import clsonar
+from clsonar.gui import edits
+from clsonar.gui.app import MainWindow, main
+from clsonar.gui.worker import Job
+from clsonar.pipeline import STAGES
+from clsonar.scene import Circular, Polyline, load_scene, scene_to_dict
+
+ROOM = str(importlib.resources.files("clsonar.scenes") / "room.json")
+POST = ["filter", "thinning", "profile", "metrics"]
+RUN_TIMEOUT_MS = 120_000
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+def make_window(qtbot, tmp_path, monkeypatch=None, path=None) -> MainWindow:
+    settings = QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
+    w = MainWindow(path, settings=settings, recovery_dir=tmp_path / "recovery")
+    qtbot.addWidget(w)
+    w.resize(1400, 900)
+    w.snap.setValue(0.5)  # coarser than a pixel of the canvas: clicks land exactly
+    w.show()
+    qtbot.waitExposed(w)
+    return w
+
+
+@pytest.fixture(autouse=True)
+def every_mouse_move():
+    """pyqtgraph drops mouse moves closer than 10 ms apart (``mouseRateLimit``); a test's
+    synthetic drag sends them back to back."""
+    old = pg.getConfigOption("mouseRateLimit")
+    pg.setConfigOptions(mouseRateLimit=0)
+    yield
+    pg.setConfigOptions(mouseRateLimit=old)
+
+
+@pytest.fixture
+def window(qtbot, tmp_path, monkeypatch):
+    # never block on a dialog: discard on close, decline recovery unless a test says so
+    monkeypatch.setattr(MainWindow, "ask_save", lambda self: QMessageBox.StandardButton.Discard)
+    monkeypatch.setattr(MainWindow, "ask", lambda self, title, text: False)
+    w = make_window(qtbot, tmp_path)
+    yield w
+    if w.job is not None:
+        w.job.cancel()
+        w.job.wait()
+
+
+def mouse(widget, kind, pos: QPointF, buttons=Qt.MouseButton.LeftButton,
+          button=Qt.MouseButton.LeftButton) -> None:
+    ev = QMouseEvent(kind, pos, widget.mapToGlobal(pos), button, buttons,
+                     Qt.KeyboardModifier.NoModifier)
+    QApplication.sendEvent(widget, ev)
+
+
+def drag(canvas, a: tuple[float, float], b: tuple[float, float], steps: int = 8) -> None:
+    """Press at ``a`` (metres), move to ``b`` in steps and release: a real mouse drag."""
+    vp = canvas.viewport()
+    pa, pb = canvas.view_to_widget(a), canvas.view_to_widget(b)
+    # pyqtgraph picks the dragged item from the last hover: move over it first
+    mouse(vp, QEvent.Type.MouseMove, pa, buttons=Qt.MouseButton.NoButton,
+          button=Qt.MouseButton.NoButton)
+    mouse(vp, QEvent.Type.MouseButtonPress, pa)
+    for k in range(1, steps + 1):
+        p = pa + (pb - pa) * (k / steps)
+        mouse(vp, QEvent.Type.MouseMove, p, button=Qt.MouseButton.NoButton)
+    mouse(vp, QEvent.Type.MouseButtonRelease, pb, buttons=Qt.MouseButton.NoButton)
+
+
+def click(qtbot, canvas, p: tuple[float, float], double: bool = False) -> None:
+    pos = canvas.view_to_widget(p).toPoint()
+    if double:
+        qtbot.mouseDClick(canvas.viewport(), Qt.MouseButton.LeftButton, pos=pos)
+    else:
+        qtbot.mouseClick(canvas.viewport(), Qt.MouseButton.LeftButton, pos=pos)
+
+
+def run_and_wait(qtbot, w: MainWindow, start=None):
+    with qtbot.waitSignal(w.runFinished, timeout=RUN_TIMEOUT_MS) as blocker:
+        (start or w.run_action.trigger)()
+    return blocker.args[0]
+
+
+# --------------------------------------------------------------------------- the test plan
+
+
+def test_edit_run_stages_post_save(qtbot, window, tmp_path):
+    """The issue's "Must show" list, in one session on the bundled closed room."""
+    w, canvas = window, window.canvas
+    assert w.open_file(ROOM)
+    scene0 = w.doc.scene
+    n0 = len(scene0.surfaces)
+
+    # add a wall with the mouse: two clicks (snapped to the 0.5 m grid), then Enter
+    w.tool_actions["wall"].trigger()
+    click(qtbot, canvas, (3.07, 4.06))
+    click(qtbot, canvas, (5.95, 3.96))
+    qtbot.keyClick(canvas, Qt.Key.Key_Return)
+    assert len(w.doc.scene.surfaces) == n0 + 1
+    assert w.doc.scene.surfaces[n0] == Polyline(((3.0, 4.0), (6.0, 4.0)), closed=False)
+    qtbot.waitUntil(lambda: canvas.roi_for(("surface", n0)) is not None)
+
+    # drag its end with the mouse: one undo step, snapped
+    w.tool_actions["select"].trigger()
+    steps = w.doc.undo.count()
+    drag(canvas, (6.0, 4.0), (6.54, 5.05))
+    assert w.doc.undo.count() == steps + 1
+    assert w.doc.scene.surfaces[n0].points == ((3.0, 4.0), (6.5, 5.0))
+    dragged = w.doc.scene
+
+    # undo the drag, then the wall; redo both
+    w.undo_action.trigger()
+    assert w.doc.scene.surfaces[n0].points == ((3.0, 4.0), (6.0, 4.0))
+    w.undo_action.trigger()
+    assert w.doc.scene == scene0
+    w.redo_action.trigger()
+    w.redo_action.trigger()
+    assert w.doc.scene == dragged
+
+    # a circular ring from the parameters panel, placed with the ring tool
+    w.params.set("placement", "type", "circular")
+    qtbot.waitUntil(lambda: w.params.params.child("placement", "type").value() == "circular")
+    w.tool_actions["ring"].trigger()
+    click(qtbot, canvas, (5.04, 6.95))
+    placement = w.doc.scene.sensors.placement
+    assert isinstance(placement, Circular) and placement.center == (5.0, 7.0)
+    # the canvas shows the ring's 8 transducers (redrawn on the next turn of the loop)
+    qtbot.waitUntil(lambda: canvas.sensors is not None and len(canvas.sensors) == 8)
+
+    # run to completion, waiting on the signal; every stage ran once
+    result = run_and_wait(qtbot, w)
+    assert w.runs == {"full": 1, "post": 0}
+    assert w.last_stages == list(STAGES)
+    assert result.scene == w.doc.scene
+    shape = w.doc.scene.grid_shape
+    views = w.stages.views
+    for key, view in views.items():
+        assert view.data is not None and view.data.shape == shape, key
+    assert views["raw"].data.max() > 0
+    assert views["filtered"].data.max() > 0
+    assert views["thin"].data.sum() > 0
+    assert len(result.profile.points) > 0
+    px, _ = views["profile"].profile.getData()
+    assert np.isfinite(px).sum() == len(result.profile.points)
+    # the readout names the votes of the cell under the cursor, [iy, ix] the right way up
+    iy, ix = np.unravel_index(np.argmax(result.raw), result.raw.shape)
+    xmin, ymin = w.doc.scene.extent[:2]
+    x, y = xmin + (ix + 0.5) * w.doc.scene.cell, ymin + (iy + 0.5) * w.doc.scene.cell
+    text = w.stages.readout_text("raw", x, y)
+    assert f"[iy={iy}, ix={ix}]" in text and f"votes {result.raw[iy, ix]:g}" in text
+    rect = views["raw"].image.mapRectToParent(views["raw"].image.boundingRect())
+    assert rect.top() == pytest.approx(ymin) and rect.bottom() > rect.top()
+
+    # change the filter: only post-processing runs again, on the same raw map
+    with qtbot.waitSignal(w.runFinished, timeout=RUN_TIMEOUT_MS) as blocker:
+        w.params.set("post", "filter", "none")
+    again = blocker.args[0]
+    assert w.runs == {"full": 1, "post": 1}
+    assert w.last_stages == POST
+    assert again.raw is result.raw and again.echoes is result.echoes
+    assert again.scene.post.filter == "none"
+    np.testing.assert_array_equal(again.filtered, result.raw.astype(float))
+    assert {k: again.seconds[k] for k in STAGES[:4]} == {k: result.seconds[k]
+                                                          for k in STAGES[:4]}
+
+    # save and reload: the identical scene
+    path = tmp_path / "edited.json"
+    assert w._save(str(path))
+    assert not w.doc.modified and not w.isWindowModified()
+    assert load_scene(path) == w.doc.scene
+    saved = w.doc.scene
+    assert w.open_file(str(path))
+    assert w.doc.scene == saved
+    assert scene_to_dict(load_scene(path)) == json.loads(path.read_text())
+
+
+def test_delete_and_undo_transducer_heading(qtbot, window):
+    """Place a transducer by clicking, turn it by dragging its heading handle, delete it;
+    each step is one undo step."""
+    w, canvas = window, window.canvas
+    w.tool_actions["transducer"].trigger()
+    click(qtbot, canvas, (2.04, 1.96))
+    assert w.doc.scene.sensors.transducers[0].position == (2.0, 2.0)
+    assert w.doc.scene.sensors.transducers[0].heading_deg == 0.0
+    qtbot.waitUntil(lambda: canvas.roi_for(("transducer", 0)) is not None)
+    w.tool_actions["select"].trigger()
+    tip = canvas.roi_points(canvas.roi_for(("transducer", 0)))[1]
+    drag(canvas, tip, (2.0, 2.0 + tip[0] - 2.0))  # swing the tip to straight up
+    assert w.doc.scene.sensors.transducers[0].heading_deg == pytest.approx(90.0, abs=5.0)
+    assert w.doc.undo.count() == 2
+    canvas.select(("transducer", 0))
+    qtbot.keyClick(canvas, Qt.Key.Key_Delete)
+    assert w.doc.scene.sensors.transducers == ()
+    w.undo_action.trigger()
+    assert len(w.doc.scene.sensors.transducers) == 1
+
+
+def test_draw_room_circle_sinusoid(qtbot, window):
+    w, canvas = window, window.canvas
+    canvas.set_tool("room")
+    for p in ((1.0, 1.0), (4.0, 1.0), (4.0, 3.0)):
+        canvas.click(p)
+    canvas.click((4.0, 3.0), double=True)
+    canvas.set_tool("circle")
+    canvas.click((6.0, 6.0))
+    canvas.click((6.5, 6.0))
+    canvas.set_tool("sinusoid")
+    canvas.click((8.0, 1.0))
+    canvas.click((8.0, 9.0))
+    s = w.doc.scene.surfaces
+    assert s[0] == Polyline(((1.0, 1.0), (4.0, 1.0), (4.0, 3.0)), closed=True)
+    assert s[1].center == (6.0, 6.0) and s[1].radius == 0.5
+    assert (s[2].start, s[2].end) == ((8.0, 1.0), (8.0, 9.0))
+    assert w.doc.undo.count() == 3
+
+
+def test_recovery_after_crash(qtbot, tmp_path, monkeypatch):
+    """Unsaved edits survive a session that never closed; the next one offers them."""
+    scene_file = tmp_path / "room.json"
+    scene_file.write_text(open(ROOM).read())
+    first = make_window(qtbot, tmp_path, path=str(scene_file))
+    edited = edits.add_transducer(first.doc.scene, (5.0, 5.0), 45.0)
+    first.doc.apply(edited, "place transducer")
+    assert first.doc.recovery_file.exists()
+    # "crash": the first window never closes; a second session opens the same file
+    monkeypatch.setattr(MainWindow, "ask", lambda self, title, text: True)
+    second = make_window(qtbot, tmp_path, path=str(scene_file))
+    assert second.doc.scene == first.doc.scene
+    assert second.doc.modified
+    monkeypatch.setattr(MainWindow, "ask_save",
+                        lambda self: QMessageBox.StandardButton.Discard)
+    first.close()
+    second.close()
+    assert not second.doc.recovery_file.exists()
+
+
+def test_unsaved_prompt_and_layout(qtbot, tmp_path, monkeypatch):
+    w = make_window(qtbot, tmp_path)
+    w.doc.apply(edits.add_transducer(w.doc.scene, (1.0, 1.0)), "place transducer")
+    assert w.isWindowModified()
+    monkeypatch.setattr(MainWindow, "ask_save", lambda self: QMessageBox.StandardButton.Cancel)
+    assert not w.close() and w.isVisible()
+    w.docks["plots"].hide()
+    monkeypatch.setattr(MainWindow, "ask_save", lambda self: QMessageBox.StandardButton.Discard)
+    assert w.close()
+    again = make_window(qtbot, tmp_path)
+    assert not again.docks["plots"].isVisible()
+    assert again.docks["stages"].isVisible()
+    again.close()
+
+
+def test_export_png_and_csv(qtbot, window, tmp_path):
+    w = window
+    assert w.open_file(ROOM)
+    w.doc.apply(edits.place_ring(edits.set_placement(w.doc.scene, "circular",
+                                                     center=(5.0, 5.0)), (5.0, 5.0)), "ring")
+    result = run_and_wait(qtbot, w)
+    for name in ("scene", "stage-raw", "stage-profile", "a-scan", "window"):
+        png = tmp_path / f"{name}.png"
+        w.export_png(name, str(png))
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    csv = tmp_path / "profile.csv"
+    assert w.export_csv(str(csv))
+    lines = csv.read_text().splitlines()
+    assert lines[0] == "x,y" and len(lines) == 1 + len(result.profile.points)
+
+
+def test_run_error_is_a_message(qtbot, window):
+    w = window
+    w.device = "no-such-device"
+    with qtbot.waitSignal(w.runFailed, timeout=RUN_TIMEOUT_MS) as blocker:
+        w.run_action.trigger()
+    assert "no-such-device" in blocker.args[0]
+    assert "run failed" in w.statusBar().currentMessage()
+    assert w.run_action.isEnabled() and not w.busy
+
+
+def test_job_cancel_between_stages(qtbot):
+    gate = threading.Event()
+
+    def fn(progress):
+        progress("first", 1, 2)
+        gate.wait(30)
+        progress("second", 2, 2)
+        return "done"
+
+    job = Job(fn)
+    with qtbot.waitSignal(job.progressed, timeout=10_000):
+        job.start()
+    with qtbot.waitSignal(job.cancelled, timeout=10_000):
+        job.cancel()
+        gate.set()
+    job.wait()
+    assert job.stages == ["first"]
+
+
+def test_main_bad_scene(tmp_path, capsys):
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({"clsonar": 1, "extent": [0, 0, 1, 1], "cell": -1}))
+    assert main([str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.json" in err[0] and "cell" in err[0]
+
+
+def test_core_imports_no_qt():
+    """The core package (every module but clsonar.gui) loads neither PySide6 nor pyqtgraph."""
+    core = sorted(m.name for m in pkgutil.iter_modules(clsonar.__path__, "clsonar.")
+                  if m.name not in ("clsonar.gui", "clsonar.__main__"))
+    assert "clsonar.pipeline" in core and "clsonar.cli" in core
+    code = ("import sys\n" + "".join(f"import {m}\n" for m in core) +
+            "print(sorted({k.split('.')[0] for k in sys.modules} & "
+            "{'PySide6', 'pyqtgraph', 'shiboken6'}))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120, check=True)
+    assert out.stdout.strip() == "[]"
+
+
+def test_qt_item_change_keeps_references():
+    """PySide6 6.12.0 drops a reference to None on every Python ``itemChange`` override
+    call (every pyqtgraph item has one), so a long session aborts the interpreter; the
+    installed PySide6 must not (pyproject.toml excludes 6.12.0)."""
+    import gc
+
+    item = pg.GraphicsObject()
+    parent = pg.GraphicsObject()
+    gc.collect()
+    before = sys.getrefcount(None)
+    for k in range(500):
+        item.setPos(k, k)
+        item.setParentItem(parent if k % 2 else None)
+    gc.collect()
+    assert sys.getrefcount(None) - before > -100
