@@ -86,13 +86,18 @@ TILES = {"CPU": (32, 32), "GPU": (32, 8), "other": (32, 8)}
 #: Loci a work-group copies into local memory at a time (kernel ``loci_tiles``).
 TILE_CHUNK = 64
 
-#: Largest device buffer the tiled accumulation draws into at once: a larger map is drawn in
-#: bands of whole tile rows, each copied into the host map (fewer where the device's largest
-#: buffer is smaller).
-MAX_BAND_BYTES = 256 << 20
+#: Most bytes of tiles the tiled accumulation draws per launch (less where the device's
+#: largest buffer is smaller): a map with more non-empty tiles is drawn in several launches,
+#: each launch's tiles copied into the host map, so no device buffer holds the whole map.
+MAX_LAUNCH_BYTES = 64 << 20
 
-#: (locus, tile) candidates the binning examines at once (bounds its temporary memory).
-BIN_CANDIDATES = 1 << 21
+#: Loci the binning takes at once: as many as have about this many tiles in their bounding
+#: boxes (bounds its temporary memory).
+BIN_CANDIDATES = 1 << 22
+
+#: The binning tests tiles of BIN_REFINE² times as many pixels first, from the coarsest
+#: level of at most 8 × 8 such tiles down, and only the children of those kept.
+BIN_REFINE = 4
 
 #: Reals per locus row in the kernels: (T, R), (axis T, axis R), (c·τ, weight, 0, 0).
 LOCUS_COLUMNS = 12
@@ -513,15 +518,15 @@ def _sector_boxes(apex: np.ndarray, axis: np.ndarray, alpha: float,
 def _beam_may_hold(centre: np.ndarray, apex: np.ndarray, axis: np.ndarray, alpha: float,
                    radius: np.ndarray) -> np.ndarray:
     """Whether a disc (``centre``, ``radius``) may hold points of the beam (a cone of
-    half-angle ``alpha`` about ``axis`` from ``apex``): the angle to the disc's centre is at
-    most alpha plus the disc's angular radius, or the disc holds the apex."""
+    half-angle ``alpha`` ≤ π/2 about ``axis`` from ``apex``): the disc holds the apex, or the
+    angle θ to its centre is at most alpha plus its angular radius s = asin(radius/d), i.e.
+    cos θ ≥ cos(alpha + s) = cos alpha·sqrt(d² − radius²)/d − sin alpha·radius/d."""
     d = centre - apex
-    dist = np.hypot(d[:, 0], d[:, 1])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cos = (axis[:, 0] * d[:, 0] + axis[:, 1] * d[:, 1]) / dist
-        spread = np.arcsin(np.minimum(1.0, radius / dist))
-        angle = np.arccos(np.clip(cos, -1.0, 1.0))
-    return (dist <= radius) | (angle <= alpha + spread)
+    dist2 = d[:, 0] ** 2 + d[:, 1] ** 2
+    along = axis[:, 0] * d[:, 0] + axis[:, 1] * d[:, 1]
+    return ((dist2 <= radius * radius)
+            | (along >= math.cos(alpha) * np.sqrt(np.maximum(dist2 - radius * radius, 0.0))
+               - math.sin(alpha) * radius))
 
 
 def bin_loci(pb: MapProblem, tile: tuple[int, int]) -> TileBins:
@@ -574,32 +579,61 @@ def bin_loci(pb: MapProblem, tile: tuple[int, int]) -> TileBins:
         last = np.clip(np.floor(hi / cell - origin), -1, size)
         reach = (a >= f)[:, None] & (first <= last) & (last >= 0) & (first <= size - 1)
         reach = reach.all(axis=1)
-        step = np.array([tw, th])
-        t_first = (np.clip(first, 0, size - 1) // step).astype(np.int64)
-        t_last = (np.clip(last, 0, size - 1) // step).astype(np.int64)
-        span = np.where(reach[:, None], t_last - t_first + 1, 0)
-        count = span[:, 0] * span[:, 1]
-        h = 0.5 * cell * math.hypot(tw - 1, th - 1)
-        ends = np.cumsum(count)
+        levels = 0  # coarse levels of BIN_REFINE² tiles each, down to ≤ 8 × 8 tiles
+        while -(-max(ntx, nty) // BIN_REFINE ** levels) > 8:
+            levels += 1
+
+        def tiles_of(level: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            """Per locus, its first and last tile (x, y) at ``level``, and whether any."""
+            step = np.array([tw, th]) * BIN_REFINE ** level
+            t_first = (np.clip(first, 0, size - 1) // step).astype(np.int64)
+            t_last = (np.clip(last, 0, size - 1) // step).astype(np.int64)
+            return t_first, t_last, reach
+
+        def may_vote(li, tx, ty, level: int) -> np.ndarray:
+            """Indices of the (locus, tile) candidates that pass the ring and beam tests."""
+            w, hh = tw * BIN_REFINE ** level, th * BIN_REFINE ** level
+            centre = np.stack([(g.col0 + tx * w + 0.5 * (w - 1)) * cell,
+                               (g.row0 + ty * hh + 0.5 * (hh - 1)) * cell], axis=1)
+            radius = 0.5 * cell * math.hypot(w - 1, hh - 1) + pad[li]
+            path = np.hypot(*(centre - T[li]).T) + np.hypot(*(centre - R[li]).T)
+            keep = np.flatnonzero(np.abs(path - L[li]) <= hb + 2.0 * radius)
+            for apex, axis in ((T, aT), (R, aR)):
+                j = li[keep]
+                keep = keep[_beam_may_hold(centre[keep], apex[j], axis[j], alpha, radius[keep])]
+            return keep
+
+        bounds = [tiles_of(level) for level in range(levels + 1)]
+        span0 = np.where(reach[:, None], bounds[0][1] - bounds[0][0] + 1, 0)
+        ends = np.cumsum(span0[:, 0] * span0[:, 1])  # fine candidates: bounds each chunk
+        top_first, top_last, _ = bounds[levels]
+        top_span = np.where(reach[:, None], top_last - top_first + 1, 0)
         i0 = 0
-        while i0 < len(rows):  # loci in chunks of about BIN_CANDIDATES candidates
+        while i0 < len(rows):  # loci in chunks of about BIN_CANDIDATES fine candidates
             base = ends[i0 - 1] if i0 else 0
             i1 = max(i0 + 1, int(np.searchsorted(ends, base + BIN_CANDIDATES, side="right")))
             i1 = min(i1, len(rows))
-            cnt = count[i0:i1]
+            cnt = top_span[i0:i1, 0] * top_span[i0:i1, 1]
             li = np.repeat(np.arange(i0, i1), cnt)
             k = np.arange(len(li)) - np.repeat(np.cumsum(cnt) - cnt, cnt)
-            tx = t_first[li, 0] + k % span[li, 0]
-            ty = t_first[li, 1] + k // span[li, 0]
-            centre = np.stack([(g.col0 + tx * tw + 0.5 * (tw - 1)) * cell,
-                               (g.row0 + ty * th + 0.5 * (th - 1)) * cell], axis=1)
-            reach_h = h + pad[li]
-            path = (np.hypot(*(centre - T[li]).T) + np.hypot(*(centre - R[li]).T))
-            keep = np.abs(path - L[li]) <= hb + 2.0 * reach_h
-            keep &= _beam_may_hold(centre, T[li], aT[li], alpha, reach_h)
-            keep &= _beam_may_hold(centre, R[li], aR[li], alpha, reach_h)
-            pairs_tile.append((ty * ntx + tx)[keep])
-            pairs_locus.append(li[keep])
+            tx = top_first[li, 0] + k % top_span[li, 0]
+            ty = top_first[li, 1] + k // top_span[li, 0]
+            for level in range(levels, -1, -1):
+                if level < levels:  # the children of the tiles kept a level up, in bounds
+                    sub = np.arange(BIN_REFINE)
+                    shape = (len(li), BIN_REFINE, BIN_REFINE)
+                    tx = np.broadcast_to(tx[:, None, None] * BIN_REFINE + sub, shape).ravel()
+                    ty = np.broadcast_to(ty[:, None, None] * BIN_REFINE + sub[:, None],
+                                         shape).ravel()
+                    li = np.repeat(li, BIN_REFINE * BIN_REFINE)
+                    lo_t, hi_t, _ = bounds[level]
+                    inside = ((tx >= lo_t[li, 0]) & (tx <= hi_t[li, 0])
+                              & (ty >= lo_t[li, 1]) & (ty <= hi_t[li, 1]))
+                    li, tx, ty = li[inside], tx[inside], ty[inside]
+                keep = may_vote(li, tx, ty, level)
+                li, tx, ty = li[keep], tx[keep], ty[keep]
+            pairs_tile.append(ty * ntx + tx)
+            pairs_locus.append(li)
             i0 = i1
     tile_of = np.concatenate(pairs_tile) if pairs_tile else np.zeros(0, np.int64)
     locus = np.concatenate(pairs_locus) if pairs_locus else np.zeros(0, np.int64)
@@ -615,8 +649,9 @@ class AccumulationStats:
     (0 when dense), ``tiles_skipped`` of them empty (no locus can vote there: not
     launched), ``pixel_locus_tests`` the pixel-locus tests the kernel made (tiles launched ×
     pixels per tile × loci listed; dense: the padded map × every locus), ``dense_tests``
-    what the dense kernel makes (the padded map × every locus), ``bands`` device buffers
-    the map was drawn in, ``tile`` the tile shape (pixels along x, y) or None."""
+    what the dense kernel makes (the padded map × every locus), ``launches`` of the tiled
+    kernel (of at most :data:`MAX_LAUNCH_BYTES` of tiles each; dense: 1), ``tile`` the tile
+    shape (pixels along x, y) or None."""
 
     tiled: bool
     tile: tuple[int, int] | None
@@ -624,7 +659,7 @@ class AccumulationStats:
     tiles_skipped: int
     pixel_locus_tests: int
     dense_tests: int
-    bands: int
+    launches: int
 
     def as_dict(self) -> dict[str, object]:
         """The counters as a JSON-ready dict."""
@@ -728,10 +763,27 @@ def _tile_shape(kernel, device, vec: int) -> tuple[int, int]:
     return tw, max(1, min(th, limit // (tw // vec)))
 
 
+def _place_tiles(result: np.ndarray, tiles: np.ndarray, ty: np.ndarray, tx: np.ndarray
+                 ) -> None:
+    """Copy ``tiles`` [k, th, tw] into ``result`` [ny, nx] at tile rows ``ty``, columns
+    ``tx``: whole tiles at once through a strided view, the map's partial last ones cut."""
+    ny, nx = result.shape
+    _, th, tw = tiles.shape
+    whole = ((ty + 1) * th <= ny) & ((tx + 1) * tw <= nx)
+    s0, s1 = result.strides
+    view = np.lib.stride_tricks.as_strided(
+        result, (ny // th, nx // tw, th, tw), (th * s0, tw * s1, s0, s1), writeable=True)
+    view[ty[whole], tx[whole]] = tiles[whole]
+    for k in np.flatnonzero(~whole):
+        y, x = ty[k] * th, tx[k] * tw
+        h, w = min(th, ny - y), min(tw, nx - x)
+        result[y:y + h, x:x + w] = tiles[k, :h, :w]
+
+
 def _run_tiles(ctx, pb: MapProblem, precision: str) -> tuple[np.ndarray, AccumulationStats]:
     """Draw the loci map tile by tile (kernel ``loci_tiles``, one work-group per tile that
-    :func:`bin_loci` lists any locus for), in bands of whole tile rows of at most
-    :data:`MAX_BAND_BYTES` (and the device's largest buffer), each copied into the host map."""
+    :func:`bin_loci` lists any locus for), at most :data:`MAX_LAUNCH_BYTES` of tiles (and the
+    device's largest buffer) per launch, each launch's tiles copied into the host map."""
     import pyopencl as cl
 
     device = ctx.devices[0]
@@ -744,44 +796,40 @@ def _run_tiles(ctx, pb: MapProblem, precision: str) -> tuple[np.ndarray, Accumul
     bins = bin_loci(pb, (tw, th))
     nty, ntx = bins.shape
     counts = bins.counts
-    dense = _dense_stats(ctx, pb, precision).dense_tests
-    pitch = ntx * tw
-    limit = min(MAX_BAND_BYTES, int(device.max_mem_alloc_size), int(device.global_mem_size) // 2)
-    band = max(1, min(nty, limit // (pitch * th * itemsize)))
+    live = np.flatnonzero(counts)
+    limit = min(MAX_LAUNCH_BYTES, int(device.max_mem_alloc_size), int(device.global_mem_size) // 2)
+    batch = max(1, limit // (tw * th * itemsize))
     result = np.zeros((g.ny, g.nx), dtype=real)
-    stats = AccumulationStats(True, (tw, th), ntx * nty, int(np.count_nonzero(counts == 0)),
-                              int(counts.sum()) * tw * th, dense, -(-nty // band))
-    if not counts.any():
+    stats = AccumulationStats(True, (tw, th), ntx * nty, ntx * nty - len(live),
+                              int(counts.sum()) * tw * th,
+                              _dense_stats(ctx, pb, precision).dense_tests,
+                              -(-len(live) // batch))
+    if len(live) == 0:
         return result, stats
     queue = queue_of(ctx)
     mf = cl.mem_flags
     rows_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                          hostbuf=np.ascontiguousarray(pb.rows, dtype=real))
-    out = cl.Buffer(ctx, mf.READ_WRITE, band * th * pitch * itemsize)
-    host = np.empty((band * th, pitch), dtype=real)
+    size = min(batch, len(live))
+    out = cl.Buffer(ctx, mf.WRITE_ONLY, size * th * tw * itemsize)
+    host = np.empty((size, th, tw), dtype=real)
     constants = (real(g.cell), real(pb.half_band), real(pb.cut_sin2), real(pb.beam_u),
-                 np.int32(g.col0))
+                 np.int32(g.col0), np.int32(g.row0))
     group = (tw // vec, th)
-    for b0 in range(0, nty, band):
-        b1 = min(nty, b0 + band)
-        ids = np.arange(b0 * ntx, b1 * ntx)
-        live = ids[counts[ids] > 0]
-        y0, y1 = b0 * th, min(g.ny, b1 * th)
-        if len(live) == 0:
-            continue  # the host map is zero there already
-        s0, s1 = int(bins.start[b0 * ntx]), int(bins.start[b1 * ntx])
+    for first in range(0, len(live), batch):
+        ids = live[first:first + batch]
+        s0, s1 = int(bins.start[ids[0]]), int(bins.start[ids[-1] + 1])
         members = np.ascontiguousarray(bins.members[s0:s1], dtype=np.int32)
-        start = np.append(bins.start[live] - s0, s1 - s0).astype(np.int32)
-        at = np.stack([(live % ntx) * tw, (live // ntx - b0) * th], axis=1).astype(np.int32)
+        start = np.append(bins.start[ids] - s0, s1 - s0).astype(np.int32)
+        ty, tx = ids // ntx, ids % ntx
+        at = np.stack([tx * tw, ty * th], axis=1).astype(np.int32)
         bufs = [cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
-                for a in (members, start, np.ascontiguousarray(at))]
-        cl.enqueue_fill_buffer(queue, out, np.zeros(1, dtype=real), 0,
-                               (b1 - b0) * th * pitch * itemsize)
-        kernel(queue, (len(live) * group[0], group[1]), group, rows_buf, *bufs, *constants,
-               np.int32(g.row0 + y0), out, np.int64(0), np.int32(pitch))
-        cl.enqueue_copy(queue, host, out)
+                for a in (members, start, at)]
+        kernel(queue, (len(ids) * group[0], group[1]), group, rows_buf, *bufs, *constants,
+               out)
+        cl.enqueue_copy(queue, host[:len(ids)], out)
         queue.finish()
-        result[y0:y1] = host[:y1 - y0, :g.nx]
+        _place_tiles(result, host[:len(ids)], ty, tx)
     return result, stats
 
 
@@ -809,7 +857,7 @@ def accumulate(scene: Scene, sensors: SensorArray, loci, *, context=None,
                settings: MappingSettings | None = None, tiles: bool = True) -> np.ndarray:
     """The loci map ``[ny, nx]`` of ``scene`` drawn by the OpenCL kernel ``loci_tiles``
     (``tiles``, default: each tile of the map tests only the loci that can reach it, empty
-    tiles are skipped, a map larger than a device buffer is drawn in bands) or ``loci_map``
+    tiles are skipped, no device buffer holds the whole map) or ``loci_map``
     (not ``tiles``: every pixel tests every locus). Both give the same map, to the bit.
 
     ``loci``: any object with ``tx``, ``rx``, ``tof_s`` and ``amplitude`` arrays

@@ -161,14 +161,15 @@ __kernel void loci_map(__constant real4 *loci, int n_loci, real cell, real half_
 
 // Tiled loci: the same votes, each tile of the map testing only the loci whose band can
 // reach it (clsonar/mapping.py bins them on the host, conservatively). One work-group per
-// non-empty tile: work item (lx, ly) of group t owns the VEC pixels of buffer row
-// at[t].y + ly from column at[t].x + lx·VEC (the group is TILE_W/VEC × TILE_H items);
-// columns and rows count from (col0, row0) relative to the origin pixel as above. The
-// tile's loci are loci[members[k]] for k = start[t] .. start[t + 1] − 1, in the original
-// order, so every pixel adds the same votes in the same order as loci_map: the same map, to
-// the bit. They are copied TILE_CHUNK at a time into local memory by the whole group (one
-// global read per locus and group, then every work item reads local memory). The sum
-// starts at 0; tiles not launched are left as the host cleared them.
+// non-empty tile of tw × th pixels (the group is tw/VEC × th work items): work item
+// (lx, ly) of group t owns the VEC pixels at column col0 + at[t].x + lx·VEC and row
+// row0 + at[t].y + ly (counted from the origin pixel as above) and writes them, tile after
+// tile, to out[t·tw·th + ly·tw + lx·VEC ...]; the host puts the tiles in place. The tile's
+// loci are loci[members[k]] for k = start[t] .. start[t + 1] − 1, in the original order, so
+// every pixel adds the same votes in the same order as loci_map: the same map, to the bit.
+// They are copied TILE_CHUNK at a time into local memory by the whole group (one global
+// read per locus and group, then every work item reads local memory). Empty tiles are not
+// launched.
 #ifndef TILE_CHUNK
 #define TILE_CHUNK 64
 #endif
@@ -176,17 +177,17 @@ __kernel void loci_map(__constant real4 *loci, int n_loci, real cell, real half_
 __kernel void loci_tiles(__global const real4 *loci, __global const int *members,
                          __global const int *start, __global const int2 *at, real cell,
                          real half_band, real cut_sin2, real beam_u, int col0, int row0,
-                         __global real *out, long out_offset, int pitch) {
+                         __global real *out) {
     __local real4 chunk[3 * TILE_CHUNK];
     size_t t = get_group_id(0);
     int lx = (int)get_local_id(0), ly = (int)get_local_id(1);
+    int tw = (int)get_local_size(0) * VEC;
     int me = ly * (int)get_local_size(0) + lx;
     int items = (int)(get_local_size(0) * get_local_size(1));
     int2 a = at[t];
-    int bx = a.x + lx * VEC, by = a.y + ly;
-    __global real *o = out + out_offset + (size_t)by * (size_t)pitch + (size_t)bx;
-    realv px = ((realv)((real)(col0 + bx)) + LANES) * cell;
-    real py = (real)(row0 + by) * cell;
+    __global real *o = out + t * (size_t)(tw * (int)get_local_size(1)) + ly * tw + lx * VEC;
+    realv px = ((realv)((real)(col0 + a.x + lx * VEC)) + LANES) * cell;
+    real py = (real)(row0 + a.y + ly) * cell;
     realv acc = (realv)(R(0.0));
     int end = start[t + 1];
     for (int c = start[t]; c < end; c += TILE_CHUNK) {

@@ -1,6 +1,6 @@
 """Tiled locus accumulation (clsonar/mapping.py ``bin_loci``, kernel ``loci_tiles``): the same
 map as the dense kernel to the bit, in both precisions and weights, whatever the tile shape,
-the band size and where the loci fall; the counters; maps drawn in bands."""
+the tiles per launch and where the loci fall; the counters; maps drawn in several launches."""
 
 from __future__ import annotations
 
@@ -49,15 +49,15 @@ def loci_of(scene: Scene, rows) -> Loci:
                 r[:, 3].copy())
 
 
-def draw_both(scene, sensors, loci, precision, tile=None, band_bytes=None):
-    """(dense map, tiled map, tiled stats), the tiles of ``tile`` pixels drawn in bands of
-    at most ``band_bytes``."""
+def draw_both(scene, sensors, loci, precision, tile=None, launch_bytes=None):
+    """(dense map, tiled map, tiled stats), the tiles of ``tile`` pixels drawn at most
+    ``launch_bytes`` of them per launch."""
     patches = []
     if tile is not None:
         patches.append(mock.patch.dict(mapping.TILES, {"CPU": tile, "GPU": tile,
                                                        "other": tile}))
-    if band_bytes is not None:
-        patches.append(mock.patch.object(mapping, "MAX_BAND_BYTES", band_bytes))
+    if launch_bytes is not None:
+        patches.append(mock.patch.object(mapping, "MAX_LAUNCH_BYTES", launch_bytes))
     kw = dict(context=context(), precision=precision)
     dense, _ = accumulate_with_stats(scene, sensors, loci, tiles=False, **kw)
     for p in patches:
@@ -77,7 +77,7 @@ def draw_both(scene, sensors, loci, precision, tile=None, band_bytes=None):
 def tile_cases(draw):
     """A map 20–150 cells a side (not a multiple of any tile), 1–4 transducers in, on the
     edge of or outside it, 0–8 loci through a point near an edge or a corner of the map, just
-    reaching it, or missing it; a tile shape and a band size."""
+    reaching it, or missing it; a tile shape and the bytes of tiles per launch."""
     cell = draw(st.sampled_from([0.005, 0.01, 0.023]))
     nx, ny = draw(st.integers(20, 150)), draw(st.integers(20, 150))
     x0, y0 = draw(st.floats(-50.0, 50.0)), draw(st.floats(-50.0, 50.0))
@@ -114,16 +114,16 @@ def tile_cases(draw):
             path = draw(st.sampled_from([0.0, 1e3]))  # misses the map (or is a point)
         rows.append((t, r, path, draw(st.floats(0.1, 5.0))))
     tile = draw(st.sampled_from([None, (8, 4), (16, 2), (8, 16)]))
-    band_bytes = draw(st.sampled_from([None, 1, 5000]))
-    return scene, sensors_of(transducers), loci_of(scene, rows), tile, band_bytes
+    launch_bytes = draw(st.sampled_from([None, 1, 5000]))
+    return scene, sensors_of(transducers), loci_of(scene, rows), tile, launch_bytes
 
 
 @settings(max_examples=150, deadline=None)
 @given(tile_cases())
 def test_tiled_map_equals_dense_map_to_the_bit(case):
-    scene, sensors, loci, tile, band_bytes = case
+    scene, sensors, loci, tile, launch_bytes = case
     for precision in precisions():
-        dense, tiled, stats = draw_both(scene, sensors, loci, precision, tile, band_bytes)
+        dense, tiled, stats = draw_both(scene, sensors, loci, precision, tile, launch_bytes)
         assert tiled.dtype == dense.dtype and tiled.shape == dense.shape == scene.grid_shape
         assert np.array_equal(tiled, dense), (
             f"{precision}: {np.count_nonzero(tiled != dense)} pixels differ, first at "
@@ -133,8 +133,8 @@ def test_tiled_map_equals_dense_map_to_the_bit(case):
         assert stats.tiled and stats.tiles_total == -(-nx // tw) * -(-ny // th)
         if tile is not None:
             assert stats.tile == tile
-        if band_bytes == 1:
-            assert stats.bands == -(-ny // th)
+        if launch_bytes == 1:  # one tile per launch
+            assert stats.launches == stats.tiles_total - stats.tiles_skipped
         assert 0 <= stats.tiles_skipped <= stats.tiles_total
         if len(loci) == 0:
             assert stats.tiles_skipped == stats.tiles_total and stats.pixel_locus_tests == 0
@@ -183,11 +183,11 @@ def test_loci_that_miss_the_map_are_binned_nowhere():
     assert stats.pixel_locus_tests == 0 and stats.dense_tests > 0
 
 
-# --------------------------------------------------------------------------- counters, bands
+# ------------------------------------------------------------------------ counters, launches
 
 
 @pytest.mark.parametrize("precision", ["float32", "float64"])
-def test_counters_and_bands(precision):
+def test_counters_and_launches(precision):
     if precision not in precisions():
         pytest.skip("the OpenCL device has no cl_khr_fp64")
     scene = scene_of((0.0, 0.0, 3.0, 2.5), 0.01, weight="beam")
@@ -202,11 +202,11 @@ def test_counters_and_bands(precision):
     assert stats.tiles_skipped == int(np.count_nonzero(counts == 0)) > 20
     assert stats.pixel_locus_tests == int(counts.sum()) * 32 * 32
     assert stats.pixel_locus_tests < stats.dense_tests / 3
-    assert stats.bands == 1
+    assert stats.launches == 1
     assert stats.as_dict()["tile"] == [32, 32]
-    # a band of one tile row at a time: the same map, drawn in as many bands as tile rows
-    _, banded, small = draw_both(scene, sensors, loci, precision, (32, 32), band_bytes=1)
-    assert np.array_equal(banded, tiled) and small.bands == 8
+    # one tile per launch: the same map, in as many launches as tiles drawn
+    _, split, small = draw_both(scene, sensors, loci, precision, (32, 32), launch_bytes=1)
+    assert np.array_equal(split, tiled) and small.launches == 80 - stats.tiles_skipped
     assert small.pixel_locus_tests == stats.pixel_locus_tests
     # dense: every pixel of the padded map tests every locus
     _, dense_stats = accumulate_with_stats(scene, sensors, loci, context=context(),
@@ -216,10 +216,10 @@ def test_counters_and_bands(precision):
     assert dense_stats.dense_tests >= 300 * 250 * 5
 
 
-@pytest.mark.parametrize("seed, weight, tile, band_bytes", [
+@pytest.mark.parametrize("seed, weight, tile, launch_bytes", [
     (0, "unit", (8, 4), None), (1, "beam", (8, 4), 1), (2, "amplitude", None, 20000),
     (3, "unit", (16, 8), None)])
-def test_many_loci_across_many_tile_edges(seed, weight, tile, band_bytes):
+def test_many_loci_across_many_tile_edges(seed, weight, tile, launch_bytes):
     """200 loci of 12 transducers around and inside a 2.57 m × 1.93 m map (not a multiple of
     any tile), half of them bistatic, wide and narrow beams: thousands of voted pixels on
     tile edges, the same to the bit."""
@@ -235,7 +235,7 @@ def test_many_loci_across_many_tile_edges(seed, weight, tile, band_bytes):
     path = (np.hypot(*(q - sensors.positions[t]).T) + np.hypot(*(q - sensors.positions[r]).T))
     loci = Loci(t, r, path / scene.medium.c, rng.uniform(0.5, 2.0, 200))
     for precision in precisions():
-        dense, tiled, stats = draw_both(scene, sensors, loci, precision, tile, band_bytes)
+        dense, tiled, stats = draw_both(scene, sensors, loci, precision, tile, launch_bytes)
         assert np.count_nonzero(dense) > 2000
         assert np.array_equal(tiled, dense), np.count_nonzero(tiled != dense)
         assert stats.pixel_locus_tests < stats.dense_tests
