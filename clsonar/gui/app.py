@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import tempfile
 from pathlib import Path
 
 from PySide6.QtCore import (
@@ -518,13 +519,17 @@ def main(argv: list[str] | None = None) -> int:
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setOrganizationName(ORGANISATION)
     app.setApplicationName(APP_NAME)
-    window = MainWindow(args.scene, device=args.device)
     if args.screenshot:
-        window.resize(1600, 1000)
-        screenshot(window, args.screenshot)
-        window.doc.discard_recovery()
+        # the default layout, whatever a user's settings hold; no recovery file left behind
+        with tempfile.TemporaryDirectory() as tmp:
+            settings = QSettings(os.path.join(tmp, "settings.ini"), QSettings.Format.IniFormat)
+            window = MainWindow(args.scene, device=args.device, settings=settings,
+                                recovery_dir=tmp)
+            window.resize(1600, 1000)
+            screenshot(window, args.screenshot)
         status = 0
     else:
+        window = MainWindow(args.scene, device=args.device)
         window.show()
         status = app.exec()
     # delete the window while Qt still runs, not in the interpreter's final collection

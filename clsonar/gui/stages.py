@@ -10,15 +10,16 @@ from PySide6.QtCore import QPointF, Signal
 from PySide6.QtWidgets import QComboBox, QGridLayout, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 from ..pipeline import RunResult
-from .views import PROFILE_PEN, TRUTH_PEN, map_rect, truth_paths
+from .views import PROFILE_PEN, map_rect, truth_paths
+
+#: The true geometry over a map: thin and light, so the map under it stays visible.
+TRUTH_OVER_MAP_PEN = pg.mkPen((220, 30, 30, 150), width=1)
 
 #: The stage views, by key, with their titles.
 STAGE_VIEWS = {"raw": "raw accumulation", "filtered": "low-pass filtered (eq. 2.4)",
                "thin": "thinned", "profile": "fitted profile"}
 SIDE_BY_SIDE = "side by side"
 NO_RUN = "no run yet: press Run (F5)"
-#: Largest number of cells a side shown on screen (maxima of blocks beyond it).
-DISPLAY_CELLS = 500
 
 
 def cell_at(result: RunResult, x: float, y: float) -> tuple[int, int] | None:
@@ -37,16 +38,31 @@ def stage_image(result: RunResult, key: str) -> np.ndarray:
     return np.asarray(image, dtype=np.float32)
 
 
-def shown(image: np.ndarray, limit: int = DISPLAY_CELLS) -> np.ndarray:
-    """``image`` reduced to at most ``limit`` cells a side by block maxima, so that
-    one-cell curves and single votes stay visible on screen (as plots.map_png does)."""
-    k = max(1, -(-max(image.shape) // limit))
-    if k == 1:
+def block_max(image: np.ndarray, k: int) -> np.ndarray:
+    """``image`` reduced by maxima of ``k`` × ``k`` blocks (zero-padded at the far edges),
+    so that one-cell curves and single votes stay visible when a map cell is smaller than
+    a screen pixel (as plots.map_png does)."""
+    if k <= 1:
         return image
     ny, nx = image.shape
     pad = np.zeros((-(-ny // k) * k, -(-nx // k) * k), dtype=image.dtype)
     pad[:ny, :nx] = image
     return pad.reshape(pad.shape[0] // k, k, pad.shape[1] // k, k).max(axis=(1, 3))
+
+
+def votes_colormap() -> pg.ColorMap:
+    """viridis for votes, with empty cells white: sparse maps stay readable."""
+    viridis = pg.colormap.get("viridis")
+    colours = viridis.getLookupTable(nPts=64, alpha=False)
+    stops = np.concatenate([[0.0], np.linspace(0.01, 1.0, 64)])
+    return pg.ColorMap(stops, np.concatenate([[[255, 255, 255]], colours]))
+
+
+def top_level(image: np.ndarray) -> float:
+    """The colour bar's top: the 99th percentile of the non-zero cells (at least 1), so
+    the few cells where many votes coincide do not leave the rest of the map dark."""
+    set_cells = image[image > 0]
+    return max(1.0, float(np.percentile(set_cells, 99))) if set_cells.size else 1.0
 
 
 class StageView(pg.GraphicsLayoutWidget):
@@ -65,11 +81,11 @@ class StageView(pg.GraphicsLayoutWidget):
         self.plot.addItem(self.image)
         binary = key in ("thin", "profile")
         cmap = (pg.ColorMap([0.0, 1.0], [(255, 255, 255), (0, 0, 0)]) if binary
-                else pg.colormap.get("viridis"))
+                else votes_colormap())
         self.bar = pg.ColorBarItem(colorMap=cmap, label="cell set" if binary else "votes",
                                    interactive=not binary, width=12)
         self.bar.setImageItem(self.image, insert_in=self.plot)
-        self.truth = pg.PlotCurveItem(pen=TRUTH_PEN, connect="finite")
+        self.truth = pg.PlotCurveItem(pen=TRUTH_OVER_MAP_PEN, connect="finite")
         self.plot.addItem(self.truth)
         self.profile = pg.PlotCurveItem(pen=PROFILE_PEN, connect="finite")
         self.vertices = pg.ScatterPlotItem(symbol="x", size=10, pen=pg.mkPen("r", width=2))
@@ -77,18 +93,37 @@ class StageView(pg.GraphicsLayoutWidget):
             self.plot.addItem(self.profile)
             self.plot.addItem(self.vertices)
         self.data: np.ndarray | None = None
+        self.scene_ = None
+        self.k = 0  # block size of the image on screen
         self.scene().sigMouseMoved.connect(self._moved)
+        self.plot.vb.sigRangeChanged.connect(self._render)
+        self.plot.vb.sigResized.connect(self._render)
+
+    def cells_per_pixel(self) -> float:
+        """Map cells per screen pixel at the current zoom (≥ 1: a pixel holds many cells)."""
+        (x0, x1), _ = self.plot.vb.viewRange()
+        pixels = max(1.0, float(self.plot.vb.width()))
+        return (x1 - x0) / self.scene_.cell / pixels
+
+    def _render(self, *_: object) -> None:
+        """Show the map with blocks of as many cells as one screen pixel holds."""
+        if self.data is None:
+            return
+        k = max(1, int(np.ceil(self.cells_per_pixel() - 1e-9)))
+        if k == self.k:
+            return
+        self.k = k
+        view = block_max(self.data, k)
+        self.image.setImage(view, autoLevels=False)
+        self.image.setRect(map_rect(self.scene_, (view.shape[0] * k, view.shape[1] * k)))
+        self.bar.setLevels((0.0, top_level(view)))
 
     def show_result(self, result: RunResult) -> None:
         image = stage_image(result, self.key)
         self.data = image
-        view = shown(image)
-        self.image.setImage(view, autoLevels=False)
-        # a padded block-maxima image covers whole blocks: scale its rectangle to match
-        k = -(-max(image.shape) // max(view.shape))
-        self.image.setRect(map_rect(result.scene, (view.shape[0] * k, view.shape[1] * k)))
-        top = float(image.max()) if image.size else 1.0
-        self.bar.setLevels((0.0, top if top > 0 else 1.0))
+        self.scene_ = result.scene
+        self.k = 0
+        self._render()
         self.truth.setData(*truth_paths(result.geometry))
         if self.key == "profile":
             curves = result.profile.curves
