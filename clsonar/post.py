@@ -201,9 +201,14 @@ def trace_curves(thin_map: np.ndarray, min_cells: int = 5) -> list[np.ndarray]:
     (spurs, specks) are dropped.
     """
     t = np.asarray(thin_map, dtype=bool)
-    degree = ndimage.correlate(t.astype(np.uint8), _EIGHT.astype(np.uint8), mode="constant") - 1
-    cells = set(zip(*np.nonzero(t), strict=True))
-    node = {c for c in cells if degree[c] != 2}
+    rows, cols = voted_box(t, margin=1)  # only the set cells' box is looked at
+    part = t[rows, cols]
+    degree = ndimage.correlate(part.astype(np.uint8), _EIGHT.astype(np.uint8),
+                               mode="constant") - 1
+    iy, ix = np.nonzero(part)
+    cells = set(zip((iy + rows.start).tolist(), (ix + cols.start).tolist(), strict=True))
+    node = {(y + rows.start, x + cols.start)
+            for y, x in zip(iy.tolist(), ix.tolist(), strict=True) if degree[y, x] != 2}
     used_edges: set[tuple] = set()
     curves = []
 
