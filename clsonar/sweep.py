@@ -41,7 +41,7 @@ import re
 import socket
 import sys
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -705,7 +705,3 @@ def read_sweep(folder: str | os.PathLike[str]) -> tuple[dict[str, Any], list[dic
     done = RunTable(folder).rows()
     return header, [done[i] for i in header["runs"] if i in done]
 
-
-def iter_rows(rows: Iterable[dict[str, Any]], **where: Any) -> Iterator[dict[str, Any]]:
-    """The rows whose columns equal ``where``."""
-    return (r for r in rows if all(r.get(k) == v for k, v in where.items()))
