@@ -14,7 +14,13 @@ shared; ratios taken in one run are what to compare, absolute seconds wander):
   program a user would otherwise write), with the speed ratio, the pixel-locus tests per
   second, and whether the maps agree (float64: identical; float32: share of equal pixels).
 
-Results go to ``bench.md`` and ``bench.json``, written atomically.
+- **skipping**: the pipeline with every skip on and off (:mod:`clsonar.tradeoff`), the
+  speed-up and whether the output is identical.
+- **run time against error**: the thesis' shapes under every knob of
+  :data:`clsonar.tradeoff.KNOBS`, the Pareto front and the settings that beat the
+  thesis-faithful ones on both time and error on every shape (``tradeoff.png``).
+
+Results go to ``bench.md``, ``bench.json`` and ``tradeoff.png``, written atomically.
 """
 
 from __future__ import annotations
@@ -29,6 +35,15 @@ from pathlib import Path
 import numpy as np
 
 from .scene import Scene, load_scene, write_atomic
+from .tradeoff import (
+    SkipRow,
+    TradeoffRow,
+    beats_thesis,
+    bench_skips,
+    bench_tradeoff,
+    fastest_run,
+    tradeoff_png,
+)
 
 #: The scenes benchmarked by default: the thesis' shapes at their first distance and rooms.
 DEFAULT_SCENES = ("plane-2m", "corner-4m", "edge-1m", "cylinder-2.1m", "sinusoid-1m", "room",
@@ -79,10 +94,7 @@ def best_time(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
 def bench_pipeline(scene: Scene, settings: str, preset: str | None, context,
                    repeat: int) -> PipelineRow:
     """Time the whole pipeline on ``scene`` (the run with the shortest total counts)."""
-    from .pipeline import run
-
-    runs = [run(scene, context=context, preset=preset) for _ in range(max(1, repeat))]
-    fastest = min(runs, key=lambda r: sum(r.seconds.values()))
+    fastest = fastest_run(scene, context, repeat, preset=preset)
     m = fastest.metrics
     return PipelineRow(scene.name, settings, dict(fastest.seconds),
                        float(sum(fastest.seconds.values())), m["rms_m"],
@@ -177,46 +189,113 @@ def markdown(pipeline: list[PipelineRow], accumulation: list[AccumulationRow],
     return "\n".join(lines) + "\n"
 
 
+@dataclass(frozen=True)
+class BenchReport:
+    """Everything one ``clsonar bench`` measured (written to ``bench.md``/``bench.json``)."""
+
+    device: str
+    pipeline: list[PipelineRow]
+    accumulation: list[AccumulationRow]
+    skips: list[SkipRow]
+    tradeoff: list[TradeoffRow]
+    beats_thesis: list[str]
+
+
+#: The thesis' shapes (the trade-off table runs every knob on these).
+THESIS_SCENES = ("plane-2m", "corner-4m", "edge-1m", "cylinder-2.1m", "sinusoid-1m")
+
+
+def skips_markdown(rows: list[SkipRow]) -> list[str]:
+    lines = ["", "## What skipping saves", "",
+             "The whole pipeline with every skip on (pairs whose beams meet no surface, "
+             "noise-free pairs without an echo, empty tiles of the accumulation, "
+             "post-processing outside the voted cells' box) and with every skip off "
+             "(`clsonar run --no-skip all`); the output must be identical.", "",
+             "| scene | settings | skipping s | no skipping s | speed-up | identical output "
+             "| pairs | skipped (no surface) | skipped (silent) | cells post-processed |",
+             "| --- | --- |" + " ---: |" * 8]
+    for r in rows:
+        c = r.counts
+        lines.append(
+            f"| {r.scene} | {r.settings} | {r.skipping_s:.3f} | {r.no_skipping_s:.3f} | "
+            f"{r.speedup:.1f}× | {'yes' if r.identical else 'NO'} | {c.get('pairs', 0):,} | "
+            f"{c.get('pairs_skipped_empty', 0):,} | {c.get('pairs_skipped_silent', 0):,} | "
+            f"{c.get('cells_post_processed', 0):,} of {c.get('map_cells', 0):,} |")
+    return lines
+
+
+def tradeoff_markdown(rows: list[TradeoffRow], winners: list[str]) -> list[str]:
+    lines = ["", "## Run time against error: the knobs", "",
+             "Each thesis scene under the thesis-faithful settings, ours, and ours with one "
+             "knob turned; ★ marks the Pareto front (no other setting is both faster and more "
+             "accurate). Plot: `tradeoff.png`.", "",
+             "| scene | setting | total s | accuracy RMS (cm) | RMS eq. 2.6 (cm) | "
+             "completeness ≤ 2 cm | Pareto |", "| --- | --- |" + " ---: |" * 4 + " :---: |"]
+    for r in rows:
+        comp = "–" if r.completeness_2cm is None else f"{r.completeness_2cm * 100:.0f} %"
+        lines.append(f"| {r.scene} | {r.setting} | {r.total_s:.3f} | {_cm(r.accuracy_m)} | "
+                     f"{_cm(r.rms_m)} | {comp} | {'★' if r.pareto else ''} |")
+    lines += ["", "Faster and more accurate than the thesis-faithful settings on every thesis "
+              "scene: " + (", ".join(f"**{w}**" for w in winners) if winners else "none") + "."]
+    return lines
+
+
 def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DEFAULT_SCENES,
           *, repeat: int = 3, numpy: bool = True, device: str | None = None,
           progress: Callable[[int, int, str], None] | None = None,
-          command: str = "clsonar bench --out docs/bench"
-          ) -> tuple[list[PipelineRow], list[AccumulationRow]]:
+          command: str = "clsonar bench --out docs/bench") -> BenchReport:
     """Benchmark the ``names`` scenes of ``scenes_dir`` (default: the bundled ones) and write
-    ``bench.md`` and ``bench.json`` into ``out``."""
+    ``bench.md``, ``bench.json`` and ``tradeoff.png`` into ``out``: the pipeline under both
+    settings, the accumulation against NumPy, skipping on against off, and (for the thesis'
+    shapes among ``names``) the knobs' run time against error."""
     from .opencl import get_context
     from .reproduce import bundled_scenes
 
     context = get_context(device)
     folder = scenes_dir or bundled_scenes()
     scenes = [load_scene(folder / f"{name}.json") for name in names]
-    pipeline, accumulation = [], []
-    steps = len(scenes) * (len(SETTINGS) + 1)
+    shapes = [s for s in scenes if s.name in THESIS_SCENES]
+    pipeline, accumulation, skips, trade = [], [], [], []
+    steps = len(scenes) * (2 * len(SETTINGS) + 1) + len(shapes)
     step = 0
-    for scene in scenes:
-        for label, preset in SETTINGS:
-            step += 1
-            if progress is not None:
-                progress(step, steps, f"{scene.name}: pipeline, {label} settings")
-            pipeline.append(bench_pipeline(scene, label, preset, context, repeat))
+
+    def tell(what: str) -> None:
+        nonlocal step
         step += 1
         if progress is not None:
-            progress(step, steps, f"{scene.name}: accumulation")
+            progress(step, steps, what)
+
+    for scene in scenes:
+        for label, preset in SETTINGS:
+            tell(f"{scene.name}: pipeline, {label} settings")
+            pipeline.append(bench_pipeline(scene, label, preset, context, repeat))
+            tell(f"{scene.name}: skipping on and off, {label} settings")
+            skips.append(bench_skips(scene, label, preset, context, repeat))
+        tell(f"{scene.name}: accumulation")
         accumulation.append(bench_accumulation(scene, context, repeat, numpy))
-    device_name = f"{context.devices[0].name.strip()} ({context.devices[0].platform.name.strip()})"
+    for scene in shapes:
+        tell(f"{scene.name}: run time against error")
+        trade += bench_tradeoff(scene, context, repeat)
+    d = context.devices[0]
+    report = BenchReport(f"{d.name.strip()} ({d.platform.name.strip()})", pipeline,
+                         accumulation, skips, trade, beats_thesis(trade))
+    text = markdown(pipeline, accumulation, report.device, command)
+    text += "\n".join(skips_markdown(skips) + (tradeoff_markdown(trade, report.beats_thesis)
+                                               if trade else [])) + "\n"
     out.mkdir(parents=True, exist_ok=True)
-    write_atomic(out / "bench.md", markdown(pipeline, accumulation, device_name,
-                                            command).encode())
-    write_atomic(out / "bench.json", (json.dumps(
-        {"device": device_name, "pipeline": [dataclasses.asdict(r) for r in pipeline],
-         "accumulation": [dataclasses.asdict(a) for a in accumulation]},
-        indent=1) + "\n").encode())
-    return pipeline, accumulation
+    write_atomic(out / "bench.md", text.encode())
+    if trade:
+        write_atomic(out / "tradeoff.png", tradeoff_png(trade))
+    write_atomic(out / "bench.json", (json.dumps(dataclasses.asdict(report), indent=1)
+                                      + "\n").encode())
+    return report
 
 
 __all__ = [
     "DEFAULT_SCENES",
+    "THESIS_SCENES",
     "AccumulationRow",
+    "BenchReport",
     "PipelineRow",
     "bench",
     "bench_accumulation",

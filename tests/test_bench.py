@@ -13,12 +13,12 @@ from clsonar.scene import load_scene
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    pipeline, accumulation = bench(out, names=("plane-2m",), repeat=1)
-    return out, pipeline, accumulation
+    report = bench(out, names=("plane-2m",), repeat=1)
+    return out, report.pipeline, report.accumulation, report
 
 
 def test_bench_writes_both_settings_and_an_identical_float64_map(report):
-    out, pipeline, accumulation = report
+    out, pipeline, accumulation, _ = report
     assert [(r.scene, r.settings) for r in pipeline] == [("plane-2m", "thesis"),
                                                           ("plane-2m", "best")]
     for r in pipeline:
@@ -50,3 +50,33 @@ def test_bench_refuses_an_unknown_scene(tmp_path, capsys):
     assert main(["bench", "--out", str(tmp_path / "b"), "--scenes", "nope"]) == 2
     assert "nope" in capsys.readouterr().err
     assert not (tmp_path / "b").exists()
+
+
+def test_bench_skipping_keeps_the_output_and_knobs_are_compared(report):
+    out, _, _, full = report
+    assert [r.settings for r in full.skips] == ["thesis", "best"]
+    for r in full.skips:
+        assert r.identical and r.counts["pairs_skipped_empty"] > 0
+    settings = [r.setting for r in full.tradeoff]
+    assert settings[:3] == ["thesis", "thesis, 2 cm", "ours"] and "ours, 5 cm" in settings
+    assert any(r.pareto for r in full.tradeoff)
+    ours = next(r for r in full.tradeoff if r.setting == "ours")
+    thesis = next(r for r in full.tradeoff if r.setting == "thesis")
+    assert ours.accuracy_m < thesis.accuracy_m
+    assert (out / "tradeoff.png").read_bytes().startswith(b"\x89PNG")
+    text = (out / "bench.md").read_text()
+    assert "## What skipping saves" in text and "## Run time against error: the knobs" in text
+
+
+def test_pareto_front_and_settings_that_beat_the_thesis():
+    from clsonar.tradeoff import TradeoffRow, beats_thesis, pareto
+
+    def row(scene, setting, t, err):
+        return TradeoffRow(scene, setting, t, err, None, None)
+
+    rows = pareto([row("a", "thesis", 1.0, 0.05), row("a", "ours", 0.5, 0.01),
+                   row("a", "ours, 2 cm", 0.4, 0.02), row("a", "ours, 5 cm", 0.6, None),
+                   row("b", "thesis", 1.0, None), row("b", "ours", 0.9, 0.03),
+                   row("b", "ours, 2 cm", 1.1, 0.01)])
+    assert [r.pareto for r in rows] == [False, True, True, False, False, True, True]
+    assert beats_thesis(rows) == ["ours"]
