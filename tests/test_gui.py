@@ -353,3 +353,62 @@ def test_qt_item_change_keeps_references():
         item.setParentItem(parent if k % 2 else None)
     gc.collect()
     assert sys.getrefcount(None) - before > -100
+
+
+def test_selected_sinusoid_numbers_in_parameters(qtbot, window):
+    """A selected surface's numbers (here a sinusoid's amplitude) are edited in the
+    parameters panel, as one undo step."""
+    w, canvas = window, window.canvas
+    canvas.set_tool("sinusoid")
+    canvas.click((2.0, 1.0))
+    canvas.click((2.0, 9.0))
+    canvas.select(("surface", 0))
+    qtbot.waitUntil(lambda: "selected" in w.params.params.names)
+    assert w.params.params.child("selected", "amplitude").value() == 0.2
+    w.params.set("selected", "amplitude", 0.35)
+    assert w.doc.scene.surfaces[0].amplitude == 0.35
+    w.params.set("selected", "end", "3, 9")
+    assert w.doc.scene.surfaces[0].end == (3.0, 9.0)
+    assert w.doc.undo.count() == 3
+    w.undo_action.trigger()
+    w.undo_action.trigger()
+    assert w.doc.scene.surfaces[0].amplitude == 0.2
+
+
+PLANE = str(importlib.resources.files("clsonar.scenes") / "plane-2m.json")
+
+
+def test_sweeps_bench_and_ascan(qtbot, window):
+    """RMS against distance and noise, and run time against error, run in a worker; the
+    numbers are those of the pipeline itself. The A-scan shows the chosen pair."""
+    from clsonar import pipeline, reproduce
+
+    w = window
+    assert w.open_file(PLANE)
+    scene = w.doc.scene
+    with qtbot.waitSignal(w.plots.sweepFinished, timeout=RUN_TIMEOUT_MS) as blocker:
+        assert w.plots.sweep("distance", [2.0, 4.0])
+    kind, points = blocker.args
+    assert kind == "distance" and [d for d, _ in points] == [2.0, 4.0]
+    direct = pipeline.run(reproduce.at_distance(scene, 2.0, 4.0)).metrics["rms_m"]
+    assert points[1][1] == pytest.approx(direct)
+    xs, ys = w.plots.distance_plot.getPlotItem().listDataItems()[0].getData()
+    assert list(xs) == [2.0, 4.0] and ys[1] == pytest.approx(direct)
+
+    with qtbot.waitSignal(w.plots.sweepFinished, timeout=RUN_TIMEOUT_MS) as blocker:
+        assert w.plots.sweep("noise", [0.0, 0.5])
+    _, points = blocker.args
+    direct = pipeline.run(reproduce.with_seed(scene, 0, 0.5)).metrics["rms_m"]
+    assert points[1] == (0.5, pytest.approx(direct))
+
+    with qtbot.waitSignal(w.plots.sweepFinished, timeout=RUN_TIMEOUT_MS) as blocker:
+        assert w.plots.run_bench()
+    _, rows = blocker.args
+    assert [r["settings"] for r in rows] == ["thesis", "best"]
+    assert all(r["total_s"] > 0 and r["rms_m"] is not None for r in rows)
+
+    result = run_and_wait(qtbot, w)
+    tx, rx = int(result.detections.tx[0]), int(result.detections.rx[0])
+    assert (w.plots.tx.value(), w.plots.rx.value()) == (tx, rx)
+    n_det = int(np.count_nonzero((result.detections.tx == tx) & (result.detections.rx == rx)))
+    assert w.plots.ascan.getPlotItem().titleLabel.text.endswith(f"{n_det} detections")

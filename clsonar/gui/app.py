@@ -94,6 +94,7 @@ class MainWindow(QMainWindow):
         self.runs = {"full": 0, "post": 0}  # finished runs of each kind
         self.last_stages: list[str] = []  # the stages the last finished job ran
         self._post_again = False
+        self._generation = 0  # bumped when another scene is opened: older runs are dropped
 
         self.doc = Document(new_scene(), None, self.recovery_dir)
         self.doc.setParent(self)
@@ -112,6 +113,7 @@ class MainWindow(QMainWindow):
         self._actions()
         for source in (self.canvas, self.params, self.plots):
             source.message.connect(self.show_message)
+        self.canvas.selectionChanged.connect(self.params.set_selection)
         self._connect_doc()
         self._opened()
         self.resize(1500, 950)
@@ -227,6 +229,7 @@ class MainWindow(QMainWindow):
     def _opened(self) -> None:
         """After a new or opened scene: drop the old run, offer to recover unsaved work."""
         self.cancel()
+        self._generation += 1
         self.result = None
         self.stages.readout.setText(NO_RUN)
         self._title()
@@ -355,6 +358,7 @@ class MainWindow(QMainWindow):
         if self.busy:
             return False
         job = Job(fn, kind, self)
+        job.generation = self._generation
         job.progressed.connect(self._progress)
         job.succeeded.connect(lambda r, j=job: self._done(j, r))
         job.failed.connect(lambda m, j=job: self._failed(j, m))
@@ -388,6 +392,8 @@ class MainWindow(QMainWindow):
 
     def _done(self, job: Job, result: pipeline.RunResult) -> None:
         self._finish(job)
+        if job.generation != self._generation:
+            return  # a run of a scene that is no longer open
         self.runs[job.name] += 1
         self.result = result
         self.stages.show_result(result)

@@ -106,11 +106,14 @@ def add_transducer(scene: Scene, position: Point, heading_deg: float = 0.0,
     return dataclasses.replace(scene, sensors=sensors)
 
 
-def replace_transducer(scene: Scene, index: int, position: Point, heading_deg: float) -> Scene:
-    """``scene`` with explicit transducer ``index`` moved/turned (its group kept)."""
+def replace_transducer(scene: Scene, index: int, position: Point, heading_deg: float,
+                       group: int | None = None) -> Scene:
+    """``scene`` with explicit transducer ``index`` moved/turned (its group kept unless
+    given)."""
     ts = list(scene.sensors.transducers)
     ts[index] = Transducer((float(position[0]), float(position[1])),
-                           float(heading_deg) % 360.0, ts[index].group)
+                           float(heading_deg) % 360.0,
+                           ts[index].group if group is None else int(group))
     return dataclasses.replace(scene, sensors=dataclasses.replace(scene.sensors,
                                                                   transducers=tuple(ts)))
 

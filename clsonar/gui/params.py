@@ -22,6 +22,7 @@ from .editor import Document
 
 NONE_TEXT = "auto"
 NO_PLACEMENT = "none"
+SELECTED = "selected"
 
 
 def to_param(name: str, value: Any, options: tuple[Any, ...] | None) -> dict[str, Any]:
@@ -53,10 +54,10 @@ def from_text(text: str, old: Any) -> Any:
     return float(t)
 
 
-def group_spec(name: str, obj: Any) -> dict[str, Any]:
-    """A parameter group for one settings dataclass."""
+def group_spec(name: str, obj: Any, skip: tuple[str, ...] = ("type",)) -> dict[str, Any]:
+    """A parameter group for one settings dataclass (fields in ``skip`` left out)."""
     children = [to_param(f.name, getattr(obj, f.name), edits.choices(type(obj), f.name))
-                for f in dataclasses.fields(obj) if f.name != "type"]
+                for f in dataclasses.fields(obj) if f.name not in skip]
     return {"name": name, "type": "group", "children": children}
 
 
@@ -70,12 +71,34 @@ def placement_spec(scene: Scene) -> dict[str, Any]:
     return {"name": "placement", "type": "group", "children": children}
 
 
-def tree_spec(scene: Scene) -> list[dict[str, Any]]:
-    """Every group of the panel for ``scene``."""
+def selected_object(scene: Scene, key: tuple[str, int] | None) -> Any:
+    """The surface or explicit transducer that ``key`` names in ``scene`` (None if gone)."""
+    if key is None:
+        return None
+    kind, i = key
+    items = scene.surfaces if kind == "surface" else scene.sensors.transducers
+    return items[i] if i < len(items) else None
+
+
+def selection_spec(scene: Scene, key: tuple[str, int] | None) -> dict[str, Any] | None:
+    """A group with the numbers of the selected surface or transducer (a sinusoid's
+    amplitude and period, a circle's radius, a polyline's ``closed``, a heading…)."""
+    obj = selected_object(scene, key)
+    if obj is None:
+        return None
+    spec = group_spec(SELECTED, obj, skip=("points",))  # vertices: drag their handles
+    spec["title"] = f"selected: {key[0]} {key[1]} ({type(obj).__name__.lower()})"
+    return spec
+
+
+def tree_spec(scene: Scene, selected: tuple[str, int] | None = None) -> list[dict[str, Any]]:
+    """Every group of the panel for ``scene`` (the selection's first, if any)."""
     top = {"name": "scene", "type": "group", "children": [
         to_param("name", scene.name, None), to_param("cell", scene.cell, None)]}
-    return [top, *(group_spec(g, getattr(scene, g)) for g in edits.SETTING_GROUPS),
-            placement_spec(scene)]
+    groups = [top, *(group_spec(g, getattr(scene, g)) for g in edits.SETTING_GROUPS),
+              placement_spec(scene)]
+    sel = selection_spec(scene, selected)
+    return groups if sel is None else [sel, *groups]
 
 
 class ParamsPanel(QObject):
@@ -89,6 +112,7 @@ class ParamsPanel(QObject):
         self.params: Parameter | None = None
         self._updating = False
         self._pending = False
+        self.selected: tuple[str, int] | None = None
         self.set_document(doc)
 
     def set_document(self, doc: Document) -> None:
@@ -108,11 +132,16 @@ class ParamsPanel(QObject):
         self._updating = True
         try:
             self.params = Parameter.create(name="settings", type="group",
-                                           children=tree_spec(self.doc.scene))
+                                           children=tree_spec(self.doc.scene, self.selected))
             self.params.sigTreeStateChanged.connect(self._changed)
             self.tree.setParameters(self.params, showTop=False)
         finally:
             self._updating = False
+
+    def set_selection(self, key: tuple[str, int] | None) -> None:
+        """Show the numbers of the surface or transducer ``key`` (None: nothing selected)."""
+        self.selected = key
+        self._schedule()
 
     def set(self, group: str, key: str, value: Any) -> None:
         """Set one parameter as if typed in the panel (tests, scripts)."""
@@ -140,6 +169,17 @@ class ParamsPanel(QObject):
 
     def _edited(self, group: str, key: str, value: Any) -> Scene:
         scene = self.doc.scene
+        if group == SELECTED:
+            obj = selected_object(scene, self.selected)
+            old = getattr(obj, key)
+            if isinstance(value, str) and not isinstance(old, str):
+                value = from_text(value, old)
+            new = dataclasses.replace(obj, **{key: value})
+            kind, i = self.selected
+            if kind == "surface":
+                return edits.replace_surface(scene, i, new)
+            return edits.replace_transducer(scene, i, new.position, new.heading_deg,
+                                            new.group)
         if group == "placement":
             if key == "type":
                 if value == NO_PLACEMENT:
