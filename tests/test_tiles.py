@@ -5,6 +5,7 @@ the tiles per launch and where the loci fall; the counters; maps drawn in severa
 from __future__ import annotations
 
 import functools
+import json
 import math
 from unittest import mock
 
@@ -239,3 +240,46 @@ def test_many_loci_across_many_tile_edges(seed, weight, tile, launch_bytes):
         assert np.count_nonzero(dense) > 2000
         assert np.array_equal(tiled, dense), np.count_nonzero(tiled != dense)
         assert stats.pixel_locus_tests < stats.dense_tests
+
+
+BIG_MAP = """
+import json, resource
+import numpy as np
+from clsonar import mapping
+from clsonar.mapping import Loci
+from clsonar.opencl import get_context
+from clsonar.scene import MappingSettings, Scene, TransducerModel
+from clsonar.sensors import SensorArray
+scene = Scene(name="hall", extent=(0.0, 0.0, 100.0, 100.0), cell=0.01,
+              transducer=TransducerModel(half_beam_deg=12.0), mapping=MappingSettings())
+rng = np.random.default_rng(5)
+n, N = 100, 300
+xy, aim = rng.uniform(10, 90, (n, 2)), rng.uniform(-180, 180, n)
+sensors = SensorArray(xy, aim, np.zeros(n, dtype=np.int64), np.zeros((0, 2)))
+t = rng.integers(0, n, N)
+q = xy[t] + rng.uniform(1, 30, N)[:, None] * np.stack(
+    [np.cos(np.radians(aim[t])), np.sin(np.radians(aim[t]))], axis=1)
+loci = Loci(t, t, 2 * np.hypot(*(q - xy[t]).T) / scene.medium.c, np.ones(N))
+m, stats = mapping.accumulate_with_stats(scene, sensors, loci, context=get_context())
+m += 1  # touch every page, as a caller would
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+print(json.dumps({"shape": list(m.shape), "dtype": str(m.dtype), "peak": peak,
+                  "voted": int(np.count_nonzero(m > 1)), **stats.as_dict()}))
+"""
+
+
+@pytest.mark.slow
+def test_a_hundred_metre_hall_at_one_centimetre_fits_in_2_gb():
+    """10⁸ cells (issue 5): 400 MB of float32 map, drawn in launches of at most
+    MAX_LAUNCH_BYTES of tiles; the process' peak resident memory stays under 2 GB."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-c", BIG_MAP], capture_output=True, text=True,
+                          timeout=300, check=True)
+    got = json.loads(done.stdout.splitlines()[-1])
+    assert got["shape"] == [10000, 10000] and got["dtype"] == "float32"
+    assert got["voted"] > 50_000 and got["tiles_total"] == 313 * 313
+    assert got["tiles_skipped"] > got["tiles_total"] // 2 and got["launches"] >= 1
+    assert got["pixel_locus_tests"] < 1e-3 * got["dense_tests"]
+    assert got["peak"] < 2e9, f"peak resident memory {got['peak'] / 1e9:.2f} GB"
