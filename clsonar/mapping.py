@@ -36,9 +36,16 @@ as float64 does except those within a few float32 roundings of a band edge or a 
 
 Performance: one work item computes 8 pixels of a row as one float8 vector on a CPU (PoCL
 does not vectorise across work items a kernel with a loop), one pixel on a GPU; the loop over
-loci is branch-free; loci go to ``__constant`` memory in blocks of at most
-:data:`MAX_ROWS_PER_LAUNCH`. The kernels work on a rectangle of pixels around their own
-origin, the shape a tiled version will launch per tile.
+loci is branch-free. :func:`accumulate` works on tiles (default): :func:`bin_loci` bounds
+each locus' band on the host (the bounding box of its outer ellipse ∩ those of its two beam
+sectors, then per tile the ring and beam tests widened by the tile's half-diagonal, coarse
+tiles first) and lists per tile, in locus order, the loci that can vote there; the kernel
+``loci_tiles`` runs one work-group per non-empty tile with its loci in local memory, and empty
+tiles are never launched. The map is the dense one to the bit (same votes, same order). At
+most :data:`MAX_LAUNCH_BYTES` of tiles are drawn per launch, so the device never holds the
+whole map: a 100 m × 100 m floor at 1 cm (10⁸ cells) takes 0.4 GB of host memory in float32.
+``tiles=False`` runs the dense kernel ``loci_map`` (loci in ``__constant`` memory in blocks of
+at most :data:`MAX_ROWS_PER_LAUNCH`), every pixel against every locus.
 """
 
 from __future__ import annotations

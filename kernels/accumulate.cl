@@ -7,7 +7,8 @@
 // coordinate the host passes (transducers relative to it, in float64 before rounding to
 // `real`). So a pixel centre is exactly ((real)col·cell, (real)row·cell): small integers
 // times the cell, one rounding, and distances are differences of small numbers. The host
-// puts the origin in the middle of the rectangle (a future tile gets its own).
+// puts the origin in the middle of the map (tiles share it, so that a tiled map is the
+// dense one to the bit).
 //
 // Vectorisation: PoCL's CPU device does not vectorise a kernel across work items when its
 // body holds a loop, so each work item computes VEC pixels as one realN vector (VEC = 8
