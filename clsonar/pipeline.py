@@ -18,8 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import __version__, mapping, metrics, post, rooms, signals
+from . import __version__, mapping, metrics, post, regions, rooms, signals
 from .echoes import EchoTable, compute_echoes
+from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
 from .opencl import get_context
 from .scene import DetectionSettings, MappingSettings, PostSettings, Scene, scene_to_dict
@@ -110,6 +111,9 @@ class Skips:
     #: post-processing: only the box of the voted cells is filtered and thinned
     #: (post.voted_box; line of sight's own pass too)
     empty_cells: bool = True
+    #: separate closed rooms mapped one by one (regions.split_rooms): no pair across rooms,
+    #: no wall of another room, no cell outside every room
+    rooms: bool = True
 
     @classmethod
     def none(cls) -> Skips:
@@ -176,6 +180,9 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     """
     scene = apply_preset(scene, preset)
     ctx = context if context is not None else get_context(device)
+    rooms = regions.split_rooms(scene) if skips.rooms else None
+    if rooms is not None:
+        return _run_rooms(scene, rooms, ctx, skips, progress)
     # Refuse a grid that cannot be held before any work is done (one clear message).
     mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
                              host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
@@ -217,6 +224,84 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     front = RunResult(scene, geom, sensors, echoes, detections, raw, raw, raw, raw,
                       post.Profile(()), {}, clock.stop(), counts, device_name, point_sums)
     return rerun_post(front, scene.post, progress=progress, skips=skips)
+
+
+#: Host memory the mosaic of a scene mapped room by room holds per cell: raw and filtered
+#: maps (float32), the occupied and thin maps.
+MOSAIC_BYTES_PER_CELL = 10
+
+
+def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
+               progress: Progress | None) -> RunResult:
+    """Run each room of ``scene`` on its own (:mod:`clsonar.regions`) and put the results
+    together: the maps as a mosaic on the scene's grid, the rooms' curves, vertices,
+    transducers, echoes and detections side by side, metrics pooled, seconds and counts
+    summed."""
+    mapping.check_map_memory(scene, scene.mapping.precision, None,
+                             host_bytes_per_cell=MOSAIC_BYTES_PER_CELL)
+    shape = scene.grid_shape
+    raw = np.zeros(shape, np.float32)
+    filtered = np.zeros(shape, np.float32)
+    occupied = np.zeros(shape, bool)
+    thin = np.zeros(shape, bool)
+    parts: list[RunResult] = []
+    seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+    counts: dict[str, int] = {}
+    inner = dataclasses.replace(skips, rooms=False)
+    for k, room in enumerate(rooms):
+        def tell(stage: str, i: int, n: int, k: int = k) -> None:
+            if progress is not None:
+                progress(stage, k * n + i, len(rooms) * n)
+
+        r = run(room.scene, context=ctx, skips=inner, progress=tell)
+        ny, nx = r.raw.shape
+        window = (slice(room.row0, room.row0 + ny), slice(room.col0, room.col0 + nx))
+        raw[window] += r.raw
+        filtered[window] += r.filtered
+        occupied[window] |= r.occupied
+        thin[window] |= r.thin
+        for stage, t in r.seconds.items():
+            seconds[stage] += t
+        for key, value in r.counts.items():
+            counts[key] = counts.get(key, 0) + value
+        # keep only what the whole floor needs of each room (its maps are in the mosaic)
+        parts.append(dataclasses.replace(r, raw=None, filtered=None, occupied=None, thin=None,
+                                         point_sums=None))
+    counts.update(map_cells=int(raw.size), cells_voted=int(np.count_nonzero(raw)),
+                  rooms_mapped=len(rooms))
+    sensors = SensorArray(*(np.concatenate([getattr(p.sensors, f) for p in parts])
+                            for f in ("positions", "headings_deg")),
+                          np.concatenate(_offset_groups([p.sensors.groups for p in parts])),
+                          np.concatenate([p.sensors.poses for p in parts]))
+    first = np.cumsum([0] + [len(p.sensors) for p in parts])
+    echoes = EchoTable(**_stack([p.echoes for p in parts], first, EchoTable))
+    found = signals.Detections(**_stack([p.detections for p in parts], first,
+                                        signals.Detections))
+    profile = post.Profile(tuple(c for p in parts for c in p.profile.curves),
+                           np.concatenate([p.profile.vertices for p in parts]))
+    return RunResult(scene, build_geometry(scene), sensors, echoes, found, raw, filtered,
+                     occupied, thin, profile,
+                     regions.combine_metrics([p.metrics for p in parts]), seconds, counts,
+                     _device_name(ctx))
+
+
+def _offset_groups(groups: list[np.ndarray]) -> list[np.ndarray]:
+    out, first = [], 0
+    for g in groups:
+        out.append(g + first)
+        first += int(g.max()) + 1 if len(g) else 0
+    return out
+
+
+def _stack(tables: list, first: np.ndarray, kind) -> dict[str, np.ndarray]:
+    """The columns of ``tables`` (echo tables or detections) one after another, their
+    ``tx``/``rx`` moved by each room's first transducer index ``first``."""
+    columns = {}
+    for f in dataclasses.fields(kind):
+        parts = [getattr(t, f.name) + (first[i] if f.name in ("tx", "rx") else 0)
+                 for i, t in enumerate(tables)]
+        columns[f.name] = np.concatenate(parts) if parts else np.zeros(0)
+    return columns
 
 
 def _sensors(scene: Scene) -> tuple[Geometry, SensorArray]:
@@ -275,6 +360,9 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
     The stages before it (sensors, echoes, detection, accumulation) are reused as they are,
     so changing a :class:`~clsonar.scene.PostSettings` value costs only post-processing.
     """
+    if result.counts.get("rooms_mapped"):
+        raise ClsonarError(f"{result.scene.name}: a scene mapped room by room cannot re-run "
+                           "its post-processing alone; run it again")
     scene = result.scene if settings is None else dataclasses.replace(result.scene,
                                                                       post=settings)
     raw, point_sums = result.raw, result.point_sums

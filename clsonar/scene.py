@@ -49,6 +49,24 @@ MAX_FILE_BYTES = 64 * 1024 * 1024
 #: Deepest JSON nesting accepted (the format needs 5 levels).
 MAX_DEPTH = 16
 
+#: Most JSON objects and lists (``{``/``[``, counted before parsing, strings included) and
+#: most list items (``,``) a scene may have: 50 000 points of polylines, so that any file is
+#: parsed and checked well within a second.
+MAX_CONTAINERS = 50_000
+MAX_SEPARATORS = 200_000
+
+#: Largest magnitude of a real-valued setting or coordinate (metres, seconds, hertz, …):
+#: anything beyond is a typo, and would overflow the geometry's float64 products.
+MAX_MAGNITUDE = 1e9
+
+#: Shortest wall segment, sinusoid base line and circle radius, metres (shorter ones
+#: underflow the geometry's squared lengths).
+MIN_LENGTH_M = 1e-6
+
+#: Most cells a map may have along x or y: more is refused on reading (a grid too large for
+#: any memory; mapping.check_map_memory judges the device and this machine).
+MAX_CELLS_PER_SIDE = 1e9
+
 Point = tuple[float, float]
 
 
@@ -320,8 +338,12 @@ Placement = RandomLines | Circular | WallFollowing | PerWall
 
 @dataclass(frozen=True)
 class Sensors:
+    """Explicit transducers, then those of ``placement``, then those of each of
+    ``placements`` (e.g. one wall-following ring per room of a floor)."""
+
     transducers: tuple[Transducer, ...] = ()
     placement: Placement | None = None
+    placements: tuple[Placement, ...] = ()
 
 
 # --------------------------------------------------------------------------- scene
@@ -384,7 +406,12 @@ class _Reader:
             if default is _MISSING:
                 raise self.fail(path, "missing required key")
             return default
-        return self.check_number(d[name], path, gt=gt, ge=ge, le=le, lt=lt)
+        return self._bounded(self.check_number(d[name], path, gt=gt, ge=ge, le=le, lt=lt), path)
+
+    def _bounded(self, v: float, path: str) -> float:
+        if abs(v) > MAX_MAGNITUDE:
+            raise self.fail(path, f"{v:.3g} is out of range (at most ±{MAX_MAGNITUDE:.0e})")
+        return v
 
     def check_number(self, v: Any, path: str, *, gt: float | None = None,
                      ge: float | None = None, le: float | None = None,
@@ -440,7 +467,8 @@ class _Reader:
     def vector(self, v: Any, path: str, length: int) -> tuple[float, ...]:
         if not isinstance(v, list) or len(v) != length:
             raise self.fail(path, f"must be a list of {length} numbers")
-        return tuple(self.check_number(x, f"{path}[{i}]") for i, x in enumerate(v))
+        return tuple(self._bounded(self.check_number(x, f"{path}[{i}]"), f"{path}[{i}]")
+                     for i, x in enumerate(v))
 
     def point(self, d: dict, name: str, key: str, default: Any = _MISSING) -> Point:
         path = _join(key, name)
@@ -583,12 +611,18 @@ def _read_polyline(r: _Reader, d: dict, key: str) -> Polyline:
     for i, j in pairs:
         if points[i] == points[j]:
             raise r.fail(f"{path}[{j}]", f"zero-length segment (same point as points[{i}])")
+        if math.dist(points[i], points[j]) < MIN_LENGTH_M:
+            raise r.fail(f"{path}[{j}]", f"segment from points[{i}] shorter than "
+                                         f"{MIN_LENGTH_M:g} m")
     return Polyline(points, closed)  # type: ignore[arg-type]
 
 
 def _read_circle(r: _Reader, d: dict, key: str) -> Circle:
     d = r.obj(d, key, ("type", "center", "radius"), ("center", "radius"))
-    return Circle(r.point(d, "center", key), r.number(d, "radius", key, gt=0))
+    radius = r.number(d, "radius", key, gt=0)
+    if radius < MIN_LENGTH_M:
+        raise r.fail(_join(key, "radius"), f"must be at least {MIN_LENGTH_M:g} m")
+    return Circle(r.point(d, "center", key), radius)
 
 
 def _read_sinusoid(r: _Reader, d: dict, key: str) -> Sinusoid:
@@ -597,6 +631,8 @@ def _read_sinusoid(r: _Reader, d: dict, key: str) -> Sinusoid:
     start, end = r.point(d, "from", key), r.point(d, "to", key)
     if start == end:
         raise r.fail(_join(key, "to"), "zero-length base line (same point as 'from')")
+    if math.dist(start, end) < MIN_LENGTH_M:
+        raise r.fail(_join(key, "to"), f"base line shorter than {MIN_LENGTH_M:g} m")
     return Sinusoid(start, end, r.number(d, "amplitude", key), r.number(d, "period", key, gt=0))
 
 
@@ -663,10 +699,10 @@ def per_wall_surface_problem(surfaces: tuple[Surface, ...], index: int) -> str:
     return ""
 
 
-def _read_placement(r: _Reader, d: Any, surfaces: tuple[Surface, ...] = ()) -> Placement | None:
+def _read_placement(r: _Reader, d: Any, surfaces: tuple[Surface, ...] = (),
+                    k: str = "sensors.placement") -> Placement | None:
     if d is None:
         return None
-    k = "sensors.placement"
     if not isinstance(d, dict):
         raise r.fail(k, f"must be an object, not {_type_name(d)}")
     kind = r.choice(d, "type", k, ("random-lines", "circular", "wall-following", "per-wall"))
@@ -711,9 +747,19 @@ def _read_placement(r: _Reader, d: Any, surfaces: tuple[Surface, ...] = ()) -> P
 
 
 def _read_sensors(r: _Reader, d: Any, surfaces: tuple[Surface, ...]) -> Sensors:
-    d = r.obj(d, "sensors", ("transducers", "placement"))
+    d = r.obj(d, "sensors", ("transducers", "placement", "placements"))
+    more = d.get("placements", [])
+    if not isinstance(more, list):
+        raise r.fail("sensors.placements", f"must be a list of placements, not "
+                                           f"{_type_name(more)}")
+    placements = []
+    for i, item in enumerate(more):
+        key = f"sensors.placements[{i}]"
+        if item is None:
+            raise r.fail(key, "must be an object, not null")
+        placements.append(_read_placement(r, item, surfaces, key))
     return Sensors(_read_transducers(r, d.get("transducers", []), "sensors.transducers"),
-                   _read_placement(r, d.get("placement"), surfaces))
+                   _read_placement(r, d.get("placement"), surfaces), tuple(placements))
 
 
 _TOP_KEYS = ("clsonar", "name", "extent", "cell", "medium", "transducer", "signal", "echo",
@@ -742,8 +788,12 @@ def scene_from_dict(data: Any, source: str = "<scene>") -> Scene:
     if not (extent[2] > extent[0] and extent[3] > extent[1]):
         raise r.fail("extent", "must be [xmin, ymin, xmax, ymax] with xmax > xmin and ymax > ymin")
     cell = r.number(d, "cell", "", 0.01, gt=0)
+    cells = max(extent[2] - extent[0], extent[3] - extent[1]) / cell
+    if not cells <= MAX_CELLS_PER_SIDE:  # also catches an infinite width or count
+        raise r.fail("cell", f"the extent is {cells:.3g} cells of {cell:g} m a side, more "
+                             f"than the {MAX_CELLS_PER_SIDE:.0e} any map can hold")
     surfaces = _read_surfaces(r, d.get("surfaces", []))
-    return Scene(
+    scene = Scene(
         name=name,
         extent=extent,  # type: ignore[arg-type]
         cell=cell,
@@ -757,6 +807,43 @@ def scene_from_dict(data: Any, source: str = "<scene>") -> Scene:
         surfaces=surfaces,
         sensors=_read_sensors(r, d.get("sensors", {}), surfaces),
     )
+    _check_work(r, scene)
+    return scene
+
+
+#: Most wall sequences (walls to the power echo.max_order) and explicitly fired pairs
+#: (the sum of each group's size squared) a scene may ask for: more would not fit in memory.
+MAX_WALL_SEQUENCES = 10**7
+MAX_EXPLICIT_PAIRS = 10**7
+
+#: Most sampling intervals of one sinusoid (its length / echo.curve_step_m).
+MAX_CURVE_SAMPLES = 10**6
+
+
+def _check_work(r: _Reader, scene: Scene) -> None:
+    """Refuse a scene whose echo model would need more memory than any machine has."""
+    walls = sum(len(s.points) - (0 if s.closed else 1)
+                for s in scene.surfaces if isinstance(s, Polyline))
+    if float(walls) ** scene.echo.max_order > MAX_WALL_SEQUENCES:
+        raise r.fail("echo.max_order", f"{walls} walls to the power {scene.echo.max_order} "
+                                       f"are more than the {MAX_WALL_SEQUENCES:.0e} reflection "
+                                       "sequences clsonar can hold: use a lower max_order or "
+                                       "fewer polyline points")
+    for i, s in enumerate(scene.surfaces):
+        if isinstance(s, Sinusoid):
+            samples = math.dist(s.start, s.end) / scene.echo.curve_step_m
+            if samples > MAX_CURVE_SAMPLES:
+                raise r.fail("echo.curve_step_m", f"surfaces[{i}] would be sampled at "
+                                                  f"{samples:.3g} points, more than "
+                                                  f"{MAX_CURVE_SAMPLES:.0e}: use a larger step")
+    groups: dict[int, int] = {}
+    for t in scene.sensors.transducers:
+        groups[t.group] = groups.get(t.group, 0) + 1
+    fired = sum(n * n for n in groups.values())
+    if fired > MAX_EXPLICIT_PAIRS:
+        raise r.fail("sensors.transducers", f"{fired} transmitter→receiver pairs fire, more "
+                                            f"than {MAX_EXPLICIT_PAIRS:.0e}: split the "
+                                            "transducers into smaller groups")
 
 
 def _reject_constant(name: str) -> float:
@@ -781,6 +868,8 @@ def parse_scene_text(text: str, source: str = "<scene>") -> Scene:
     """Parse JSON text of a scene; every problem is a :class:`SceneError` naming ``source``."""
     if not text.strip():
         raise SceneError("file is empty (expected a JSON scene object)", source=source)
+    if text.count(",") > MAX_SEPARATORS:
+        raise SceneError(f"too large: more than {MAX_SEPARATORS} list items", source=source)
     try:
         data = json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as e:
@@ -790,6 +879,9 @@ def parse_scene_text(text: str, source: str = "<scene>") -> Scene:
         raise SceneError(f"invalid JSON: {e}", source=source) from None
     except RecursionError:
         raise SceneError(f"JSON nested deeper than {MAX_DEPTH} levels", source=source) from None
+    if text.count("[") + text.count("{") > MAX_CONTAINERS:  # before walking every node
+        raise SceneError(f"too large: more than {MAX_CONTAINERS} JSON objects and lists",
+                         source=source)
     if _depth(data, MAX_DEPTH) > MAX_DEPTH:
         raise SceneError(f"JSON nested deeper than {MAX_DEPTH} levels", source=source)
     return scene_from_dict(data, source)
@@ -849,6 +941,7 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
         "transducers": [{"position": _point(t.position), "heading_deg": t.heading_deg,
                          "group": t.group} for t in scene.sensors.transducers],
         "placement": None if scene.sensors.placement is None else _plain(scene.sensors.placement),
+        "placements": [_plain(p) for p in scene.sensors.placements],
     }
     return {
         "clsonar": FORMAT_VERSION,

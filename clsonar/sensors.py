@@ -493,24 +493,26 @@ def place_sensors(scene: Scene, geom: Geometry | None = None) -> SensorArray:
     pos = np.asarray([t.position for t in explicit], dtype=np.float64).reshape(-1, 2)
     head = np.asarray([t.heading_deg for t in explicit], dtype=np.float64)
     groups = np.asarray([t.group for t in explicit], dtype=np.int64)
-    poses = np.zeros((0, 2))
-    placement = scene.sensors.placement
-    if placement is not None:
+    poses = [np.zeros((0, 2))]
+    placements = [p for p in (scene.sensors.placement, *scene.sensors.placements)
+                  if p is not None]
+    for placement in placements:
         if isinstance(placement, Circular):
-            p_pos, p_head, p_group, poses = place_circular(placement)
+            p_pos, p_head, p_group, p_poses = place_circular(placement)
         else:
             geom = geom if geom is not None else build_geometry(scene)
             if isinstance(placement, RandomLines):
-                p_pos, p_head, p_group, poses = place_random_lines(placement, scene, geom)
+                p_pos, p_head, p_group, p_poses = place_random_lines(placement, scene, geom)
             elif isinstance(placement, PerWall):
-                p_pos, p_head, p_group, poses = place_per_wall(placement, scene, geom)
+                p_pos, p_head, p_group, p_poses = place_per_wall(placement, scene, geom)
             else:
-                p_pos, p_head, p_group, poses = place_wall_following(placement, scene, geom)
+                p_pos, p_head, p_group, p_poses = place_wall_following(placement, scene, geom)
         first = int(groups.max()) + 1 if len(groups) else 0
         pos = np.concatenate([pos, p_pos])
         head = np.concatenate([head, p_head])
         groups = np.concatenate([groups, p_group + first])
-    return SensorArray(pos, head, groups, np.asarray(poses, dtype=np.float64).reshape(-1, 2))
+        poses.append(np.asarray(p_poses, dtype=np.float64).reshape(-1, 2))
+    return SensorArray(pos, head, groups, np.concatenate(poses))
 
 
 def pairs(sensors: SensorArray) -> np.ndarray:
