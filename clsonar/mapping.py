@@ -98,6 +98,9 @@ TILE_CHUNK = 64
 #: each launch's tiles copied into the host map, so no device buffer holds the whole map.
 MAX_LAUNCH_BYTES = 64 << 20
 
+#: Most (tile, locus) pairs per launch of the tiled kernel (it indexes them in 32 bits).
+MAX_PAIRS_PER_LAUNCH = 1 << 28
+
 #: Loci the binning takes at once: as many as have about this many tiles in their bounding
 #: boxes (bounds its temporary memory).
 BIN_CANDIDATES = 1 << 22
@@ -781,6 +784,22 @@ def _place_tiles(result: np.ndarray, tiles: np.ndarray, ty: np.ndarray, tx: np.n
         result[y:y + th, x:x + tw] = tiles[k, :min(th, ny - y), :min(tw, nx - x)]
 
 
+def _launches(start: np.ndarray, live: np.ndarray, most: int) -> list[np.ndarray]:
+    """``live`` tiles (ascending; tile k lists loci ``start[k]`` to ``start[k + 1]``) in
+    consecutive launches of at most ``most`` tiles and :data:`MAX_PAIRS_PER_LAUNCH`
+    (tile, locus) pairs (the kernel indexes them with 32-bit integers); a tile with more
+    pairs gets a launch of its own."""
+    out = []
+    ends = start[live + 1]
+    first = 0
+    while first < len(live):
+        cap = int(np.searchsorted(ends, start[live[first]] + MAX_PAIRS_PER_LAUNCH, side="right"))
+        last = max(first + 1, min(first + most, cap))
+        out.append(live[first:last])
+        first = last
+    return out
+
+
 def _run_tiles(ctx, pb: MapProblem, precision: str) -> tuple[np.ndarray, AccumulationStats]:
     """Draw the loci map tile by tile (kernel ``loci_tiles``, one work-group per tile that
     :func:`bin_loci` lists any locus for), at most :data:`MAX_LAUNCH_BYTES` of tiles (and the
@@ -799,26 +818,24 @@ def _run_tiles(ctx, pb: MapProblem, precision: str) -> tuple[np.ndarray, Accumul
     counts = bins.counts
     live = np.flatnonzero(counts)
     limit = min(MAX_LAUNCH_BYTES, int(device.max_mem_alloc_size), int(device.global_mem_size) // 2)
-    batch = max(1, limit // (tw * th * itemsize))
+    launches = _launches(bins.start, live, max(1, limit // (tw * th * itemsize)))
     result = np.zeros((g.ny, g.nx), dtype=real)
     stats = AccumulationStats(True, (tw, th), ntx * nty, ntx * nty - len(live),
                               int(counts.sum()) * tw * th,
-                              _dense_stats(ctx, pb, precision).dense_tests,
-                              -(-len(live) // batch))
+                              _dense_stats(ctx, pb, precision).dense_tests, len(launches))
     if len(live) == 0:
         return result, stats
     queue = queue_of(ctx)
     mf = cl.mem_flags
     rows_buf = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
                          hostbuf=np.ascontiguousarray(pb.rows, dtype=real))
-    size = min(batch, len(live))
+    size = max(map(len, launches))
     out = cl.Buffer(ctx, mf.WRITE_ONLY, size * th * tw * itemsize)
     host = np.empty((size, th, tw), dtype=real)
     constants = (real(g.cell), real(pb.half_band), real(pb.cut_sin2), real(pb.beam_u),
                  np.int32(g.col0), np.int32(g.row0))
     group = (tw // vec, th)
-    for first in range(0, len(live), batch):
-        ids = live[first:first + batch]
+    for ids in launches:
         s0, s1 = int(bins.start[ids[0]]), int(bins.start[ids[-1] + 1])
         members = np.ascontiguousarray(bins.members[s0:s1], dtype=np.int32)
         start = np.append(bins.start[ids] - s0, s1 - s0).astype(np.int32)

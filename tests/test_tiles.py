@@ -305,3 +305,14 @@ def test_every_vector_width_tiles_the_same_map(vec, group):
             tile = (32, 8) if vec == 1 else (32, 32)
             _, tiled, stats = draw_both(scene, sensors, loci, precision, tile)
             assert stats.tile == tile and np.array_equal(tiled, want)
+
+
+def test_launches_split_the_tiles_by_count_and_by_pairs(monkeypatch):
+    start = np.array([0, 3, 3, 10, 11, 11, 20])  # tiles 0..5: 3, 0, 7, 1, 0, 9 loci
+    live = np.array([0, 2, 3, 5])
+    split = mapping._launches
+    assert [x.tolist() for x in split(start, live, 10)] == [[0, 2, 3, 5]]
+    assert [x.tolist() for x in split(start, live, 3)] == [[0, 2, 3], [5]]
+    monkeypatch.setattr(mapping, "MAX_PAIRS_PER_LAUNCH", 8)
+    assert [x.tolist() for x in split(start, live, 10)] == [[0], [2, 3], [5]]
+    assert [x.tolist() for x in split(start, live[:0], 10)] == []
