@@ -660,8 +660,9 @@ class AccumulationStats:
     launched), ``pixel_locus_tests`` the pixel-locus tests the kernel made (tiles launched ×
     pixels per tile × loci listed; dense: the padded map × every locus), ``dense_tests``
     what the dense kernel makes (the padded map × every locus), ``launches`` of the tiled
-    kernel (of at most :data:`MAX_LAUNCH_BYTES` of tiles each; dense: 1), ``tile`` the tile
-    shape (pixels along x, y) or None."""
+    kernel (of at most :data:`MAX_LAUNCH_BYTES` of tiles each; dense: of at most
+    :data:`MAX_ROWS_PER_LAUNCH` loci each), ``tile`` the tile shape (pixels along x, y) or
+    None."""
 
     tiled: bool
     tile: tuple[int, int] | None
@@ -707,6 +708,13 @@ def _kernel(program, name: str):
     return cl.Kernel(program, name)
 
 
+def _rows_per_launch(device, columns: int, itemsize: int) -> int:
+    """Rows the dense kernels take per launch: :data:`MAX_ROWS_PER_LAUNCH`, or what half
+    the device's ``__constant`` memory holds."""
+    constant_rows = int(device.max_constant_buffer_size) // 2 // (columns * itemsize)
+    return max(1, min(MAX_ROWS_PER_LAUNCH, constant_rows))
+
+
 def _run(ctx, pb: MapProblem, precision: str, name: str) -> np.ndarray:
     """Launch kernel ``name`` over the whole map, rows in blocks; return the [ny, nx] map."""
     import pyopencl as cl
@@ -728,9 +736,7 @@ def _run(ctx, pb: MapProblem, precision: str, name: str) -> np.ndarray:
     queue = queue_of(ctx)
     mf = cl.mem_flags
     out = cl.Buffer(ctx, mf.READ_WRITE, pitch * items_y * itemsize)
-    columns = pb.rows.shape[1]
-    constant_rows = int(device.max_constant_buffer_size) // 2 // (columns * itemsize)
-    block = max(1, min(MAX_ROWS_PER_LAUNCH, constant_rows))
+    block = _rows_per_launch(device, pb.rows.shape[1], itemsize)
     if pb.envelopes is not None:
         env_bytes = pb.envelopes.shape[1] * itemsize
         block = max(1, min(block, int(device.max_mem_alloc_size) // 2 // env_bytes))
@@ -757,10 +763,12 @@ def _run(ctx, pb: MapProblem, precision: str, name: str) -> np.ndarray:
 
 
 def _dense_stats(ctx, pb: MapProblem, precision: str) -> AccumulationStats:
-    vec, (wgx, wgy) = LAUNCH[device_kind(ctx.devices[0]), precision]
+    device = ctx.devices[0]
+    vec, (wgx, wgy) = LAUNCH[device_kind(device), precision]
     items_x, items_y = _items(pb.grid.nx, pb.grid.ny, vec, wgx, wgy)
     tests = items_x * vec * items_y * len(pb.rows)
-    return AccumulationStats(False, None, 0, 0, tests, tests, 1)
+    block = _rows_per_launch(device, LOCUS_COLUMNS, np.dtype(PRECISIONS[precision]).itemsize)
+    return AccumulationStats(False, None, 0, 0, tests, tests, -(-len(pb.rows) // block))
 
 
 def _tile_shape(kernel, device, vec: int) -> tuple[int, int]:

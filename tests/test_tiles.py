@@ -214,7 +214,11 @@ def test_counters_and_launches(precision):
                                            precision=precision, tiles=False)
     assert not dense_stats.tiled and dense_stats.tiles_total == 0
     assert dense_stats.pixel_locus_tests == dense_stats.dense_tests == stats.dense_tests
-    assert dense_stats.dense_tests >= 300 * 250 * 5
+    assert dense_stats.dense_tests >= 300 * 250 * 5 and dense_stats.launches == 1
+    with mock.patch.object(mapping, "MAX_ROWS_PER_LAUNCH", 2):
+        blocks = accumulate_with_stats(scene, sensors, loci, context=context(),
+                                       precision=precision, tiles=False)
+    assert blocks[1].launches == 3 and np.array_equal(blocks[0], dense)
 
 
 @pytest.mark.parametrize("seed, weight, tile, launch_bytes", [
