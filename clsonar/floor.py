@@ -10,6 +10,7 @@ every step. Every fourth room holds a cylinder. The pipeline maps such a scene r
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 
 from .scene import Circle, Polyline, Scene, Sensors, WallFollowing
 
@@ -20,7 +21,7 @@ def floor_scene(size_m: float = 50.0, room_m: float = 5.0, wall_m: float = 0.2,
     """A ``size_m`` × ``size_m`` floor of square rooms ``room_m`` apart whose walls are
     ``wall_m`` thick (each room's outline is its square inset by ``wall_m``/2), on a map of
     ``cell``; one wall-following ring per room, ``step_m`` between poses; a cylinder of
-    radius 0.4 m in every fourth room. Transducer, signal, echo, mapping and
+    radius 0.8 m in every fourth room. Transducer, signal, echo, mapping and
     post-processing settings are those of ``base`` (default: the bundled closed room,
     ``scenes/room.json``)."""
     if base is None:
@@ -38,12 +39,79 @@ def floor_scene(size_m: float = 50.0, room_m: float = 5.0, wall_m: float = 0.2,
             x1, y1 = (i + 1) * room_m - half, (j + 1) * room_m - half
             surfaces.append(Polyline(((x0, y0), (x1, y0), (x1, y1), (x0, y1)), closed=True))
             if (i + j) % 4 == 3:
-                surfaces.append(Circle(((x0 + x1) / 2, (y0 + y1) / 2), 0.4))
-            rings.append(WallFollowing(start=(x0 + 1.0, (y0 + y1) / 2), step_m=step_m,
+                surfaces.append(Circle(((x0 + x1) / 2, (y0 + y1) / 2), 0.8))
+            rings.append(WallFollowing(start=(x0 + 0.6, (y0 + y1) / 2), step_m=step_m,
                                        clearance_m=0.5, radius_m=0.065, elements=8))
     return dataclasses.replace(base, name=name or f"floor-{size_m:g}m",
                                extent=(0.0, 0.0, n * room_m, n * room_m), cell=cell,
                                surfaces=tuple(surfaces), sensors=Sensors(placements=tuple(rings)))
 
 
-__all__ = ["floor_scene"]
+@dataclass(frozen=True)
+class FloorRow:
+    """One floor run: its size, cells, rooms, seconds per stage, peak memory and error."""
+
+    scene: str
+    cells: int
+    rooms: int
+    transducers: int
+    pairs: int
+    seconds: dict[str, float]
+    total_s: float
+    peak_rss_mb: float
+    mosaic_mb: float
+    accuracy_m: float | None
+    completeness_2cm: float | None
+    vertices_found: str | None
+
+
+def run_floor(size_m: float, device: str | None = None) -> FloorRow:
+    """Build and map a floor of ``size_m`` in this process; report its peak memory (the
+    whole process's high-water mark, interpreter and OpenCL runtime included)."""
+    import resource
+
+    from .pipeline import MOSAIC_BYTES_PER_CELL, run
+
+    scene = floor_scene(size_m)
+    r = run(scene, device=device)
+    m = r.metrics
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
+    return FloorRow(scene.name, int(r.raw.size), int(r.counts.get("rooms_mapped", 1)),
+                    len(r.sensors), int(r.counts["pairs"]), dict(r.seconds),
+                    float(sum(r.seconds.values())), peak,
+                    r.raw.size * MOSAIC_BYTES_PER_CELL / 2**20, m["accuracy_m"]["rms"],
+                    m["completeness"]["2cm"], m.get("vertices_found"))
+
+
+def bench_floor(size_m: float, device: str | None = None, timeout_s: float = 3600) -> FloorRow:
+    """:func:`run_floor` in a fresh Python process, so that its peak memory is its own."""
+    import json
+    import subprocess
+    import sys
+
+    cmd = [sys.executable, "-m", "clsonar.floor", f"{size_m:g}"]
+    if device:
+        cmd += ["--device", device]
+    done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, check=True)
+    return FloorRow(**json.loads(done.stdout.strip().splitlines()[-1]))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m clsonar.floor SIZE_M [--device D]``: map a floor, print its
+    :class:`FloorRow` as one JSON line."""
+    import argparse
+    import json
+
+    parser = argparse.ArgumentParser(prog="python -m clsonar.floor")
+    parser.add_argument("size_m", type=float)
+    parser.add_argument("--device")
+    args = parser.parse_args(argv)
+    print(json.dumps(dataclasses.asdict(run_floor(args.size_m, args.device))))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+__all__ = ["FloorRow", "bench_floor", "floor_scene", "run_floor"]

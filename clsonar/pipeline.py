@@ -206,9 +206,8 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     echoes, echo_stats = stage("echoes", lambda: _echoes(scene, sensors, ctx, skips))
     detections, detect_stats = stage("detection",
                                      lambda: _detect(scene, sensors, echoes, ctx, skips))
-    raw, point_sums, ghosts = stage("accumulation",
-                                    lambda: _accumulate(scene, sensors, echoes, detections,
-                                                        ctx, skips))
+    raw, point_sums, ghosts, tile_counts = stage(
+        "accumulation", lambda: _accumulate(scene, sensors, echoes, detections, ctx, skips))
     counts = {
         "transducers": len(sensors),
         "pairs": len(pairs(sensors)),
@@ -219,6 +218,7 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         "map_cells": int(raw.size),
         "cells_voted": int(np.count_nonzero(raw)),
         "ghost_points": ghosts,
+        **tile_counts,
         "stages_reused": len(reused),
     }
     front = RunResult(scene, geom, sensors, echoes, detections, raw, raw, raw, raw,
@@ -326,10 +326,12 @@ def _detect(scene: Scene, sensors: SensorArray, echoes: EchoTable, ctx, skips: S
 
 def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detections,
                 ctx, skips: Skips) -> tuple:
-    """The raw map, the tangent-point sums (or None) and the number of ghost points."""
+    """The raw map, the tangent-point sums (or None), the number of ghost points and the
+    tiled accumulation's counters."""
     if scene.mapping.mode == "backprojection":
         dt, env = signals.envelopes(scene, sensors, echoes, context=ctx)
-        return mapping.backproject(scene, sensors, pairs(sensors), env, dt, context=ctx), None, 0
+        return (mapping.backproject(scene, sensors, pairs(sensors), env, dt, context=ctx), None,
+                0, {})
     loci = mapping.as_loci(detections)
     if scene.mapping.reciprocal == "merge":
         loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
@@ -344,13 +346,22 @@ def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detection
             ghosts = int(np.count_nonzero(~seen))
             points = points[seen]
         raw, point_sums = mapping.point_map(scene, points)
-        return raw, point_sums, ghosts
-    if scene.mapping.combine == "viewpoints":
-        raw = mapping.count_viewpoints(
-            scene, sensors, loci, lambda part: mapping.accumulate(scene, sensors, part,
-                                                                  context=ctx))
-        return raw, None, 0
-    return mapping.accumulate(scene, sensors, loci, context=ctx), None, 0
+        return raw, point_sums, ghosts, {}
+    tile_stats: list[mapping.AccumulationStats] = []
+
+    def draw(part) -> np.ndarray:
+        votes, stats = mapping.accumulate_with_stats(scene, sensors, part, context=ctx,
+                                                     tiles=skips.tiles)
+        tile_stats.append(stats)
+        return votes
+
+    raw = (mapping.count_viewpoints(scene, sensors, loci, draw)
+           if scene.mapping.combine == "viewpoints" else draw(loci))
+    return raw, None, 0, {
+        "tiles_total": sum(t.tiles_total for t in tile_stats),
+        "tiles_skipped": sum(t.tiles_skipped for t in tile_stats),
+        "pixel_locus_tests": sum(t.pixel_locus_tests for t in tile_stats),
+        "dense_pixel_locus_tests": sum(t.dense_tests for t in tile_stats)}
 
 
 def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
