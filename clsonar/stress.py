@@ -175,16 +175,19 @@ def report_json(per_family: dict[str, Findings], device: str, seconds: float,
 def stress(out: Path, count: int, *, device: str | None = None, many: int = 200,
            progress: Callable[[int, int, str], None] | None = None,
            command: str = "clsonar stress") -> Findings:
-    """Run ``count`` cases and write ``out/stress.md`` and ``out/stress.json``; returns the
-    merged findings."""
+    """Run ``count`` cases and write ``out/stress.md`` and ``out/stress.json`` (or, when
+    ``out`` ends in ``.md``, that file and the ``.json`` beside it); returns the merged
+    findings."""
     from .opencl import get_context
 
     context = get_context(device)
     per_family, seconds = run_stress(count, context, many=many, progress=progress)
     name = context.devices[0].name.strip()
-    out.mkdir(parents=True, exist_ok=True)
-    write_atomic(out / "stress.md", markdown(per_family, name, seconds, command).encode())
-    write_atomic(out / "stress.json", report_json(per_family, name, seconds, command).encode())
+    md = out if out.suffix == ".md" else out / "stress.md"
+    md.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(md, markdown(per_family, name, seconds, command).encode())
+    write_atomic(md.with_suffix(".json"),
+                 report_json(per_family, name, seconds, command).encode())
     return total(per_family)
 
 

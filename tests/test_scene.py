@@ -230,18 +230,23 @@ finite = st.floats(-1e3, 1e3, allow_nan=False)
 points = st.tuples(finite, finite)
 
 
+def _apart(pts) -> bool:
+    """No two points closer than the loader's shortest segment (scene.MIN_LENGTH_M)."""
+    return all(math.dist(p, q) >= 1e-6 for i, p in enumerate(pts) for q in pts[i + 1:])
+
+
 @st.composite
 def scenes(draw):
     surfaces = []
     for _ in range(draw(st.integers(0, 4))):
         kind = draw(st.sampled_from(["polyline", "circle", "sinusoid"]))
         if kind == "polyline":
-            pts = draw(st.lists(points, min_size=3, max_size=6, unique=True))
+            pts = draw(st.lists(points, min_size=3, max_size=6, unique=True).filter(_apart))
             surfaces.append(Polyline(tuple(pts), draw(st.booleans()) and len(pts) >= 3))
         elif kind == "circle":
             surfaces.append(Circle(draw(points), draw(st.floats(1e-3, 1e3))))
         else:
-            a, b = draw(st.lists(points, min_size=2, max_size=2, unique=True))
+            a, b = draw(st.lists(points, min_size=2, max_size=2, unique=True).filter(_apart))
             surfaces.append(Sinusoid(a, b, draw(finite), draw(st.floats(1e-3, 1e3))))
     x0, y0 = draw(points)
     return Scene(name=draw(st.text(max_size=10)),
