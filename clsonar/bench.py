@@ -34,6 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .floor import FloorRow, bench_floor
+from .pipeline import STAGES
 from .scene import Scene, load_scene, write_atomic
 from .tradeoff import (
     SkipRow,
@@ -199,6 +201,7 @@ class BenchReport:
     skips: list[SkipRow]
     tradeoff: list[TradeoffRow]
     beats_thesis: list[str]
+    floors: list[FloorRow]
 
 
 #: The thesis' shapes (the trade-off table runs every knob on these).
@@ -240,14 +243,37 @@ def tradeoff_markdown(rows: list[TradeoffRow], winners: list[str]) -> list[str]:
     return lines
 
 
+def floors_markdown(rows: list[FloorRow]) -> list[str]:
+    lines = ["", "## Floors at scale", "",
+             "Square rooms 5 m apart (walls 0.2 m thick, a 1.6 m cylinder in every fourth), "
+             "each scanned by its own wall-following ring at 50 cm steps, mapped room by room "
+             "(`clsonar.regions`) into a mosaic at 1 cm. Each floor runs in a fresh process; "
+             "peak memory is that whole process's high-water mark (interpreter and OpenCL "
+             "runtime included), the mosaic the floor's own maps.", "",
+             "| floor | cells | rooms | transducers | pairs | total s | "
+             + " | ".join(STAGES) + " | peak memory | mosaic | accuracy RMS (cm) | "
+             "completeness ≤ 2 cm | vertices found |",
+             "| --- |" + " ---: |" * (10 + len(STAGES))]
+    for f in rows:
+        comp = "–" if f.completeness_2cm is None else f"{f.completeness_2cm * 100:.1f} %"
+        lines.append(f"| {f.scene} | {f.cells:,} | {f.rooms} | {f.transducers:,} | "
+                     f"{f.pairs:,} | {f.total_s:.1f} | "
+                     + " | ".join(f"{f.seconds.get(s, 0.0):.1f}" for s in STAGES)
+                     + f" | {f.peak_rss_mb:,.0f} MB | {f.mosaic_mb:,.0f} MB | "
+                     f"{_cm(f.accuracy_m)} | {comp} | {f.vertices_found or '–'} |")
+    return lines
+
+
 def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DEFAULT_SCENES,
           *, repeat: int = 3, numpy: bool = True, device: str | None = None,
           progress: Callable[[int, int, str], None] | None = None,
-          command: str = "clsonar bench --out docs/bench") -> BenchReport:
+          command: str = "clsonar bench --out docs/bench",
+          floors: tuple[float, ...] = (50.0,)) -> BenchReport:
     """Benchmark the ``names`` scenes of ``scenes_dir`` (default: the bundled ones) and write
     ``bench.md``, ``bench.json`` and ``tradeoff.png`` into ``out``: the pipeline under both
     settings, the accumulation against NumPy, skipping on against off, and (for the thesis'
-    shapes among ``names``) the knobs' run time against error."""
+    shapes among ``names``) the knobs' run time against error, and the ``floors`` (sizes in
+    metres, :mod:`clsonar.floor`) mapped room by room."""
     from .opencl import get_context
     from .reproduce import bundled_scenes
 
@@ -256,7 +282,7 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     scenes = [load_scene(folder / f"{name}.json") for name in names]
     shapes = [s for s in scenes if s.name in THESIS_SCENES]
     pipeline, accumulation, skips, trade = [], [], [], []
-    steps = len(scenes) * (2 * len(SETTINGS) + 1) + len(shapes)
+    steps = len(scenes) * (2 * len(SETTINGS) + 1) + len(shapes) + len(floors)
     step = 0
 
     def tell(what: str) -> None:
@@ -276,12 +302,17 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     for scene in shapes:
         tell(f"{scene.name}: run time against error")
         trade += bench_tradeoff(scene, context, repeat)
+    floor_rows = []
+    for size in floors:
+        tell(f"floor {size:g} m × {size:g} m (a separate process)")
+        floor_rows.append(bench_floor(size, device))
     d = context.devices[0]
     report = BenchReport(f"{d.name.strip()} ({d.platform.name.strip()})", pipeline,
-                         accumulation, skips, trade, beats_thesis(trade))
+                         accumulation, skips, trade, beats_thesis(trade), floor_rows)
     text = markdown(pipeline, accumulation, report.device, command)
-    text += "\n".join(skips_markdown(skips) + (tradeoff_markdown(trade, report.beats_thesis)
-                                               if trade else [])) + "\n"
+    text += "\n".join(skips_markdown(skips)
+                      + (tradeoff_markdown(trade, report.beats_thesis) if trade else [])
+                      + (floors_markdown(floor_rows) if floor_rows else [])) + "\n"
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(out / "bench.md", text.encode())
     if trade:

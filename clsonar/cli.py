@@ -83,6 +83,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeat", type=int, default=3, help="timed runs, best kept (default 3)")
     p.add_argument("--no-numpy", action="store_true",
                    help="skip the NumPy baseline (slow on large maps)")
+    p.add_argument("--floors", default="50", metavar="SIZES",
+                   help="comma-separated sizes (m) of multi-room floors mapped at 1 cm, each "
+                        "in its own process with its peak memory (default 50; '' for none; "
+                        "100 is 10^8 cells)")
     _device_args(p)
     p.set_defaults(func=_cmd_bench)
 
@@ -242,12 +246,19 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     missing = [n for n in names if not (bundled_scenes() / f"{n}.json").is_file()]
     if missing:
         raise ClsonarError(f"--scenes: no bundled scene {', '.join(missing)}")
+    try:
+        floors = tuple(float(x) for x in args.floors.split(",") if x.strip())
+    except ValueError:
+        raise ClsonarError(f"--floors: not a list of sizes in metres: {args.floors!r}") from None
+    if any(not 5.0 <= f <= 1000.0 for f in floors):
+        raise ClsonarError(f"--floors: sizes must be 5 to 1000 m, not {args.floors!r}")
     command = "clsonar bench --out " + args.out + (f" --scenes {args.scenes}"
-                                                   if args.scenes else "")
+                                                   if args.scenes else "") + (
+        f" --floors {args.floors}" if args.floors != "50" else "")
     progress, done = _progress_line()
     try:
         bench(Path(args.out), names=names, repeat=args.repeat, numpy=not args.no_numpy,
-              device=args.device, progress=progress, command=command)
+              device=args.device, progress=progress, command=command, floors=floors)
     finally:
         done()
     print(f"wrote {args.out}/bench.md and bench.json")

@@ -13,7 +13,7 @@ from clsonar.scene import load_scene
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("bench")
-    report = bench(out, names=("plane-2m",), repeat=1)
+    report = bench(out, names=("plane-2m",), repeat=1, floors=(10.0,))
     return out, report.pipeline, report.accumulation, report
 
 
@@ -80,3 +80,12 @@ def test_pareto_front_and_settings_that_beat_the_thesis():
                    row("b", "ours, 2 cm", 1.1, 0.01)])
     assert [r.pareto for r in rows] == [False, True, True, False, False, True, True]
     assert beats_thesis(rows) == ["ours"]
+
+
+def test_bench_maps_a_floor_room_by_room_in_its_own_process(report):
+    out, _, _, full = report
+    (f,) = full.floors
+    assert (f.scene, f.cells, f.rooms) == ("floor-10m", 1_000_000, 4)
+    assert f.vertices_found == "16/16" and f.accuracy_m < 0.005
+    assert 0 < f.mosaic_mb < f.peak_rss_mb and f.total_s == pytest.approx(sum(f.seconds.values()))
+    assert "| floor-10m | 1,000,000 | 4 |" in (out / "bench.md").read_text()
