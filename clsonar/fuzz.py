@@ -296,6 +296,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--limit-s", type=float, default=1.0,
                    help="seconds an input may take (default 1)")
+    p.add_argument("--out", metavar="FILE.md", help="also write the result as markdown")
     p.add_argument("--device", help="OpenCL device for the memory check (default: none, "
                                     "this machine's memory only)")
     args = p.parse_args(argv)
@@ -315,11 +316,31 @@ def main(argv: list[str] | None = None) -> int:
     print("by mutation: " + ", ".join(f"{k} {v}" for k, v in sorted(report.by_mutation.items())))
     for f in report.findings[:20]:
         print("FINDING", f)
+    if args.out:
+        from .scene import write_atomic
+
+        command = f"python -m clsonar.fuzz --count {args.count} --seed {args.seed}" + (
+            f" --limit-s {args.limit_s:g}" if args.limit_s != 1.0 else "") + f" --out {args.out}"
+        write_atomic(args.out, markdown(report, command).encode())
     return 0 if not report.findings else 1
+
+
+def markdown(report: FuzzReport, command: str) -> str:
+    """The result of a fuzzing run as a short markdown page."""
+    lines = ["# Fuzzing the scene loader", "",
+             f"Regenerate with `{command}` (clsonar/fuzz.py describes the mutations and what "
+             "counts as a finding).", "",
+             f"**{report.summary()}.**", "",
+             "| mutation | inputs |", "| --- | ---: |"]
+    lines += [f"| {k} | {v} |" for k, v in sorted(report.by_mutation.items())]
+    lines += ["", "## Findings", ""]
+    lines += [f"- {f}" for f in report.findings[:100]] or ["None."]
+    return "\n".join(lines) + "\n"
 
 
 if __name__ == "__main__":
     raise SystemExit(main())
 
 
-__all__ = ["MUTATIONS", "FuzzReport", "fuzz", "hostile_input", "main", "preflight", "run_cli"]
+__all__ = ["MUTATIONS", "FuzzReport", "fuzz", "hostile_input", "main", "markdown", "preflight",
+           "run_cli"]

@@ -34,12 +34,14 @@ The properties (:data:`BOUNDS`), checked on every case:
 - maps: every pixel where float32 and float64 differ (beyond float32 summation rounding)
   lies within a few float32 roundings of a band edge or a beam edge of some locus
   (:func:`edge_pixels`), and at most 0.1 % of the pixels differ;
-- work groups: the same case run with other work-group sizes gives bit-identical output.
+- work groups: the same case run with other work-group sizes (and tile shapes, and the dense
+  map kernel instead of the tiled one) gives bit-identical output.
 """
 
 from __future__ import annotations
 
 import contextlib
+import inspect
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
@@ -74,7 +76,7 @@ MILLION = 1_000_000
 #: Alternative launch shapes: echo kernels' work-group size, and the map kernels'
 #: (pixels per work item, work-group shape) on a CPU (GPUs: vector width 1).
 ALT_ECHO_GROUPS = (8, 1)
-ALT_MAP_LAUNCH = ((1, (16, 4)), (4, (4, 2)))
+ALT_MAP_LAUNCH = ((1, (16, 4), (16, 16)), (4, (4, 2), (64, 8)))
 
 
 # --------------------------------------------------------------------------- scenes
@@ -568,16 +570,22 @@ def echo_work_group(size: int) -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def map_launch(vec: int, group: tuple[int, int]) -> Iterator[None]:
-    """Run the map kernels with ``vec`` pixels per work item in work groups of ``group``."""
-    saved = dict(mapping.LAUNCH)
+def map_launch(vec: int, group: tuple[int, int], tile: tuple[int, int]) -> Iterator[None]:
+    """Run the map kernels with ``vec`` pixels per work item in work groups of ``group``
+    (dense kernels) and tiles of ``tile`` pixels, one work group each (tiled kernel)."""
+    saved = dict(mapping.LAUNCH), dict(getattr(mapping, "TILES", {}))
     for key in mapping.LAUNCH:
         mapping.LAUNCH[key] = (vec if key[0] == "CPU" else 1, group)
+    for key in getattr(mapping, "TILES", {}):
+        mapping.TILES[key] = tile
     try:
         yield
     finally:
         mapping.LAUNCH.clear()
-        mapping.LAUNCH.update(saved)
+        mapping.LAUNCH.update(saved[0])
+        if hasattr(mapping, "TILES"):
+            mapping.TILES.clear()
+            mapping.TILES.update(saved[1])
 
 
 def check_echo_case(family: str, seed: int, context, *, many: int = 40,
@@ -750,12 +758,19 @@ def check_map_case(family: str, seed: int, context, *, million: int = MILLION,
     got = run()
     f = compare_maps(pb, ref, got, name, loci)
     if work_groups:
-        for vec, group in ALT_MAP_LAUNCH:
-            with map_launch(vec, group):
+        for vec, group, tile in ALT_MAP_LAUNCH:
+            with map_launch(vec, group, tile):
                 again = run()
             if not np.array_equal(got, again):
                 f.work_group_mismatches += 1
-                f.fail(name, f"{vec} pixels per item in groups of {group} give another map")
+                f.fail(name, f"{vec} pixels per item in groups of {group}, tiles of {tile}, "
+                             "give another map")
+        if loci and "tiles" in inspect.signature(mapping.accumulate).parameters:
+            dense = mapping.accumulate(scene, sensors, case.loci, context=context,
+                                       precision="float32", tiles=False)
+            if not np.array_equal(got, dense):
+                f.work_group_mismatches += 1
+                f.fail(name, "the dense kernel gives another map than the tiled one")
     return f
 
 

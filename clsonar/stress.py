@@ -131,7 +131,7 @@ def markdown(per_family: dict[str, Findings], device: str, seconds: float,
             f"{f.differing} ({f.differing_off_edge}) | {f.work_group_mismatches} |")
     if t.failures:
         lines += ["", "## Failures", ""] + [f"- {x}" for x in t.failures[:50]]
-    lines += ["", "## What is checked", "", DEFINITIONS]
+    lines += ["", "## What is checked", "", DEFINITIONS, "", CI_AND_FUZZ]
     return "\n".join(lines) + "\n"
 
 
@@ -157,6 +157,29 @@ DEFINITIONS = f"""\
   group) {', '.join(map(str, stability.ALT_MAP_LAUNCH))}; the outputs must be bit-identical.
 - **Families**: echo — {', '.join(ECHO_FAMILIES)}; map — {', '.join(MAP_FAMILIES)}
   (clsonar/stability.py describes each).
+"""
+
+
+CI_AND_FUZZ = f"""\
+## In CI
+
+`tests/test_stability.py` (PoCL's CPU device, hypothesis' derandomized `ci` profile) holds
+every case to the same bounds: no NaN/Inf, |Δτ| ≤ {BOUNDS['tof_abs_s'] * 1e6:g} µs, no echo in
+one table only unless on a knife edge or weaker than {BOUNDS['weak_echo']:.0%} of A0, no
+differing pixel off an edge, at most {BOUNDS['map_differing_fraction']:.1%} of a map's pixels
+differing (maps of ≥ 10⁴ pixels), and bit-identical results under other work-group sizes. It
+runs 48 echo cases and 40 map cases drawn over every family, the `million` family once with
+{stability.MILLION:,} loci, and five cases under other work-group sizes (about 15 s).
+
+## Hostile scene files
+
+`python -m clsonar.fuzz --count 100000 --seed 0` feeds mutated bundled scenes (random bytes,
+truncated JSON, deep nesting, huge arrays, a wrong type at a random key, NaN/Inf at a random
+number, grids too large for memory, invalid UTF-8, byte edits) through the loader, the
+pipeline's memory check and the sensor placement, and each refused one through `clsonar run
+FILE --out DIR` in-process: one `clsonar: error:` line, exit status 2, DIR never created,
+no traceback or warning, at most 1 s of CPU per input. Its last result is in
+[fuzz.md](fuzz.md); `tests/test_fuzz.py` runs 1500 inputs in CI.
 """
 
 
