@@ -165,6 +165,11 @@ def test_edit_run_stages_post_save(qtbot, window, tmp_path):
     assert len(result.profile.points) > 0
     px, _ = views["profile"].profile.getData()
     assert np.isfinite(px).sum() == len(result.profile.points)
+    # one stage at a time, or all four side by side
+    w.stages.set_mode("thin")
+    assert [k for k, v in views.items() if not v.isHidden()] == ["thin"]
+    w.stages.set_mode("side by side")
+    assert all(not v.isHidden() for v in views.values())
     # the readout names the votes of the cell under the cursor, [iy, ix] the right way up
     iy, ix = np.unravel_index(np.argmax(result.raw), result.raw.shape)
     xmin, ymin = w.doc.scene.extent[:2]
@@ -412,3 +417,16 @@ def test_sweeps_bench_and_ascan(qtbot, window):
     assert (w.plots.tx.value(), w.plots.rx.value()) == (tx, rx)
     n_det = int(np.count_nonzero((result.detections.tx == tx) & (result.detections.rx == rx)))
     assert w.plots.ascan.getPlotItem().titleLabel.text.endswith(f"{n_det} detections")
+
+
+def test_block_max_keeps_single_cells():
+    from clsonar.gui.stages import block_max
+
+    image = np.zeros((5, 7), dtype=np.float32)
+    image[4, 6] = 3.0  # the far corner: a partial block
+    image[0, 1] = 1.0
+    out = block_max(image, 2)
+    assert out.shape == (3, 4)
+    assert out[2, 3] == 3.0 and out[0, 0] == 1.0 and out.sum() == 4.0
+    assert block_max(image, 10**9).shape == (1, 1)  # never larger than one block a side
+    assert block_max(image, 1) is image

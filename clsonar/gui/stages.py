@@ -42,6 +42,7 @@ def block_max(image: np.ndarray, k: int) -> np.ndarray:
     """``image`` reduced by maxima of ``k`` × ``k`` blocks (zero-padded at the far edges),
     so that one-cell curves and single votes stay visible when a map cell is smaller than
     a screen pixel (as plots.map_png does)."""
+    k = min(k, max(image.shape))
     if k <= 1:
         return image
     ny, nx = image.shape
@@ -107,9 +108,9 @@ class StageView(pg.GraphicsLayoutWidget):
 
     def _render(self, *_: object) -> None:
         """Show the map with blocks of as many cells as one screen pixel holds."""
-        if self.data is None:
-            return
-        k = max(1, int(np.ceil(self.cells_per_pixel() - 1e-9)))
+        if self.data is None or self.plot.vb.width() < 2:
+            return  # hidden or not laid out yet: drawn when it gets a size
+        k = min(max(self.data.shape), max(1, int(np.ceil(self.cells_per_pixel() - 1e-9))))
         if k == self.k:
             return
         self.k = k
