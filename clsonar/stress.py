@@ -148,13 +148,17 @@ DEFINITIONS = f"""\
   tests/test_mapping.py shows is bit-identical to the reference). A pixel differs when its
   values disagree by more than float32 summation rounding (√n·64ε relative, at least
   {BOUNDS['value_rtol']:g}; back-projection adds each envelope's slope times the delay's
-  float32 error). Every differing pixel must lie, for some locus, within
+  float32 error; beam weights add the beam's slope times each direction's float32 angle
+  error, ≈ 2ε·S/|d|, which grows near a focus). Every differing pixel must lie, for some
+  locus, within
   {BOUNDS['edge_roundings']} float32 roundings of its band edge (| |p−T|+|p−R| − c·τ | =
   band/2) or of a beam edge (axis·d = 0, (axis×d)² = cut·|d|²), computed in float64; at
   most {BOUNDS['map_differing_fraction']:.1%} of all pixels may differ.
 - **Work groups**: one case in 25 is rerun with echo work groups of
   {', '.join(map(str, stability.ALT_ECHO_GROUPS))} and map launches (pixels per item,
-  group) {', '.join(map(str, stability.ALT_MAP_LAUNCH))}; the outputs must be bit-identical.
+  dense kernel's group, tiled kernel's tile) {', '.join(map(str, stability.ALT_MAP_LAUNCH))},
+  and its loci map drawn by the dense kernel instead of the tiled one; the outputs must be
+  bit-identical.
 - **Families**: echo — {', '.join(ECHO_FAMILIES)}; map — {', '.join(MAP_FAMILIES)}
   (clsonar/stability.py describes each).
 """
