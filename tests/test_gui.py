@@ -430,3 +430,34 @@ def test_block_max_keeps_single_cells():
     assert out[2, 3] == 3.0 and out[0, 0] == 1.0 and out.sum() == 4.0
     assert block_max(image, 10**9).shape == (1, 1)  # never larger than one block a side
     assert block_max(image, 1) is image
+
+
+def test_placements_from_parameters(qtbot, window):
+    """The three placements of the issue, chosen and tuned in the parameters panel; the
+    canvas previews the transducers, their beams and the wall-following path."""
+    w, canvas = window, window.canvas
+    assert w.open_file(ROOM)
+
+    def shown():
+        qtbot.waitUntil(lambda: not canvas._pending)
+        return len(canvas.sensors) if canvas.sensors is not None else 0
+
+    w.params.set("placement", "type", "none")
+    assert w.doc.scene.sensors.placement is None and shown() == 0
+    w.params.set("placement", "type", "wall-following")
+    qtbot.waitUntil(lambda: "step_m" in w.params.params.child("placement").names)
+    w.params.set("placement", "step_m", 1.0)
+    assert w.doc.scene.sensors.placement.step_m == 1.0
+    n = shown()
+    assert n > 0 and n % 8 == 0
+    px, _ = canvas._path.getData()
+    assert len(px) == n // 8 + 1  # the ring's poses, closed on the start
+    bx, _ = canvas._beams.getData()
+    assert np.isfinite(bx).sum() == n * 9  # a wedge of 9 points per transducer
+    w.params.set("placement", "type", "random-lines")
+    qtbot.waitUntil(lambda: "elements" in w.params.params.child("placement").names)
+    w.params.set("placement", "elements", 4)
+    assert w.doc.scene.sensors.placement.elements == 4
+    n = shown()
+    assert n > 0 and n % 4 == 0
+    assert w.doc.undo.count() == 5

@@ -145,6 +145,8 @@ class ParamsPanel(QObject):
 
     def set(self, group: str, key: str, value: Any) -> None:
         """Set one parameter as if typed in the panel (tests, scripts)."""
+        if self._pending:
+            self.refresh()  # the tree must show the current scene first
         self.params.child(group, key).setValue(value)
 
     def _changed(self, _param, changes) -> None:
