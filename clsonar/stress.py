@@ -19,18 +19,19 @@ from pathlib import Path
 
 from . import stability
 from .scene import write_atomic
-from .stability import BOUNDS, ECHO_FAMILIES, MAP_FAMILIES, Findings
+from .stability import BOUNDS, ECHO_FAMILIES, MAP_FAMILIES, SIGNAL_FAMILIES, Findings
 
 #: Cases of the ``million`` family run: one in this many map cases at most (they are slow).
 MILLION_EVERY = 200
 
 
 def schedule(count: int) -> list[tuple[str, str, int]]:
-    """``count`` cases ``(kind, family, seed)``: echo and map families in turn, each
+    """``count`` cases ``(kind, family, seed)``: echo, signal and map families in turn, each
     family's seeds counting up; ``million`` maps are capped to one per :data:`MILLION_EVERY`
     map cases (at least one)."""
     cases, seeds = [], {}
-    families = [("echo", f) for f in ECHO_FAMILIES] + [("map", f) for f in MAP_FAMILIES]
+    families = ([("echo", f) for f in ECHO_FAMILIES] + [("signal", f) for f in SIGNAL_FAMILIES]
+                + [("map", f) for f in MAP_FAMILIES])
     i = 0
     while len(cases) < count:
         kind, family = families[i % len(families)]
@@ -61,6 +62,8 @@ def run_stress(count: int, context, *, many: int = 200, million: int | None = No
         groups = n % work_group_every == 0
         if kind == "echo":
             f = stability.check_echo_case(family, seed, context, many=many, work_groups=groups)
+        elif kind == "signal":
+            f = stability.check_signal_case(family, seed, context, work_groups=groups)
         else:
             f = stability.check_map_case(family, seed, context, million=million,
                                          work_groups=groups)
@@ -103,13 +106,15 @@ def markdown(per_family: dict[str, Findings], device: str, seconds: float,
         "| property | bound | worst found |",
         "| --- | --- | --- |",
         f"| NaN or Inf in any echo table or map | none | {t.nonfinite} cases |",
-        f"| float32 − float64 time of flight, matched echoes ({t.echoes} echoes) | ≤ 1 µs | "
+        f"| float32 − float64 time of flight, matched echoes and detections ({t.echoes}) | "
+        f"≤ 1 µs | "
         f"{_us(t.tof_max_s)} ({t.tof_worst or 'n/a'}) |",
-        f"| echo in one table only, float64 decision flips under a float32-sized nudge | "
+        f"| echo or detection in one list only, float64 decision flips under a float32-sized "
+        f"nudge | "
         f"allowed | {t.unmatched_edge} |",
         f"| echo in one table only, weaker than {BOUNDS['weak_echo']:.0%} of A0 | allowed | "
         f"{t.unmatched_weak} |",
-        f"| echo in one table only, otherwise | none | {t.unmatched_other} |",
+        f"| echo or detection in one list only, otherwise | none | {t.unmatched_other} |",
         f"| float32 − float64 amplitude, relative (reported, no bound) | — | "
         f"{t.amp_max_rel:.3g} ({t.amp_worst or 'n/a'}) |",
         f"| map pixels differing ({t.pixels} pixels) | ≤ 0.1 % | {t.differing} "
@@ -119,7 +124,8 @@ def markdown(per_family: dict[str, Findings], device: str, seconds: float,
         "",
         "## Per family",
         "",
-        "| family | cases | NaN/Inf | echoes | max Δτ | one-table echoes (edge / weak / other) "
+        "| family | cases | NaN/Inf | echoes or detections | max Δτ | in one list only "
+        "(edge / weak / other) "
         "| pixels | differing (off edge) | work-group mismatches |",
         "| --- | ---: | ---: | ---: | ---: | --- | ---: | --- | ---: |",
     ]
@@ -143,6 +149,12 @@ DEFINITIONS = f"""\
   transducer moves and turns by {BOUNDS['edge_roundings']} float32 roundings of the scene's
   local coordinates (six random nudges), or it is weaker than {BOUNDS['weak_echo']:.0%} of
   the transmitted amplitude A0 (a beam edge or grazing incidence).
+- **Detections** (`kernels/signals.cl`, float32) against `signals.detect_reference` (float64)
+  on the float64 echoes of the echo families but `many`, with a random detector (threshold or
+  envelope) and noise level: detections of one pair matched by nearest time, |Δτ| ≤
+  {BOUNDS['tof_abs_s'] * 1e6:g} µs; one in one list only must flip in the float64
+  reference when the echoes' amplitudes and times move by {BOUNDS['edge_roundings']}
+  float32 roundings (a threshold crossing or a peak merge decided by rounding).
 - **Maps** (`kernels/accumulate.cl`, float32) against `mapping.accumulate_reference` /
   `backproject_reference` (float64; for the `million` family the float64 kernel, which
   tests/test_mapping.py shows is bit-identical to the reference). A pixel differs when its
@@ -155,11 +167,13 @@ DEFINITIONS = f"""\
   band/2) or of a beam edge (axis·d = 0, (axis×d)² = cut·|d|²), computed in float64; at
   most {BOUNDS['map_differing_fraction']:.1%} of all pixels may differ.
 - **Work groups**: one case in 25 is rerun with echo work groups of
-  {', '.join(map(str, stability.ALT_ECHO_GROUPS))} and map launches (pixels per item,
+  {', '.join(map(str, stability.ALT_ECHO_GROUPS))}, detection work groups of
+  {', '.join(map(str, stability.ALT_SIGNAL_GROUPS))}, and map launches (pixels per item,
   dense kernel's group, tiled kernel's tile) {', '.join(map(str, stability.ALT_MAP_LAUNCH))},
   and its loci map drawn by the dense kernel instead of the tiled one; the outputs must be
   bit-identical.
-- **Families**: echo — {', '.join(ECHO_FAMILIES)}; map — {', '.join(MAP_FAMILIES)}
+- **Families**: echo — {', '.join(ECHO_FAMILIES)}; signal — {', '.join(SIGNAL_FAMILIES)};
+  map — {', '.join(MAP_FAMILIES)}
   (clsonar/stability.py describes each).
 """
 
@@ -172,8 +186,9 @@ every case to the same bounds: no NaN/Inf, |Δτ| ≤ {BOUNDS['tof_abs_s'] * 1e6
 one table only unless on a knife edge or weaker than {BOUNDS['weak_echo']:.0%} of A0, no
 differing pixel off an edge, at most {BOUNDS['map_differing_fraction']:.1%} of a map's pixels
 differing (maps of ≥ 10⁴ pixels), and bit-identical results under other work-group sizes. It
-runs 48 echo cases and 40 map cases drawn over every family, the `million` family once with
-{stability.MILLION:,} loci, and five cases under other work-group sizes (about 15 s).
+runs 48 echo, 24 detection and 40 map cases drawn over every family, the `million` family
+once with {stability.MILLION:,} loci, and six cases under other work-group sizes (about
+15 s).
 
 ## Hostile scene files
 

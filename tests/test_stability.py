@@ -41,6 +41,12 @@ def test_float32_echoes_match_float64(family, seed):
     assert_holds(f)
 
 
+@settings(max_examples=24, deadline=None)
+@given(st.sampled_from(stability.SIGNAL_FAMILIES), SEEDS)
+def test_float32_detections_match_float64(family, seed):
+    assert_holds(stability.check_signal_case(family, seed, context()))
+
+
 @settings(max_examples=40, deadline=None)
 @given(st.sampled_from([m for m in stability.MAP_FAMILIES if m != "million"]), SEEDS)
 def test_float32_maps_match_float64(family, seed):
@@ -60,10 +66,11 @@ def test_a_million_loci_on_one_map():
 
 
 @pytest.mark.parametrize("kind, family, seed", [("echo", "many", 1), ("echo", "ends", 2),
-                                                ("echo", "caustic", 3), ("map", "knife", 1),
-                                                ("map", "backprojection", 2)])
+                                                ("echo", "caustic", 3), ("signal", "far", 0),
+                                                ("map", "knife", 1), ("map", "backprojection", 2)])
 def test_other_work_group_sizes_give_the_same_result(kind, family, seed):
-    check = stability.check_echo_case if kind == "echo" else stability.check_map_case
+    check = {"echo": stability.check_echo_case, "signal": stability.check_signal_case,
+             "map": stability.check_map_case}[kind]
     f = check(family, seed, context(), work_groups=True)
     assert_holds(f)
     assert f.work_group_mismatches == 0
@@ -105,6 +112,7 @@ def test_schedule_runs_every_family_and_caps_the_million():
     assert len(plan) == 400
     assert {f for k, f, _ in plan if k == "echo"} == set(stability.ECHO_FAMILIES)
     assert {f for k, f, _ in plan if k == "map"} == set(stability.MAP_FAMILIES)
+    assert {f for k, f, _ in plan if k == "signal"} == set(stability.SIGNAL_FAMILIES)
     assert 1 <= sum(f == "million" for _, f, _ in plan) <= 2
 
 
