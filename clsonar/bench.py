@@ -81,6 +81,12 @@ class AccumulationRow:
     speedup: dict[str, float | None]
     float64_identical: bool | None
     float32_equal_share: float | None
+    tiled_s: float = 0.0  # float32, tiled (the default)
+    tiled_speedup: float | None = None  # against NumPy
+    tiled_identical: bool = False  # tiled float32 map == dense float32 map, to the bit
+    tiles_total: int = 0
+    tiles_skipped: int = 0
+    tiled_tests: int = 0  # pixel-locus tests the tiled kernel made
 
 
 def best_time(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
@@ -127,11 +133,18 @@ def bench_accumulation(scene: Scene, context, repeat: int,
     pixels = int(np.prod(scene.grid_shape))
     precisions = ("float32", "float64") if has_fp64(context) else ("float32",)
     maps, seconds = {}, {}
-    for precision in precisions:
-        mapping.accumulate(scene, sensors, loci, context=context, precision=precision)  # build
-        seconds[precision], maps[precision] = best_time(
-            lambda p=precision: mapping.accumulate(scene, sensors, loci, context=context,
-                                                   precision=p), repeat)
+    for precision in precisions:  # dense: every pixel tests every locus
+        def dense(p=precision):
+            return mapping.accumulate(scene, sensors, loci, context=context, precision=p,
+                                      tiles=False)
+        dense()  # builds the kernel
+        seconds[precision], maps[precision] = best_time(dense, repeat)
+
+    def tiled():
+        return mapping.accumulate_with_stats(scene, sensors, loci, context=context,
+                                             precision="float32")
+    tiled()
+    tiled_s, (tiled_map, stats) = best_time(tiled, repeat)
     numpy_s, reference = None, None
     if numpy:
         numpy_s, reference = best_time(
@@ -143,7 +156,10 @@ def bench_accumulation(scene: Scene, context, repeat: int,
         {p: (numpy_s / s if numpy_s else None) for p, s in seconds.items()},
         bool(np.array_equal(maps["float64"], reference))
         if reference is not None and "float64" in maps else None,
-        float(np.mean(maps["float32"] == reference)) if reference is not None else None)
+        float(np.mean(maps["float32"] == reference)) if reference is not None else None,
+        tiled_s, numpy_s / tiled_s if numpy_s else None,
+        bool(np.array_equal(tiled_map, maps["float32"])), stats.tiles_total,
+        stats.tiles_skipped, stats.pixel_locus_tests)
 
 
 def _cm(value: float | None) -> str:
@@ -173,9 +189,14 @@ def markdown(pipeline: list[PipelineRow], accumulation: list[AccumulationRow],
               "fit. `best`: the scene's own settings (envelope detection, tangent points, "
               "Guo–Hall thinning, spline or walls fit).", "",
               "## Locus accumulation: OpenCL against NumPy float64", "",
-              "| scene | pixels | loci | NumPy s | float32 s | float64 s | float32 tests/s | "
-              "float32 speed-up | float64 speed-up | float64 map identical | float32 equal "
-              "pixels |", "| --- |" + " ---: |" * 10]
+              "Dense: every pixel tests every locus (kernel `loci_map`), tests/s = pixels × "
+              "loci / seconds. Tiled (the default, kernel `loci_tiles`): each tile tests only "
+              "the loci whose band can reach it, empty tiles are skipped; its map must equal "
+              "the dense float32 map to the bit.", "",
+              "| scene | pixels | loci | NumPy s | dense float32 s | dense float64 s | dense "
+              "float32 tests/s | dense float32 speed-up | float64 speed-up | float64 map "
+              "identical | float32 equal pixels | tiled float32 s | tiled speed-up | tiles "
+              "skipped | tiled tests | tiled = dense |", "| --- |" + " ---: |" * 15]
     for a in accumulation:
         f64 = a.opencl_s.get("float64")
         lines.append(
@@ -185,9 +206,10 @@ def markdown(pipeline: list[PipelineRow], accumulation: list[AccumulationRow],
             f"{a.tests_per_s['float32']:.2e} | {_ratio(a.speedup.get('float32'))} | "
             f"{_ratio(a.speedup.get('float64'))} | "
             f"{'–' if a.float64_identical is None else ('yes' if a.float64_identical else 'NO')}"
-            f" | {'–' if a.float32_equal_share is None else f'{a.float32_equal_share:.6f}'} |")
-    lines += ["", "Dense accumulation: every pixel tests every locus (no tiling yet); "
-              "tests/s = pixels × loci / seconds."]
+            f" | {'–' if a.float32_equal_share is None else f'{a.float32_equal_share:.6f}'} | "
+            f"{a.tiled_s:.4f} | {_ratio(a.tiled_speedup)} | "
+            f"{a.tiles_skipped:,} of {a.tiles_total:,} | {a.tiled_tests:.2e} | "
+            f"{'yes' if a.tiled_identical else 'NO'} |")
     return "\n".join(lines) + "\n"
 
 

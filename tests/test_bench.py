@@ -30,6 +30,8 @@ def test_bench_writes_both_settings_and_an_identical_float64_map(report):
     if "float64" in a.opencl_s:
         assert a.float64_identical is True
     assert a.tests_per_s["float32"] == pytest.approx(a.pixels * a.loci / a.opencl_s["float32"])
+    assert a.tiled_identical and 0 < a.tiles_skipped < a.tiles_total
+    assert 0 < a.tiled_tests < a.pixels * a.loci
     saved = json.loads((out / "bench.json").read_text())
     assert saved["accumulation"][0]["loci"] == a.loci
     text = (out / "bench.md").read_text()
