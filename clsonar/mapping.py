@@ -1028,14 +1028,24 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
         if len(others) == 0:
             continue
         pi = p[i]  # [S, 2]
-        g = (np.hypot(*(pi[None] - T[others, None]).transpose(2, 0, 1))
-             + np.hypot(*(pi[None] - R[others, None]).transpose(2, 0, 1)) - path[others, None])
-        ok = inside[i] & np.roll(inside[i], -1)  # both ends of the step in i's beams
-        change = ok[None] & (np.sign(g) != np.sign(np.roll(g, -1, axis=1)))
-        j, k = np.nonzero(change)
+        # the steps k → k+1 with both ends in i's beams; the others' path-length residual
+        # at both ends (only there: the in-beam arc is a small part of the locus)
+        steps = np.flatnonzero(inside[i] & np.roll(inside[i], -1))
+        if len(steps) == 0:
+            continue
+
+        def residual(q: np.ndarray, others=others) -> np.ndarray:
+            return (np.hypot(*(q[None] - T[others, None]).transpose(2, 0, 1))
+                    + np.hypot(*(q[None] - R[others, None]).transpose(2, 0, 1))
+                    - path[others, None])
+
+        g_here = residual(pi[steps])
+        g_next = residual(pi[(steps + 1) % LOCUS_SAMPLES])
+        j, m = np.nonzero(np.sign(g_here) != np.sign(g_next))
         if len(j) == 0:
             continue
-        g0, g1 = g[j, k], np.roll(g, -1, axis=1)[j, k]
+        k = steps[m]
+        g0, g1 = g_here[j, m], g_next[j, m]
         t = g0 / (g0 - g1)
         q = pi[k] + t[:, None] * (pi[(k + 1) % LOCUS_SAMPLES] - pi[k])
         b = others[j]

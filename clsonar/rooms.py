@@ -81,8 +81,7 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
     if len(points) == 0 or len(occluders) == 0:
         return keep
     bins = round(2 * math.pi / SIGHT_BIN_RAD)
-    for s in np.unique(np.concatenate([tx, rx])):
-        mine = np.flatnonzero((tx == s) | (rx == s))
+    for s, mine in _points_of_each_sensor(np.asarray(tx), np.asarray(rx)):
         origin = positions[s]
         q = points[mine]
         dist = np.hypot(*(q - origin).T)
@@ -92,6 +91,20 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
         hits = first_hits(origin, occluders, cell, within=dist.max() - margin, wanted=wanted)
         keep[mine[dist > hits[where] + margin]] = False
     return keep
+
+
+def _points_of_each_sensor(tx: np.ndarray, rx: np.ndarray):
+    """For each sensor in ``tx`` or ``rx`` (ascending): the indices (ascending) of the
+    points whose pair it is part of."""
+    sensor = np.concatenate([tx, rx])
+    point = np.concatenate([np.arange(len(tx)), np.arange(len(rx))])
+    order = np.lexsort((point, sensor))
+    sensor, point = sensor[order], point[order]
+    new = np.r_[True, (sensor[1:] != sensor[:-1]) | (point[1:] != point[:-1])]  # T = R once
+    sensor, point = sensor[new], point[new]
+    starts = np.flatnonzero(np.r_[True, sensor[1:] != sensor[:-1]])
+    for a, b in zip(starts, np.r_[starts[1:], len(sensor)], strict=True):
+        yield sensor[a], point[a:b]
 
 
 def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
