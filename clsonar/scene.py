@@ -887,23 +887,29 @@ def parse_scene_text(text: str, source: str = "<scene>") -> Scene:
     return scene_from_dict(data, source)
 
 
-def load_scene(path: str | os.PathLike[str]) -> Scene:
-    """Read and validate a scene file (format v1). Raises :class:`SceneError` on any problem."""
+def read_text(path: str | os.PathLike[str], error: type[SceneError] = SceneError,
+              max_bytes: int = MAX_FILE_BYTES) -> str:
+    """The UTF-8 text of the file ``path`` (a BOM allowed); any problem — unreadable, larger
+    than ``max_bytes``, not UTF-8 — raises ``error`` naming the file."""
     source = os.fspath(path)
     try:
         size = os.path.getsize(source)
-        if size > MAX_FILE_BYTES:
-            raise SceneError(f"file is {size} bytes, larger than the {MAX_FILE_BYTES} bytes "
-                             "a scene may have", source=source)
+        if size > max_bytes:
+            raise error(f"file is {size} bytes, larger than the {max_bytes} bytes it may have",
+                        source=source)
         with open(source, "rb") as f:
             raw = f.read()
     except OSError as e:
-        raise SceneError(f"cannot read file: {e.strerror or e}", source=source) from None
+        raise error(f"cannot read file: {e.strerror or e}", source=source) from None
     try:
-        text = raw.decode("utf-8-sig")
+        return raw.decode("utf-8-sig")
     except UnicodeDecodeError as e:
-        raise SceneError(f"not UTF-8 text (byte {e.start})", source=source) from None
-    return parse_scene_text(text, source)
+        raise error(f"not UTF-8 text (byte {e.start})", source=source) from None
+
+
+def load_scene(path: str | os.PathLike[str]) -> Scene:
+    """Read and validate a scene file (format v1). Raises :class:`SceneError` on any problem."""
+    return parse_scene_text(read_text(path), os.fspath(path))
 
 
 # --------------------------------------------------------------------------- writing

@@ -47,7 +47,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ClsonarError, SceneError
-from .scene import Scene, scene_from_dict, scene_to_dict, write_atomic
+from .scene import Scene, read_text, scene_from_dict, scene_to_dict, write_atomic
 
 #: Metrics a spec may collect: paths into :attr:`RunResult.metrics` (metrics.evaluate), or
 #: ``counts.NAME`` into :attr:`RunResult.counts`.
@@ -157,14 +157,7 @@ def set_key(data: dict[str, Any], path: str, value: Any) -> dict[str, Any]:
 
 def _read_spec_file(path: Path) -> dict[str, Any]:
     source = str(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise SpecError(f"cannot read file: {e.strerror or e}", source=source) from None
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise SpecError(f"not UTF-8 text (byte {e.start})", source=source) from None
+    text = read_text(path, SpecError)
     if path.suffix.lower() == ".toml":
         try:
             import tomllib
