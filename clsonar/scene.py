@@ -816,8 +816,11 @@ def scene_from_dict(data: Any, source: str = "<scene>") -> Scene:
 MAX_WALL_SEQUENCES = 10**7
 MAX_EXPLICIT_PAIRS = 10**7
 
-#: Most sampling intervals of one sinusoid (its length / echo.curve_step_m).
+#: Most sampling intervals of all sinusoids together (their lengths / echo.curve_step_m).
 MAX_CURVE_SAMPLES = 10**6
+
+#: Most circles in a scene (sensor placement tests every pose against every surface).
+MAX_CIRCLES = 1000
 
 
 def _check_work(r: _Reader, scene: Scene) -> None:
@@ -829,13 +832,16 @@ def _check_work(r: _Reader, scene: Scene) -> None:
                                        f"are more than the {MAX_WALL_SEQUENCES:.0e} reflection "
                                        "sequences clsonar can hold: use a lower max_order or "
                                        "fewer polyline points")
-    for i, s in enumerate(scene.surfaces):
-        if isinstance(s, Sinusoid):
-            samples = math.dist(s.start, s.end) / scene.echo.curve_step_m
-            if samples > MAX_CURVE_SAMPLES:
-                raise r.fail("echo.curve_step_m", f"surfaces[{i}] would be sampled at "
-                                                  f"{samples:.3g} points, more than "
-                                                  f"{MAX_CURVE_SAMPLES:.0e}: use a larger step")
+    samples = sum(math.dist(s.start, s.end) for s in scene.surfaces
+                  if isinstance(s, Sinusoid)) / scene.echo.curve_step_m
+    if samples > MAX_CURVE_SAMPLES:
+        raise r.fail("echo.curve_step_m", f"the sinusoids would be sampled at {samples:.3g} "
+                                          f"points, more than {MAX_CURVE_SAMPLES:.0e}: use a "
+                                          "larger step")
+    circles = sum(isinstance(s, Circle) for s in scene.surfaces)
+    if circles > MAX_CIRCLES:
+        raise r.fail("surfaces", f"{circles} circles, more than the {MAX_CIRCLES} a scene may "
+                                 "have")
     groups: dict[int, int] = {}
     for t in scene.sensors.transducers:
         groups[t.group] = groups.get(t.group, 0) + 1
