@@ -50,9 +50,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default: the scene file's settings, which default to ours)")
     _device_args(p)
     p.add_argument("--no-skip", action="append", default=[], metavar="WORK",
-                   choices=("all", "empty_pairs", "silent_pairs", "tiles", "empty_cells", "rooms"),
+                   choices=("all", "empty_pairs", "silent_pairs", "quiet_samples", "tiles",
+                            "empty_cells", "rooms"),
                    help="do work the scene does not need anyway (to measure what skipping "
-                        "saves; the output is the same): empty_pairs, silent_pairs, tiles, "
+                        "saves; the output is the same): empty_pairs, silent_pairs, "
+                        "quiet_samples, tiles, "
                         "empty_cells, rooms or all; repeatable")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
     p.set_defaults(func=_cmd_run)

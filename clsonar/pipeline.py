@@ -106,6 +106,9 @@ class Skips:
     empty_pairs: bool = True
     #: detection: noise-free pairs without an echo are not scanned (signals.scanned_slots)
     silent_pairs: bool = True
+    #: detection: in a noise-free scene only the chunks of samples an echo reaches are
+    #: synthesised and scanned (the rest of every signal is exactly 0)
+    quiet_samples: bool = True
     #: accumulation: loci drawn tile by tile, empty tiles skipped (mapping.accumulate)
     tiles: bool = True
     #: post-processing: only the box of the voted cells is filtered and thinned
@@ -320,8 +323,10 @@ def _detect(scene: Scene, sensors: SensorArray, echoes: EchoTable, ctx, skips: S
     n_pairs = len(pairs(sensors))
     heard = len({(int(t), int(r)) for t, r in zip(echoes.tx, echoes.rx, strict=True)})
     silent = (n_pairs - heard if skips.silent_pairs and scene.signal.noise_std == 0 else 0)
-    found = signals.detect(scene, sensors, echoes, context=ctx, skip_silent=skips.silent_pairs)
-    return found, {"pairs_skipped_silent": silent, "pairs_scanned": n_pairs - silent}
+    stats: dict[str, int] = {}
+    found = signals.detect(scene, sensors, echoes, context=ctx, skip_silent=skips.silent_pairs,
+                           skip_quiet=skips.quiet_samples, stats=stats)
+    return found, {"pairs_skipped_silent": silent, "pairs_scanned": n_pairs - silent, **stats}
 
 
 def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detections,

@@ -656,8 +656,13 @@ class _Runner:
     """The buffers and launches of one scene on one context."""
 
     def __init__(self, model: SignalModel, pe: _PairEchoes, context, precision: str,
-                 chunk: int | None, work_group: int | None):
+                 chunk: int | None, work_group: int | None, skip_quiet: bool = True):
         import pyopencl as cl
+
+        #: noise-free: chunks of samples no echo reaches are not synthesised (their signal,
+        #: envelope and candidates are exactly 0; their histogram counts go to bin 0)
+        self.skip_quiet = skip_quiet and model.noise_std == 0
+        self.samples = {"scanned": 0, "skipped": 0}
 
         context_for(context, None, precision)  # checks the precision against the device
         self.cl, self.ctx, self.model, self.pe = cl, context, model, pe
@@ -704,6 +709,41 @@ class _Runner:
         padded = -(-n_items // group) * group
         kernel(self.queue, (padded,), (group,), *args)
 
+    def quiet_histogram(self, items: np.ndarray, k: int, chunk: int,
+                        n_chunks: int) -> np.ndarray:
+        """[k] histogram counts of the chunks left out of each slot: every HIST_STRIDE-th
+        m of [0, n_env) that no launched chunk covers."""
+        n_env = self.model.n_env
+
+        def strided(m0, m1):  # multiples of HIST_STRIDE in [m0, m1)
+            return -(-m1 // HIST_STRIDE) - -(-m0 // HIST_STRIDE)
+
+        m0 = items[:, 1].astype(np.int64) * chunk
+        covered = np.bincount(items[:, 0], strided(m0, np.minimum(m0 + chunk, n_env)),
+                              minlength=k)
+        return (strided(0, n_env) - covered).astype(np.int32)
+
+    def chunk_items(self, slots: np.ndarray, chunk: int, n_chunks: int) -> np.ndarray:
+        """[i, 2] int32 (index into ``slots``, chunk) of the chunks whose samples an echo of
+        the pair can reach: an echo at sample ek covers ek … ek + ⌈6σ⌉ + 1; a chunk reads
+        from its start − (SPAN + 2·(BOX − 1) + 1) to its end + SPAN."""
+        m, pe = self.model, self.pe
+        lo, hi = pe.lo[slots], pe.hi[slots]
+        n = hi - lo
+        which = np.repeat(np.arange(len(slots)), n)
+        echo = np.repeat(lo - np.cumsum(np.r_[0, n[:-1]]), n) + np.arange(int(n.sum()))
+        start = pe.ek[echo]
+        end = start + math.ceil(m.pulse_len) + 1
+        lead, tail = m.span + 2 * (m.box - 1) + 1, m.span
+        c0 = np.clip((start - tail) // chunk, 0, n_chunks - 1)
+        c1 = np.clip((end + lead) // chunk, 0, n_chunks - 1)
+        width = c1 - c0 + 1
+        rows = np.repeat(which, width)
+        cols = np.repeat(c0, width) + (np.arange(int(width.sum()))
+                                       - np.repeat(np.cumsum(np.r_[0, width[:-1]]), width))
+        items = np.unique(np.stack([rows, cols], axis=-1), axis=0)
+        return np.ascontiguousarray(items, dtype=np.int32).reshape(-1, 2)
+
     def pair_buffer(self, slots: np.ndarray):
         mf = self.cl.mem_flags
         t = np.ascontiguousarray(self.table[slots])
@@ -740,10 +780,21 @@ class _Runner:
             common = [self.pair_buffer(block), np.int32(k), self.ek, self.ef, self.ea,
                       self.k0, self.k1, self.kc]
             hist = hist_buf = None
+            n_items, items, items_buf = k * n_chunks, None, None
+            if self.skip_quiet:
+                items = self.chunk_items(block, chunk, n_chunks)
+                n_items = len(items)
+                items_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR,
+                                      hostbuf=items if n_items else np.zeros((1, 2), np.int32))
+            self.samples["scanned"] += n_items * chunk
+            self.samples["skipped"] += (k * n_chunks - n_items) * chunk
+            order = [items_buf, np.int32(n_items)]
             if mode == "threshold":
-                self.launch("threshold_scan", k * n_chunks, [
-                    *common, self.real(m.threshold), np.int32(m.n_samples), np.int32(chunk),
-                    np.int32(n_chunks), np.int32(capacity), count_buf, n_buf, v_buf])
+                if n_items:
+                    self.launch("threshold_scan", n_items, [
+                        *common, self.real(m.threshold), np.int32(m.n_samples),
+                        np.int32(chunk), np.int32(n_chunks), np.int32(capacity), count_buf,
+                        n_buf, v_buf, *order])
             else:
                 fl = np.ascontiguousarray(floor[block], dtype=self.real)
                 fl_buf = cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=fl)
@@ -751,15 +802,18 @@ class _Runner:
                     hist = np.zeros((k, HIST_BINS), dtype=np.int32)
                     hist_buf = cl.Buffer(self.ctx, mf.READ_WRITE | mf.COPY_HOST_PTR,
                                          hostbuf=hist)
-                self.launch("envelope_scan", k * n_chunks, [
-                    *common, self.real(m.calibration**2), np.int32(m.n_env), np.int32(chunk),
-                    np.int32(n_chunks), fl_buf, np.int32(capacity), count_buf, n_buf, v_buf,
-                    hist_buf, self.demod])
+                if n_items:
+                    self.launch("envelope_scan", n_items, [
+                        *common, self.real(m.calibration**2), np.int32(m.n_env),
+                        np.int32(chunk), np.int32(n_chunks), fl_buf, np.int32(capacity),
+                        count_buf, n_buf, v_buf, hist_buf, self.demod, *order])
             cl.enqueue_copy(self.queue, count, count_buf)
             cl.enqueue_copy(self.queue, cand_n, n_buf)
             cl.enqueue_copy(self.queue, cand_v, v_buf)
             if hist is not None:
                 cl.enqueue_copy(self.queue, hist, hist_buf)
+                if items is not None:  # the chunks left out: every E² there is 0 (bin 0)
+                    hist[:, 0] += self.quiet_histogram(items, k, chunk, n_chunks)
                 hists.append(hist)
             self.queue.finish()
             filled = np.minimum(count, capacity)
@@ -805,20 +859,37 @@ def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, cont
            device: str | None = None, precision: str = "float32",
            window_s: float | None = None, chunk: int | None = None,
            work_group: int | None = None, capacity: int | None = None,
-           skip_silent: bool = True) -> Detections:
+           skip_silent: bool = True, skip_quiet: bool = True,
+           stats: dict | None = None) -> Detections:
     """The detections of every fired pair, computed by the kernels of ``kernels/signals.cl``.
 
     ``context`` or ``device`` chooses the OpenCL device (:func:`clsonar.opencl.get_context`);
     ``precision="float64"`` needs ``cl_khr_fp64``. ``window_s`` overrides t_max; ``chunk``
     (samples per work item), ``work_group`` and ``capacity`` (first-pass candidates per pair)
     tune the launch and never change the result; nor does ``skip_silent``, which leaves out
-    the noise-free pairs without an echo (:func:`scanned_slots`). Same model as
-    :func:`detect_reference`.
+    the noise-free pairs without an echo (:func:`scanned_slots`), nor does ``skip_quiet``,
+    which in a noise-free scene synthesises only the chunks of samples an echo reaches (the
+    rest is exactly 0). ``stats``, if given, receives ``samples_scanned`` and
+    ``samples_skipped_quiet``. Same model as :func:`detect_reference`.
     """
     model, pe = _inputs(scene, sensors, echoes, window_s)
     if len(pe.pairs) == 0:
         return _empty_detections()
-    run = _Runner(model, pe, _context(context, device), precision, chunk, work_group)
+    run = _Runner(model, pe, _context(context, device), precision, chunk, work_group,
+                  skip_quiet)
+    if stats is not None:
+        stats.update(samples_scanned=0, samples_skipped_quiet=0)
+    try:
+        return _detect(model, pe, run, capacity, skip_silent)
+    finally:
+        if stats is not None:
+            stats.update(samples_scanned=run.samples["scanned"],
+                         samples_skipped_quiet=run.samples["skipped"])
+
+
+def _detect(model: SignalModel, pe: _PairEchoes, run: _Runner, capacity: int | None,
+            skip_silent: bool) -> Detections:
+    """:func:`detect` once the runner is built."""
     cap = int(capacity) if capacity is not None else DEFAULT_CAPACITY[model.mode]
     cap = max(1, cap)
     slots = scanned_slots(model, pe) if skip_silent else np.arange(len(pe.pairs))

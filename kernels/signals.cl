@@ -215,6 +215,24 @@ __kernel void a_scans(__global const int4 *pairs, int n_slots, __global const in
 
 // --------------------------------------------------------------------------- threshold mode
 
+// The (slot, chunk) of this work item: from the host's list `items` when it gives one (a
+// noise-free scan leaves out the chunks no echo reaches: their signal is exactly 0), else
+// item = slot·n_chunks + chunk. False when the item is past the end.
+inline bool item_of(__global const int2 *items, int n_items, int n_slots, int n_chunks,
+                    int *slot, int *c) {
+    int item = get_global_id(0);
+    if (items) {
+        if (item >= n_items) return false;
+        *slot = items[item].x;
+        *c = items[item].y;
+        return true;
+    }
+    if (item >= n_slots * n_chunks) return false;
+    *slot = item / n_chunks;
+    *c = item - *slot * n_chunks;
+    return true;
+}
+
 // Rising crossings of `thr` (s[n − 1] < thr ≤ s[n]) for n in [1, n_samples), the thesis'
 // detector (§2.1.1 parts 3–4). Each candidate stores n and s[n]. For T = R a work item stops
 // at its first crossing (only the pair's first crossing counts); the host applies that rule
@@ -223,12 +241,12 @@ __kernel void threshold_scan(__global const int4 *pairs, int n_slots, __global c
                              __global const real *ef, __global const real *ea, uint k0,
                              uint k1, signal_consts kc, real thr, int n_samples, int chunk,
                              int n_chunks, int capacity, __global int *count,
-                             __global int *cand_n, __global real *cand_v) {
-    int item = get_global_id(0);
-    if (item >= n_slots * n_chunks) return;
-    int slot = item / n_chunks;
-    int n0 = max(1, (item - slot * n_chunks) * chunk);
-    int n1 = min((item - slot * n_chunks) * chunk + chunk, n_samples);
+                             __global int *cand_n, __global real *cand_v,
+                             __global const int2 *items, int n_items) {
+    int slot, c;
+    if (!item_of(items, n_items, n_slots, n_chunks, &slot, &c)) return;
+    int n0 = max(1, c * chunk);
+    int n1 = min(c * chunk + chunk, n_samples);
     if (n0 >= n1) return;
     int4 pr = pairs[slot];
     bool first_only = pr.x == pr.y;
@@ -276,11 +294,10 @@ inline void envelope_core(int mode, __global const int4 *pairs, int n_slots,
                           __global const real *floor_, int capacity, __global int *count,
                           __global int *cand_n, __global real4 *cand_v, __global int *hist,
                           int dec, int offset, int n_out, __global real *out,
-                          __global const real2 *demod) {
-    int item = get_global_id(0);
-    if (item >= n_slots * n_chunks) return;
-    int slot = item / n_chunks;
-    int c = item - slot * n_chunks;
+                          __global const real2 *demod, __global const int2 *items,
+                          int n_items) {
+    int slot, c;
+    if (!item_of(items, n_items, n_slots, n_chunks, &slot, &c)) return;
     int4 pr = pairs[slot];
     int m0, m1, n_end;
     if (mode == 0) {
@@ -393,9 +410,11 @@ __kernel void envelope_scan(__global const int4 *pairs, int n_slots, __global co
                             int n_chunks, __global const real *floor_, int capacity,
                             __global int *count, __global int *cand_n,
                             __global real4 *cand_v, __global int *hist,
-                            __global const real2 *demod) {
+                            __global const real2 *demod, __global const int2 *items,
+                            int n_items) {
     envelope_core(0, pairs, n_slots, ek, ef, ea, k0, k1, kc, calib2, n_env, chunk, n_chunks,
-                  floor_, capacity, count, cand_n, cand_v, hist, 1, 0, 0, 0, demod);
+                  floor_, capacity, count, cand_n, cand_v, hist, 1, 0, 0, 0, demod, items,
+                  n_items);
 }
 
 __kernel void envelope_samples(__global const int4 *pairs, int n_slots, __global const int *ek,
@@ -404,5 +423,5 @@ __kernel void envelope_samples(__global const int4 *pairs, int n_slots, __global
                                int dec, int offset, int n_out, __global real *out,
                                __global const real2 *demod) {
     envelope_core(1, pairs, n_slots, ek, ef, ea, k0, k1, kc, calib2, 0, chunk, n_chunks, 0, 0,
-                  0, 0, 0, 0, dec, offset, n_out, out, demod);
+                  0, 0, 0, 0, dec, offset, n_out, out, demod, 0, 0);
 }

@@ -391,3 +391,38 @@ def test_skipping_silent_pairs_changes_no_detection(name, preset):
     assert len(every.tof_s) > 0
     for key in ("tx", "rx", "tof_s", "amplitude"):
         assert np.array_equal(np.asarray(getattr(every, key)), np.asarray(getattr(skipped, key)))
+
+
+@pytest.mark.parametrize("name", ["plane-2m", "sinusoid-1m", "room-l"])
+@pytest.mark.parametrize("mode", ["threshold", "envelope"])
+@pytest.mark.parametrize("noise", [0.0, 0.5])
+def test_quiet_samples_skipped_change_no_detection(name, mode, noise):
+    """Noise-free, only the chunks an echo reaches are synthesised: same detections (and,
+    in envelope mode, the same noise histogram: the left-out E² are all 0)."""
+    import dataclasses
+    from pathlib import Path
+
+    import clsonar
+    from clsonar.echoes import compute_echoes
+    from clsonar.geometry import build_geometry
+    from clsonar.sensors import place_sensors
+
+    scene = clsonar.load_scene(Path(__file__).resolve().parents[1] / "scenes" / f"{name}.json")
+    scene = dataclasses.replace(
+        scene, detection=dataclasses.replace(scene.detection, mode=mode),
+        signal=dataclasses.replace(scene.signal, noise_std=noise))
+    sensors = place_sensors(scene, build_geometry(scene))
+    ctx = get_context()
+    echoes = compute_echoes(scene, sensors, context=ctx)
+    quick: dict = {}
+    a = sig.detect(scene, sensors, echoes, context=ctx, stats=quick)
+    full: dict = {}
+    b = sig.detect(scene, sensors, echoes, context=ctx, skip_quiet=False, stats=full)
+    assert len(a) == len(b) > 0
+    for column in ("tx", "rx", "tof_s", "amplitude"):
+        assert np.array_equal(getattr(a, column), getattr(b, column)), column
+    assert full["samples_skipped_quiet"] == 0
+    if noise == 0:
+        assert quick["samples_skipped_quiet"] > 2 * quick["samples_scanned"]
+    else:
+        assert quick["samples_skipped_quiet"] == 0

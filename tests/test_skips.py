@@ -98,4 +98,5 @@ def test_cli_no_skip_writes_the_same_outputs(tmp_path):
         assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
     counts = [json.loads((tmp_path / d / "report.json").read_text())["counts"] for d in "ab"]
     assert counts[0]["pairs_skipped_empty"] > 0 and counts[1]["pairs_skipped_empty"] == 0
-    assert set(SKIP_NAMES) == {"empty_pairs", "silent_pairs", "tiles", "empty_cells", "rooms"}
+    assert set(SKIP_NAMES) == {"empty_pairs", "silent_pairs", "quiet_samples", "tiles",
+                               "empty_cells", "rooms"}
