@@ -3,7 +3,8 @@
 Part of ``clsonar bench`` (issue "Fast"). For each scene, the whole pipeline runs under
 every setting of :data:`KNOBS` — the thesis-faithful settings, ours, and ours with one knob
 turned (cell size 0.5 / 1 / 2 / 5 cm, threshold detection, locus votes with a narrow or
-wide band, float64 kernels, fewer transducers) — and each run's seconds and error are
+wide band, float64 kernels, fewer transducers, no line-of-sight check) — and each run's
+seconds and error are
 kept. :func:`pareto` marks the settings no other setting beats on both; :func:`beats_thesis`
 names the settings faster *and* more accurate than the thesis-faithful ones on every scene.
 :func:`bench_skips` times the same run with every skip on and off (:class:`Skips`) and
@@ -59,6 +60,9 @@ KNOBS: tuple[tuple[str, str | None, Callable[[Scene], Scene | None] | None], ...
     ("ours, loci, band 3 cm", None, _with("mapping", mode="loci", band_m=0.03)),
     ("ours, float64", None, _with("mapping", precision="float64")),
     ("ours, fewer transducers", None, _fewer_transducers),
+    ("ours, no line of sight", None, _with("mapping", line_of_sight=False)),
+    ("ours, 2 cm, no line of sight", None,
+     lambda s: _with("mapping", line_of_sight=False)(_cell(0.02)(s))),
 )
 
 THESIS = "thesis"
