@@ -113,17 +113,20 @@ def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
     are the thinned cells of their point map (low-pass, automatic level and thinning, as
     the pipeline draws it; an 8-connected one-cell curve covers every z-buffer bin it
     spans) and the profile extracted from it — where the profile bridges the gaps between
-    the patches of a wall (``fit = "walls"``), a ghost cannot slip through. ``box``:
-    post-process only the voted cells' box (:func:`clsonar.post.filter_and_thin`)."""
-    from .mapping import point_map
+    the patches of a wall (``fit = "walls"``), a ghost cannot slip through. ``box``: this
+    map is drawn only over the points' box of cells (:func:`clsonar.mapping.points_window`;
+    sub-cell profiles come from the points themselves, so nothing changes)."""
+    from .mapping import point_map, points_window
 
-    counts, sums = point_map(scene, points)
+    window = points_window(scene, points) if box and scene.post.subcell else None
+    row0, col0 = (window[0], window[1]) if window is not None else (0, 0)
+    counts, sums = point_map(scene, points, window)
     filtered, _, thin = post.filter_and_thin(counts, scene.post, points=True, box=box)
     profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
                                    counts, sums)
     iy, ix = np.nonzero(thin)  # one-cell curves leave no gap between z-buffer bins
-    cells = np.stack([scene.extent[0] + (ix + 0.5) * scene.cell,
-                      scene.extent[1] + (iy + 0.5) * scene.cell], axis=-1)
+    cells = np.stack([scene.extent[0] + (ix + col0 + 0.5) * scene.cell,
+                      scene.extent[1] + (iy + row0 + 0.5) * scene.cell], axis=-1)
     occluders = np.concatenate([cells, profile.points])
     return line_of_sight(points, tx, rx, positions, occluders, scene.cell)
 
