@@ -256,7 +256,8 @@ def _cmd_bench(args: argparse.Namespace) -> int:
         raise ClsonarError(f"--floors: sizes must be 5 to 1000 m, not {args.floors!r}")
     command = "clsonar bench --out " + args.out + (f" --scenes {args.scenes}"
                                                    if args.scenes else "") + (
-        f" --floors {args.floors}" if args.floors != "50" else "")
+        f" --floors {args.floors}" if args.floors != "50" else "") + (
+        f" --repeat {args.repeat}" if args.repeat != 3 else "")
     progress, done = _progress_line()
     try:
         bench(Path(args.out), names=names, repeat=args.repeat, numpy=not args.no_numpy,
