@@ -865,8 +865,10 @@ def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, cont
 
     ``context`` or ``device`` chooses the OpenCL device (:func:`clsonar.opencl.get_context`);
     ``precision="float64"`` needs ``cl_khr_fp64``. ``window_s`` overrides t_max; ``chunk``
-    (samples per work item), ``work_group`` and ``capacity`` (first-pass candidates per pair)
-    tune the launch and never change the result; nor does ``skip_silent``, which leaves out
+    (samples per work item: each restarts the envelope's running sums, so it changes the
+    result by float32 rounding only), ``work_group`` and ``capacity`` (first-pass candidates
+    per pair) tune the launch; the last two never change the result; nor does
+    ``skip_silent``, which leaves out
     the noise-free pairs without an echo (:func:`scanned_slots`), nor does ``skip_quiet``,
     which in a noise-free scene synthesises only the chunks of samples an echo reaches (the
     rest is exactly 0). ``stats``, if given, receives ``samples_scanned`` and
