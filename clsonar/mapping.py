@@ -972,8 +972,9 @@ def _locus_samples(scene: Scene, sensors: SensorArray, loci: Loci):
     p = (centre[:, None] + (a[:, None] * np.cos(phi))[..., None] * u[:, None]
          + (b[:, None] * np.sin(phi))[..., None] * v[:, None])
     inside = _in_beams(p, T[:, None], axes[loci.tx][:, None], cut_sin2)
-    inside &= _in_beams(p, R[:, None], axes[loci.rx][:, None], cut_sin2)
     inside &= (a > f)[:, None]
+    i, k = np.nonzero(inside)  # R's beam tested only where T's holds (a small part)
+    inside[i, k] = _in_beams(p[i, k], R[i], axes[loci.rx][i], cut_sin2)
     return p, inside, a
 
 
