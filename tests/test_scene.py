@@ -259,3 +259,17 @@ def scenes(draw):
 def test_round_trip_property(scene):
     text = json.dumps(scene_to_dict(scene), allow_nan=False)
     assert parse_scene_text(text) == scene
+
+
+def test_atomic_writes_get_ordinary_permissions(tmp_path):
+    import os
+    import stat
+
+    from clsonar.scene import write_atomic
+
+    target = tmp_path / "report.json"
+    write_atomic(target, b"{}")
+    mask = os.umask(0)
+    os.umask(mask)
+    assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~mask
+    assert target.read_bytes() == b"{}"
