@@ -76,6 +76,8 @@ class RunResult:
     counts: dict[str, int]
     device: str
     point_sums: np.ndarray | None = None  # tangent-point sums per cell (sub-cell profile)
+    #: (row0, col0, ny, nx): the cells ``point_sums`` covers (None: the whole grid)
+    point_window: tuple[int, int, int, int] | None = None
 
     def report(self) -> dict[str, object]:
         """The JSON-ready ``report.json`` of DESIGN.md's ``clsonar run``."""
@@ -209,7 +211,7 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     echoes, echo_stats = stage("echoes", lambda: _echoes(scene, sensors, ctx, skips))
     detections, detect_stats = stage("detection",
                                      lambda: _detect(scene, sensors, echoes, ctx, skips))
-    raw, point_sums, ghosts, tile_counts = stage(
+    raw, point_sums, point_window, ghosts, tile_counts = stage(
         "accumulation", lambda: _accumulate(scene, sensors, echoes, detections, ctx, skips))
     counts = {
         "transducers": len(sensors),
@@ -225,7 +227,8 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         "stages_reused": len(reused),
     }
     front = RunResult(scene, geom, sensors, echoes, detections, raw, raw, raw, raw,
-                      post.Profile(()), {}, clock.stop(), counts, device_name, point_sums)
+                      post.Profile(()), {}, clock.stop(), counts, device_name, point_sums,
+                      point_window)
     return rerun_post(front, scene.post, progress=progress, skips=skips)
 
 
@@ -269,7 +272,7 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
             counts[key] = counts.get(key, 0) + value
         # keep only what the whole floor needs of each room (its maps are in the mosaic)
         parts.append(dataclasses.replace(r, raw=None, filtered=None, occupied=None, thin=None,
-                                         point_sums=None))
+                                         point_sums=None, point_window=None))
     counts.update(map_cells=int(raw.size), cells_voted=int(np.count_nonzero(raw)),
                   rooms_mapped=len(rooms))
     sensors = SensorArray(*(np.concatenate([getattr(p.sensors, f) for p in parts])
@@ -331,12 +334,12 @@ def _detect(scene: Scene, sensors: SensorArray, echoes: EchoTable, ctx, skips: S
 
 def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detections,
                 ctx, skips: Skips) -> tuple:
-    """The raw map, the tangent-point sums (or None), the number of ghost points and the
-    tiled accumulation's counters."""
+    """The raw map, the tangent-point sums (or None) and the cells they cover (None: all),
+    the number of ghost points and the tiled accumulation's counters."""
     if scene.mapping.mode == "backprojection":
         dt, env = signals.envelopes(scene, sensors, echoes, context=ctx)
         return (mapping.backproject(scene, sensors, pairs(sensors), env, dt, context=ctx), None,
-                0, {})
+                None, 0, {})
     loci = mapping.as_loci(detections)
     if scene.mapping.reciprocal == "merge":
         loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
@@ -350,8 +353,14 @@ def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detection
                                          box=skips.empty_cells)
             ghosts = int(np.count_nonzero(~seen))
             points = points[seen]
-        raw, point_sums = mapping.point_map(scene, points)
-        return raw, point_sums, ghosts, {}
+        if not skips.empty_cells:
+            raw, point_sums = mapping.point_map(scene, points)
+            return raw, point_sums, None, ghosts, {}
+        window = mapping.points_window(scene, points)  # the sums only where points are
+        counts, point_sums = mapping.point_map(scene, points, window)
+        raw = np.zeros(scene.grid_shape, counts.dtype)
+        raw[_slices(window)] = counts
+        return raw, point_sums, window, ghosts, {}
     tile_stats: list[mapping.AccumulationStats] = []
 
     def draw(part) -> np.ndarray:
@@ -362,7 +371,7 @@ def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detection
 
     raw = (mapping.count_viewpoints(scene, sensors, loci, draw)
            if scene.mapping.combine == "viewpoints" else draw(loci))
-    return raw, None, 0, {
+    return raw, None, None, 0, {
         "tiles_total": sum(t.tiles_total for t in tile_stats),
         "tiles_skipped": sum(t.tiles_skipped for t in tile_stats),
         "pixel_locus_tests": sum(t.pixel_locus_tests for t in tile_stats),
@@ -381,18 +390,29 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
                            "its post-processing alone; run it again")
     scene = result.scene if settings is None else dataclasses.replace(result.scene,
                                                                       post=settings)
-    raw, point_sums = result.raw, result.point_sums
+    raw, point_sums, outer = result.raw, result.point_sums, result.point_window
+    if point_sums is not None and outer is not None and not scene.post.subcell:
+        # cell-centre profiles need the whole grid's indices: the sums on the whole grid
+        full = np.zeros((*raw.shape, 2))
+        full[_slices(outer)] = point_sums
+        point_sums, outer = full, None
+    outer = outer if point_sums is not None and outer is not None else (0, 0, *raw.shape)
+    part = raw[_slices(outer)]  # post-processing needs no cell outside the points' window
     clock = _Stopwatch(progress)
     clock.start("filter")
-    window, filtered, occupied = post.filter_box(raw, scene.post, point_sums is not None,
+    window, filtered, occupied = post.filter_box(part, scene.post, point_sums is not None,
                                                  box=skips.empty_cells)
     clock.start("thinning")
-    thin = post.embed(raw.shape, window, post.thin_map(occupied, scene.post))
-    filtered = post.embed(raw.shape, window, filtered)
-    occupied = post.embed(raw.shape, window, occupied)
+    thin = post.embed(part.shape, window, post.thin_map(occupied, scene.post))
+    filtered = post.embed(part.shape, window, filtered)
     clock.start("profile")
     profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
-                                   raw if point_sums is not None else None, point_sums)
+                                   part if point_sums is not None else None, point_sums)
+    inner = (outer[0] + window[0].start, outer[1] + window[1].start,
+             window[0].stop - window[0].start, window[1].stop - window[1].start)
+    filtered = post.embed(raw.shape, _slices(outer), filtered)
+    thin = post.embed(raw.shape, _slices(outer), thin)
+    occupied = post.embed(raw.shape, _slices(inner), occupied)
     clock.start("metrics")
     result_metrics = metrics.evaluate(scene, result.geometry, result.sensors, result.echoes,
                                       profile.points, profile.vertices)
@@ -408,6 +428,12 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
     return dataclasses.replace(result, scene=scene, filtered=filtered, occupied=occupied,
                                thin=thin, profile=profile, metrics=result_metrics,
                                seconds=seconds, counts=counts)
+
+
+def _slices(window: tuple[int, int, int, int]) -> tuple[slice, slice]:
+    """The ``[rows, cols]`` of a ``(row0, col0, ny, nx)`` window."""
+    row0, col0, ny, nx = window
+    return slice(row0, row0 + ny), slice(col0, col0 + nx)
 
 
 _POST_COUNTS = ("cells_post_processed", "occupied_cells", "thin_cells", "profile_curves",

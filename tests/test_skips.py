@@ -17,7 +17,7 @@ import clsonar
 from clsonar import post
 from clsonar.cli import main
 from clsonar.opencl import get_context
-from clsonar.pipeline import SKIP_NAMES, Skips, StageCache, apply_preset
+from clsonar.pipeline import SKIP_NAMES, Skips, StageCache, apply_preset, rerun_post
 from clsonar.scene import PostSettings
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
@@ -100,3 +100,21 @@ def test_cli_no_skip_writes_the_same_outputs(tmp_path):
     assert counts[0]["pairs_skipped_empty"] > 0 and counts[1]["pairs_skipped_empty"] == 0
     assert set(SKIP_NAMES) == {"empty_pairs", "silent_pairs", "quiet_samples", "tiles",
                                "empty_cells", "rooms"}
+
+
+def test_post_processing_of_tangent_points_in_their_window_matches_the_whole_grid():
+    """The sums of tangent points are kept only over their window of cells; profiles from
+    cell centres (subcell off) still come out as on the whole grid."""
+    scene = clsonar.load_scene(SCENES / "room-l.json")  # no line of sight: its points
+    scene = dataclasses.replace(  # would depend on the post settings
+        scene, mapping=dataclasses.replace(scene.mapping, line_of_sight=False))
+    ctx = get_context()
+    windowed = clsonar.run(scene, context=ctx)
+    assert windowed.point_window is not None
+    assert windowed.point_sums.shape[:2] == windowed.point_window[2:]
+    centres = dataclasses.replace(scene.post, subcell=False)
+    again = rerun_post(windowed, centres)
+    whole = clsonar.run(dataclasses.replace(scene, post=centres), context=ctx,
+                        skips=Skips.none())
+    assert whole.point_window is None
+    _same(again, whole)
