@@ -114,11 +114,19 @@ def _inside_polygon(poly: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 def _crosses(geom: Geometry, a: np.ndarray, b: np.ndarray) -> bool:
     """Whether the segment ``a``→``b`` meets a surface."""
+    return bool(_crosses_each(geom, np.asarray(a)[None], np.asarray(b)[None])[0])
+
+
+def _crosses_each(geom: Geometry, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """[n] bool: whether each segment ``a[i]``→``b[i]`` meets a surface."""
     d = b - a
-    length = math.hypot(d[0], d[1])
-    if length == 0.0:
-        return False
-    return bool(ray_distance(geom, a[None], (d / length)[None])[0] <= length)
+    length = np.array([math.hypot(x, y) for x, y in d])
+    hit = np.zeros(len(d), dtype=bool)
+    some = length > 0.0
+    if some.any():
+        ray = ray_distance(geom, a[some], d[some] / length[some, None])
+        hit[some] = ray <= length[some]
+    return hit
 
 
 def _placement_error(scene: Scene, message: str, key: str = "sensors.placement") -> SceneError:
@@ -173,9 +181,10 @@ def place_random_lines(p: RandomLines, scene: Scene, geom: Geometry):
         half = 0.5 * offsets[-1]
         first = 0.0 if array == 0 else centre + rng.uniform(*p.separation_m) - half
         centre = first + half
-        for s in first + offsets:
-            point = start + s * u
-            reason = _random_lines_stop(p, scene, geom, point, prev, s)
+        along = first + offsets
+        points = start + along[:, None] * u
+        reasons = _random_lines_stops(p, scene, geom, points, prev, along)
+        for point, reason in zip(points, reasons, strict=True):
             if reason:
                 break
             positions.append(point)
@@ -191,21 +200,33 @@ def place_random_lines(p: RandomLines, scene: Scene, geom: Geometry):
             np.asarray(groups, dtype=np.int64), np.zeros((0, 2)))
 
 
-def _random_lines_stop(p: RandomLines, scene: Scene, geom: Geometry, point: np.ndarray,
-                       prev: np.ndarray | None, s: float) -> str:
-    """Why an element at ``point`` (``s`` along the line) ends the placement, or ``""``."""
-    if s > p.length_m:
-        return f"beyond length_m = {p.length_m:g} along the line"
-    if not _extent_contains(scene, point)[0]:
-        return "outside the extent"
-    if not in_free_space(scene, geom, point)[0]:
-        return "inside a solid (outside the room or inside a cylinder)"
-    dist, _ = nearest_surface_point(geom, point[None])
-    if dist[0] < p.clearance_m:
-        return f"within clearance_m = {p.clearance_m:g} of a surface"
-    if prev is not None and _crosses(geom, prev, point):
-        return "behind a surface"
-    return ""
+def _random_lines_stops(p: RandomLines, scene: Scene, geom: Geometry, points: np.ndarray,
+                        prev: np.ndarray | None, along: np.ndarray) -> list[str]:
+    """For each of an array's candidate ``points`` (``along`` the line, in order, each
+    following the one before it and the first ``prev``): why it would end the placement,
+    or ``""`` (the checks of all the array's elements at once)."""
+    inside = _extent_contains(scene, points)
+    free = in_free_space(scene, geom, points)
+    dist, _ = nearest_surface_point(geom, points)
+    before = np.concatenate([[prev if prev is not None else points[0]], points[:-1]])
+    behind = _crosses_each(geom, before, points)
+    if prev is None:
+        behind[0] = False
+    reasons = []
+    for i, s in enumerate(along):
+        if s > p.length_m:
+            reasons.append(f"beyond length_m = {p.length_m:g} along the line")
+        elif not inside[i]:
+            reasons.append("outside the extent")
+        elif not free[i]:
+            reasons.append("inside a solid (outside the room or inside a cylinder)")
+        elif dist[i] < p.clearance_m:
+            reasons.append(f"within clearance_m = {p.clearance_m:g} of a surface")
+        elif behind[i]:
+            reasons.append("behind a surface")
+        else:
+            reasons.append("")
+    return reasons
 
 
 def _random_start(p: RandomLines, scene: Scene, geom: Geometry,
