@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -55,6 +56,13 @@ class SensorArray:
 
     def __len__(self) -> int:
         return len(self.positions)
+
+    @cached_property
+    def fired_pairs(self) -> np.ndarray:
+        """[P, 2] the pairs that fire (:func:`pairs`), computed once, read-only."""
+        out = _fired_pairs(self)
+        out.flags.writeable = False
+        return out
 
     @property
     def axes(self) -> np.ndarray:
@@ -538,7 +546,12 @@ def place_sensors(scene: Scene, geom: Geometry | None = None) -> SensorArray:
 
 def pairs(sensors: SensorArray) -> np.ndarray:
     """[P, 2] int64 ordered (tx, rx) pairs that fire: all pairs within each group, T = R
-    included, sorted by tx then rx (see the module docstring)."""
+    included, sorted by tx then rx (see the module docstring). Computed once per array
+    (read-only)."""
+    return sensors.fired_pairs
+
+
+def _fired_pairs(sensors: SensorArray) -> np.ndarray:
     g = sensors.groups
     if len(g) == 0:
         return np.zeros((0, 2), dtype=np.int64)
