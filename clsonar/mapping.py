@@ -958,7 +958,13 @@ LOCUS_SAMPLES = 1440
 
 def _locus_samples(scene: Scene, sensors: SensorArray, loci: Loci):
     """[n, S, 2] points of each locus (ellipse with foci T, R and path length c·τ) and
-    [n, S] whether each lies inside both beams; [n] the half path length a."""
+    [n, S] whether each lies inside both beams; [n] the half path length a.
+
+    Only the samples near T's beam are computed (the others are left 0 and outside): with T
+    a focus, the ray from T at angle ν from the major axis meets the ellipse once, at
+    eccentric anomaly E = 2·atan2(√(1+e)·sin(ν/2), √(1−e)·cos(ν/2)) (e = f/a), so T's beam
+    (ν within ±α of its axis) is one arc of samples; two samples more either side are
+    tested as well, and each sample is then tested exactly as before."""
     pos, axes = sensors.positions, sensors.axes
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
     T, R = pos[loci.tx], pos[loci.rx]
@@ -969,13 +975,45 @@ def _locus_samples(scene: Scene, sensors: SensorArray, loci: Loci):
     v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
     phi = 2 * np.pi * np.arange(LOCUS_SAMPLES) / LOCUS_SAMPLES
     centre = 0.5 * (T + R)
-    p = (centre[:, None] + (a[:, None] * np.cos(phi))[..., None] * u[:, None]
-         + (b[:, None] * np.sin(phi))[..., None] * v[:, None])
-    inside = _in_beams(p, T[:, None], axes[loci.tx][:, None], cut_sin2)
+    rows, ks = _beam_arc_samples(u, v, axes[loci.tx], a, f, cut_sin2)
+    p = np.zeros((len(a), LOCUS_SAMPLES, 2))
+    p[rows, ks] = (centre[rows] + (a[rows] * np.cos(phi[ks]))[:, None] * u[rows]
+                   + (b[rows] * np.sin(phi[ks]))[:, None] * v[rows])
+    inside = np.zeros((len(a), LOCUS_SAMPLES), dtype=bool)
+    inside[rows, ks] = _in_beams(p[rows, ks], T[rows], axes[loci.tx][rows], cut_sin2)
     inside &= (a > f)[:, None]
     i, k = np.nonzero(inside)  # R's beam tested only where T's holds (a small part)
     inside[i, k] = _in_beams(p[i, k], R[i], axes[loci.rx][i], cut_sin2)
     return p, inside, a
+
+
+#: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
+_ARC_MARGIN = 2
+
+
+def _beam_arc_samples(u: np.ndarray, v: np.ndarray, axis: np.ndarray, a: np.ndarray,
+                      f: np.ndarray, cut_sin2: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows, samples)``: for each locus (a > f), the sample indices of its arc inside
+    the beam of its focus T (axis ``axis``), with :data:`_ARC_MARGIN` more either side."""
+    alpha = math.asin(math.sqrt(min(cut_sin2, 1.0)))
+    ok = a > f
+    e = np.where(ok, f / np.where(ok, a, 1.0), 0.0)
+    beta = np.arctan2(np.sum(v * axis, -1), np.sum(u * axis, -1))  # axis angle from u
+    step = 2 * np.pi / LOCUS_SAMPLES
+
+    def anomaly(nu: np.ndarray) -> np.ndarray:
+        nu = np.angle(np.exp(1j * nu))  # into (−π, π]
+        return 2 * np.arctan2(np.sqrt(1 + e) * np.sin(nu / 2), np.sqrt(1 - e) * np.cos(nu / 2))
+
+    lo, hi = anomaly(beta - alpha), anomaly(beta + alpha)
+    hi = np.where(hi < lo, hi + 2 * np.pi, hi)
+    k0 = np.floor(lo / step).astype(np.int64) - _ARC_MARGIN
+    k1 = np.ceil(hi / step).astype(np.int64) + _ARC_MARGIN
+    width = np.where(ok, np.minimum(k1 - k0 + 1, LOCUS_SAMPLES), 0)
+    rows = np.repeat(np.arange(len(a)), width)
+    first = np.repeat(np.cumsum(np.r_[0, width[:-1]]), width)
+    ks = (np.repeat(k0, width) + np.arange(int(width.sum())) - first) % LOCUS_SAMPLES
+    return rows, ks
 
 
 def _in_beams(p, sensor, axis, cut_sin2):

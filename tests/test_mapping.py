@@ -620,3 +620,43 @@ def test_merge_reciprocal_pairs_one_locus_per_path():
                    merged.amplitude.tolist(), strict=True))
     assert got == [(0, 1, pytest.approx(0.0101), 3.0), (0, 1, 0.03, 1.0), (1, 3, 0.05, 1.0),
                    (2, 2, 0.02, 1.0)]
+
+
+@settings(max_examples=120, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([5.0, 12.0, 30.0, 89.0]),
+       st.sampled_from([0.0, 1e-7, 0.01, 0.13, 1.0]))
+def test_locus_samples_computed_near_the_beam_equal_every_sample_tested(seed, half_beam,
+                                                                        spread):
+    """_locus_samples computes only the arc near T's beam; the in-beam samples and their
+    points must be those that testing every sample gives."""
+    rng = np.random.default_rng(seed)
+    n = 6
+    pos = rng.uniform(-2, 2, (n, 2))
+    pos[1] = pos[0] + spread * np.array([1.0, 0.3])  # nearly coincident pairs
+    sensors = SensorArray(pos, rng.uniform(-540, 540, n), np.zeros(n, np.int64),
+                          np.zeros((0, 2)))
+    scene = Scene("arc", (-5.0, -5.0, 5.0, 5.0),
+                  transducer=TransducerModel(half_beam_deg=half_beam, directivity="uniform"))
+    tx, rx = rng.integers(0, n, 40), rng.integers(0, n, 40)
+    tx[:5], rx[:5] = 0, 1
+    c = scene.medium.c
+    gap = np.hypot(*(pos[rx] - pos[tx]).T)
+    path = gap + rng.choice([0.0, 1e-9, 1e-4, 0.3, 3.0], 40) * rng.uniform(0.5, 1.0, 40)
+    loci = mapping.Loci(tx, rx, path / c, np.ones(40))
+    p, inside, a = mapping._locus_samples(scene, sensors, loci)
+    # every sample, tested directly
+    cut_sin2, _ = scene.transducer.beam(c)
+    T, R = pos[tx], pos[rx]
+    f = 0.5 * gap
+    b = np.sqrt(np.maximum(a * a - f * f, 0.0))
+    u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
+    v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
+    phi = 2 * np.pi * np.arange(mapping.LOCUS_SAMPLES) / mapping.LOCUS_SAMPLES
+    full = (0.5 * (T + R)[:, None] + (a[:, None] * np.cos(phi))[..., None] * u[:, None]
+            + (b[:, None] * np.sin(phi))[..., None] * v[:, None])
+    axes = sensors.axes
+    want = (mapping._in_beams(full, T[:, None], axes[tx][:, None], cut_sin2)
+            & mapping._in_beams(full, R[:, None], axes[rx][:, None], cut_sin2)
+            & (a > f)[:, None])
+    assert np.array_equal(inside, want)
+    assert np.array_equal(p[inside], full[want])
