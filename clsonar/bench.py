@@ -89,6 +89,69 @@ class AccumulationRow:
     tiled_tests: int = 0  # pixel-locus tests the tiled kernel made
 
 
+@dataclass(frozen=True)
+class StageRow:
+    """The echo and detection stages of one scene: OpenCL float32 against NumPy float64."""
+
+    scene: str
+    pairs: int
+    echoes_numpy_s: float
+    echoes_opencl_s: float
+    echoes_speedup: float
+    echoes_same: bool  # same echoes (pairs, kinds), times of flight within 1 µs
+    detection_numpy_s: float
+    detection_opencl_s: float
+    detection_speedup: float
+    detections_same: bool  # same detections, times of flight within 1 µs
+
+
+def bench_stages(scene: Scene, context, repeat: int) -> StageRow:
+    """Time the echoes (:func:`clsonar.echoes.compute_echoes` against
+    :func:`~clsonar.echoes.reference_echoes`) and the detection (:func:`clsonar.signals.detect`
+    against :func:`~clsonar.signals.detect_reference`, which synthesises every pair's
+    received signal) of ``scene``."""
+    from . import signals
+    from .echoes import compute_echoes, reference_echoes
+    from .geometry import build_geometry
+    from .sensors import pairs, place_sensors
+
+    sensors = place_sensors(scene, build_geometry(scene))
+    compute_echoes(scene, sensors, context=context)
+    cl_s, table = best_time(lambda: compute_echoes(scene, sensors, context=context), repeat)
+    np_s, ref = best_time(lambda: reference_echoes(scene, sensors), 1)
+    signals.detect(scene, sensors, table, context=context)
+    det_s, found = best_time(lambda: signals.detect(scene, sensors, table, context=context),
+                             repeat)
+    det_np_s, found_ref = best_time(lambda: signals.detect_reference(scene, sensors, table), 1)
+
+    def same(a, b, columns) -> bool:
+        return (len(a) == len(b)
+                and all(np.array_equal(getattr(a, c), getattr(b, c)) for c in columns)
+                and bool(np.all(np.abs(a.tof_s - b.tof_s) <= 1e-6)))
+
+    return StageRow(scene.name, len(pairs(sensors)), np_s, cl_s, np_s / cl_s,
+                    same(table, ref, ("tx", "rx", "kind")), det_np_s, det_s,
+                    det_np_s / det_s, same(found, found_ref, ("tx", "rx")))
+
+
+def stages_markdown(rows: list[StageRow]) -> list[str]:
+    lines = ["", "## Echoes and detection: OpenCL against NumPy float64", "",
+             "The echo engine (`kernels/echoes.cl` against `echoes.reference_echoes`) and the "
+             "detection (`kernels/signals.cl`, with its skips, against "
+             "`signals.detect_reference`, the plain program that synthesises and scans every "
+             "pair's received signal).", "",
+             "| scene | pairs | echoes NumPy s | echoes OpenCL s | speed-up | same echoes | "
+             "detection NumPy s | detection OpenCL s | speed-up | same detections |",
+             "| --- |" + " ---: |" * 9]
+    for r in rows:
+        lines.append(f"| {r.scene} | {r.pairs:,} | {r.echoes_numpy_s:.3f} | "
+                     f"{r.echoes_opencl_s:.4f} | {r.echoes_speedup:.0f}× | "
+                     f"{'yes' if r.echoes_same else 'NO'} | {r.detection_numpy_s:.2f} | "
+                     f"{r.detection_opencl_s:.4f} | {r.detection_speedup:.0f}× | "
+                     f"{'yes' if r.detections_same else 'NO'} |")
+    return lines
+
+
 def best_time(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
     """The shortest of ``repeat`` wall-clock runs of ``fn`` and its last result."""
     best, result = float("inf"), None
@@ -220,6 +283,7 @@ class BenchReport:
     device: str
     pipeline: list[PipelineRow]
     accumulation: list[AccumulationRow]
+    stages: list[StageRow]
     skips: list[SkipRow]
     tradeoff: list[TradeoffRow]
     beats_thesis: list[str]
@@ -303,8 +367,8 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     folder = scenes_dir or bundled_scenes()
     scenes = [load_scene(folder / f"{name}.json") for name in names]
     shapes = [s for s in scenes if s.name in THESIS_SCENES]
-    pipeline, accumulation, skips, trade = [], [], [], []
-    steps = len(scenes) * (2 * len(SETTINGS) + 1) + len(shapes) + len(floors)
+    pipeline, accumulation, stage_rows, skips, trade = [], [], [], [], []
+    steps = len(scenes) * (2 * len(SETTINGS) + 1 + numpy) + len(shapes) + len(floors)
     step = 0
 
     def tell(what: str) -> None:
@@ -321,6 +385,9 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
             skips.append(bench_skips(scene, label, preset, context, repeat))
         tell(f"{scene.name}: accumulation")
         accumulation.append(bench_accumulation(scene, context, repeat, numpy))
+        if numpy:
+            tell(f"{scene.name}: echoes and detection against NumPy")
+            stage_rows.append(bench_stages(scene, context, repeat))
     for scene in shapes:
         tell(f"{scene.name}: run time against error")
         trade += bench_tradeoff(scene, context, repeat)
@@ -330,9 +397,11 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
         floor_rows.append(bench_floor(size, device))
     d = context.devices[0]
     report = BenchReport(f"{d.name.strip()} ({d.platform.name.strip()})", pipeline,
-                         accumulation, skips, trade, beats_thesis(trade), floor_rows)
+                         accumulation, stage_rows, skips, trade, beats_thesis(trade),
+                         floor_rows)
     text = markdown(pipeline, accumulation, report.device, command)
-    text += "\n".join(skips_markdown(skips)
+    text += "\n".join((stages_markdown(stage_rows) if stage_rows else [])
+                      + skips_markdown(skips)
                       + (tradeoff_markdown(trade, report.beats_thesis) if trade else [])
                       + (floors_markdown(floor_rows) if floor_rows else [])) + "\n"
     out.mkdir(parents=True, exist_ok=True)
@@ -350,9 +419,11 @@ __all__ = [
     "AccumulationRow",
     "BenchReport",
     "PipelineRow",
+    "StageRow",
     "bench",
     "bench_accumulation",
     "bench_pipeline",
+    "bench_stages",
     "best_time",
     "loci_scene",
     "markdown",

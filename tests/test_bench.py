@@ -91,3 +91,12 @@ def test_bench_maps_a_floor_room_by_room_in_its_own_process(report):
     assert f.vertices_found == "16/16" and f.accuracy_m < 0.005
     assert 0 < f.mosaic_mb < f.peak_rss_mb and f.total_s == pytest.approx(sum(f.seconds.values()))
     assert "| floor-10m | 1,000,000 | 4 |" in (out / "bench.md").read_text()
+
+
+def test_bench_times_echoes_and_detection_against_numpy(report):
+    out, _, _, full = report
+    (r,) = full.stages
+    assert r.scene == "plane-2m" and r.pairs == 900
+    assert r.echoes_same and r.detections_same
+    assert r.echoes_speedup == pytest.approx(r.echoes_numpy_s / r.echoes_opencl_s)
+    assert "## Echoes and detection: OpenCL against NumPy float64" in (out / "bench.md").read_text()
