@@ -192,7 +192,7 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
                              host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
     device_name = _device_name(ctx)
-    keys = stage_keys(scene, device_name, skips)
+    keys = stage_keys(scene, device_name, skips) if cache is not None else {}
     clock = _Stopwatch(progress)
     reused: list[str] = []
 
@@ -323,13 +323,10 @@ def _echoes(scene: Scene, sensors: SensorArray, ctx, skips: Skips) -> tuple:
 
 
 def _detect(scene: Scene, sensors: SensorArray, echoes: EchoTable, ctx, skips: Skips) -> tuple:
-    n_pairs = len(pairs(sensors))
-    heard = len({(int(t), int(r)) for t, r in zip(echoes.tx, echoes.rx, strict=True)})
-    silent = (n_pairs - heard if skips.silent_pairs and scene.signal.noise_std == 0 else 0)
     stats: dict[str, int] = {}
     found = signals.detect(scene, sensors, echoes, context=ctx, skip_silent=skips.silent_pairs,
                            skip_quiet=skips.quiet_samples, stats=stats)
-    return found, {"pairs_skipped_silent": silent, "pairs_scanned": n_pairs - silent, **stats}
+    return found, stats
 
 
 def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detections,
@@ -358,9 +355,8 @@ def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detection
             return raw, point_sums, None, ghosts, {}
         window = mapping.points_window(scene, points)  # the sums only where points are
         counts, point_sums = mapping.point_map(scene, points, window)
-        raw = np.zeros(scene.grid_shape, counts.dtype)
-        raw[_slices(window)] = counts
-        return raw, point_sums, window, ghosts, {}
+        return post.embed(scene.grid_shape, _slices(window), counts), point_sums, window, \
+            ghosts, {}
     tile_stats: list[mapping.AccumulationStats] = []
 
     def draw(part) -> np.ndarray:
@@ -393,9 +389,7 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
     raw, point_sums, outer = result.raw, result.point_sums, result.point_window
     if point_sums is not None and outer is not None and not scene.post.subcell:
         # cell-centre profiles need the whole grid's indices: the sums on the whole grid
-        full = np.zeros((*raw.shape, 2))
-        full[_slices(outer)] = point_sums
-        point_sums, outer = full, None
+        point_sums, outer = post.embed((*raw.shape, 2), _slices(outer), point_sums), None
     outer = outer if point_sums is not None and outer is not None else (0, 0, *raw.shape)
     part = raw[_slices(outer)]  # post-processing needs no cell outside the points' window
     clock = _Stopwatch(progress)

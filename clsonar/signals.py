@@ -871,32 +871,31 @@ def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, cont
     ``skip_silent``, which leaves out
     the noise-free pairs without an echo (:func:`scanned_slots`), nor does ``skip_quiet``,
     which in a noise-free scene synthesises only the chunks of samples an echo reaches (the
-    rest is exactly 0). ``stats``, if given, receives ``samples_scanned`` and
-    ``samples_skipped_quiet``. Same model as :func:`detect_reference`.
+    rest is exactly 0). ``stats``, if given, receives ``pairs_scanned``,
+    ``pairs_skipped_silent``, ``samples_scanned`` and ``samples_skipped_quiet``. Same model
+    as :func:`detect_reference`.
     """
     model, pe = _inputs(scene, sensors, echoes, window_s)
-    if len(pe.pairs) == 0:
-        return _empty_detections()
-    run = _Runner(model, pe, _context(context, device), precision, chunk, work_group,
-                  skip_quiet)
+    slots = scanned_slots(model, pe) if skip_silent else np.arange(len(pe.pairs))
+    samples = {"scanned": 0, "skipped": 0}
+    found = _empty_detections()
+    if len(slots):
+        run = _Runner(model, pe, _context(context, device), precision, chunk, work_group,
+                      skip_quiet)
+        found = _detect(model, pe, run, capacity, slots)
+        samples = run.samples
     if stats is not None:
-        stats.update(samples_scanned=0, samples_skipped_quiet=0)
-    try:
-        return _detect(model, pe, run, capacity, skip_silent)
-    finally:
-        if stats is not None:
-            stats.update(samples_scanned=run.samples["scanned"],
-                         samples_skipped_quiet=run.samples["skipped"])
+        stats.update(pairs_scanned=len(slots), pairs_skipped_silent=len(pe.pairs) - len(slots),
+                     samples_scanned=samples["scanned"],
+                     samples_skipped_quiet=samples["skipped"])
+    return found
 
 
 def _detect(model: SignalModel, pe: _PairEchoes, run: _Runner, capacity: int | None,
-            skip_silent: bool) -> Detections:
-    """:func:`detect` once the runner is built."""
+            slots: np.ndarray) -> Detections:
+    """:func:`detect` of the pair ``slots`` once the runner is built."""
     cap = int(capacity) if capacity is not None else DEFAULT_CAPACITY[model.mode]
     cap = max(1, cap)
-    slots = scanned_slots(model, pe) if skip_silent else np.arange(len(pe.pairs))
-    if len(slots) == 0:
-        return _empty_detections()
     if model.mode == "threshold":
         counts, cand, _ = run.scan(slots, cap, None, histogram=False)
         over = counts > cap  # per scanned slot
