@@ -9,14 +9,14 @@ STAMP  := $(VENV)/.installed
 SCENE  ?= scenes/room.json
 OUT    ?= out
 
-.PHONY: demo test lint opencl setup clean
+.PHONY: demo test lint staged opencl setup clean
 
 setup: opencl
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[test]'
+	$(BIN)/python -m pip install -q -e '.[all,test]'
 	touch $(STAMP)
 
 # Install PoCL from Debian when no OpenCL device can build kernels (PyPI's PoCL cannot here).
@@ -34,8 +34,20 @@ demo: opencl
 test: opencl
 	$(BIN)/python -m pytest
 
-lint: $(STAMP)
-	$(BIN)/ruff check clsonar kernels tests
+# The GUI lives in gui/ and is installed as clsonar.gui: the import contracts (import-linter)
+# and the type checker (mypy) read the package laid out as installed, from a copy in build/.
+STAGED := build/staged
+
+staged:
+	rm -rf $(STAGED) && mkdir -p $(STAGED)
+	cp -r clsonar $(STAGED)/clsonar && cp -r gui $(STAGED)/clsonar/gui
+	find $(STAGED) -name __pycache__ -prune -exec rm -rf {} +
+
+lint: $(STAMP) staged
+	$(BIN)/ruff check clsonar gui kernels tests
+	cd $(STAGED) && PYTHONPATH=. $(abspath $(BIN))/lint-imports $(CURDIR)/pyproject.toml
+	cd $(STAGED) && $(abspath $(BIN))/mypy --config-file $(CURDIR)/pyproject.toml -p clsonar \
+	  | sed 's|^clsonar/gui/|gui/|'
 
 clean:
 	rm -rf $(VENV) $(OUT) build dist *.egg-info

@@ -200,13 +200,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_reproduce(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .reproduce import reproduce
+    from .tools.reproduce import reproduce
 
     if args.seeds < 1:
         raise ClsonarError(f"--seeds must be >= 1, not {args.seeds}")
     client = None
     if args.scheduler:
-        from .sweep import connect
+        from .tools.sweep import connect
 
         client = connect(args.scheduler)
     progress, done = _progress_line()
@@ -239,8 +239,8 @@ def _progress_line() -> tuple[Callable[[int, int, str], None], Callable[[], None
 def _cmd_bench(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .bench import DEFAULT_SCENES, bench
-    from .reproduce import bundled_scenes
+    from .files import bundled_scenes
+    from .tools.bench import DEFAULT_SCENES, bench
 
     if args.repeat < 1:
         raise ClsonarError(f"--repeat must be >= 1, not {args.repeat}")
@@ -269,7 +269,7 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from .sweep import ProgressBar, connect, load_spec, sweep
+    from .tools.sweep import ProgressBar, connect, load_spec, sweep
 
     spec = load_spec(args.spec)  # a bad spec fails here, before anything is written
     client = connect(args.scheduler) if args.scheduler else None
@@ -287,7 +287,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
-    from .sweepplot import plot_sweep
+    from .tools.sweepplot import plot_sweep
 
     paths = plot_sweep(args.folder)
     print(f"wrote {len(paths)} PNGs in {args.folder}/plots/")
@@ -297,7 +297,7 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 def _cmd_stress(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .stress import passed, stress
+    from .tools.stress import passed, stress
 
     if args.count < 1:
         raise ClsonarError(f"--count must be >= 1, not {args.count}")
@@ -319,7 +319,8 @@ def _cmd_stress(args: argparse.Namespace) -> int:
 
 
 def _cmd_echoes(args: argparse.Namespace) -> int:
-    from .scene import load_scene, write_atomic
+    from .files import write_atomic
+    from .scene import load_scene
 
     scene = load_scene(args.scene)  # a bad scene fails here, before OpenCL is touched
     from .echoes import compute_echoes, reference_echoes

@@ -41,7 +41,6 @@ import dataclasses
 import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from functools import cache
 from typing import TextIO
 
 import numpy as np
@@ -65,13 +64,11 @@ BISECT_ITERATIONS = {"float64": 40, "float32": 32}
 #: |â + b̂| below this: T and R are on opposite sides of a cylinder, no shorter arc.
 MIN_BISECTOR = 1e-6
 
-#: Work-group size of the kernels along the surface elements (see ``_work_group``).
+#: Work-group size of the kernels along the surface elements (:func:`clsonar.opencl.work_group`).
 WORK_GROUP = 32
 
 #: Work items per kernel launch (pairs are split into chunks of at most this many slots).
 SLOTS_PER_LAUNCH = 1 << 21
-
-PRECISIONS = {"float32": np.float32, "float64": np.float64}
 
 
 # --------------------------------------------------------------------------- the table
@@ -755,40 +752,22 @@ def _ref_curve(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
 
 def _program(context, precision: str, max_order: int):
     """``kernels/echoes.cl`` built for ``precision`` and ``max_order`` (memoised)."""
-    from .opencl import build_program
+    from .opencl import beam_series_defines, build_program, precision_defines
 
     defines: dict[str, object] = {
         "MAX_ORDER": max(1, max_order),
         "EPS_M": float(OCCLUSION_EPS_M),
         "MAX_FOCUS_GAIN": float(physics.MAX_FOCUS_GAIN),
         "BISECT_ITERATIONS": BISECT_ITERATIONS[precision],
+        **beam_series_defines(),
+        **precision_defines(precision),
     }
-    coeffs = physics.beam_series_coefficients(14)
-    defines["BEAM_TERMS"] = len(coeffs)
-    defines["BEAM_SERIES"] = "{" + ",".join(repr(float(v)) for v in coeffs) + "}"
-    if precision == "float64":
-        defines["REAL_DOUBLE"] = 1
     return build_program(context, "echoes.cl", defines)
 
 
-@cache
-def _kernels(program) -> dict[str, object]:
-    """The kernel objects of a built program, one per family (retrieved once)."""
-    import pyopencl as cl
-
-    names = {"mirror": "mirror_paths", "vertex": "vertex_paths", "edge": "edge_paths",
-             "circle": "circle_paths", "curve": "curve_paths"}
-    return {family: cl.Kernel(program, name) for family, name in names.items()}
-
-
-@cache
-def _work_group(kernel, device) -> int:
-    """Work-group size along the elements: fixed (WORK_GROUP, or less where the kernel allows
-    less), because PoCL compiles a kernel anew for each work-group size it meets."""
-    import pyopencl as cl
-
-    limit = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, device)
-    return max(1, min(WORK_GROUP, 1 << (int(limit).bit_length() - 1)))
+#: The kernel of each surface family in kernels/echoes.cl.
+KERNEL_NAMES = {"mirror": "mirror_paths", "vertex": "vertex_paths", "edge": "edge_paths",
+                "circle": "circle_paths", "curve": "curve_paths"}
 
 
 def _constants(pb: EchoProblem) -> np.ndarray:
@@ -823,7 +802,7 @@ def compute_echoes(scene: Scene, sensors: SensorArray | None = None, *, context=
     """
     import pyopencl as cl
 
-    from .opencl import context_for
+    from .opencl import PRECISIONS, context_for, kernel, work_group
     from .opencl import queue as queue_of
 
     ctx = context_for(context, device, precision)
@@ -867,7 +846,7 @@ def compute_echoes(scene: Scene, sensors: SensorArray | None = None, *, context=
                           buf(pb.interval_s, real, 2), buf(pb.interval_skip, np.int32, 2),
                           buf(pb.interval_last, np.int32)],
     }
-    kernels = _kernels(program)
+    kernels = {family: kernel(program, name) for family, name in KERNEL_NAMES.items()}
     args_cache: dict[str, list] = {}
 
     def run(family: str, chunk: slice):
@@ -880,7 +859,7 @@ def compute_echoes(scene: Scene, sensors: SensorArray | None = None, *, context=
         amp = np.empty((n, width), dtype=real)
         point = np.empty((n, width, 2), dtype=real)
         out = [cl.Buffer(ctx, mf.WRITE_ONLY, a.nbytes) for a in (tof, amp, point)]
-        group = _work_group(kernels[family], ctx.devices[0])
+        group = work_group(kernels[family], ctx.devices[0], WORK_GROUP)
         padded = -(-width // group) * group
         kernels[family](queue, (padded, n), (group, 1), np.int32(width), pr,
                         shared["pos"], shared["axis"],

@@ -331,3 +331,12 @@ def true_vertices(geom: Geometry) -> np.ndarray:
     kinds = [CORNER, EDGE]
     seen = np.isin(geom.vertex_left, kinds) | np.isin(geom.vertex_right, kinds)
     return geom.vertices[seen]
+
+
+def cell_centres(extent: tuple[float, ...], cell: float, iy: np.ndarray, ix: np.ndarray
+                 ) -> np.ndarray:
+    """[..., 2] the (x, y) centres of map cells ``(iy, ix)`` (scene format v1: the centre of
+    cell ``(iy, ix)`` is ``(xmin + (ix + 0.5)·cell, ymin + (iy + 0.5)·cell)``). The one place
+    this convention is written; every map stage converts cells to metres through it."""
+    iy, ix = np.asarray(iy), np.asarray(ix)
+    return np.stack([extent[0] + (ix + 0.5) * cell, extent[1] + (iy + 0.5) * cell], axis=-1)

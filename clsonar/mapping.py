@@ -55,18 +55,16 @@ import math
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cache
 
 import numpy as np
 
 from . import physics
 from .errors import ClsonarError
-from .opencl import context_for, device_kind
+from .opencl import PRECISIONS, context_for, device_kind, max_work_group
+from .opencl import kernel as kernel_of
 from .opencl import queue as queue_of
 from .scene import MappingSettings, Scene
 from .sensors import SensorArray
-
-PRECISIONS = {"float32": np.float32, "float64": np.float64}
 
 WEIGHTS = ("unit", "amplitude", "beam")
 
@@ -685,27 +683,17 @@ class AccumulationStats:
 def _program(context, precision: str, weight_beam: bool, vec: int):
     """``kernels/accumulate.cl`` for ``precision``, the beam weight or not, and ``vec``
     pixels per work item (memoised by :func:`clsonar.opencl.build_program`)."""
-    from .opencl import build_program
+    from .opencl import beam_series_defines, build_program, precision_defines
 
-    coeffs = physics.beam_series_coefficients(14)
     defines: dict[str, object] = {
         "VEC": vec,
         "WEIGHT_BEAM": int(weight_beam),
-        "BEAM_TERMS": len(coeffs),
-        "BEAM_SERIES": "{" + ",".join(repr(float(v)) for v in coeffs) + "}",
         "MAX_FOCUS_GAIN": float(physics.MAX_FOCUS_GAIN),
         "TILE_CHUNK": TILE_CHUNK,
+        **beam_series_defines(),
+        **precision_defines(precision),
     }
-    if precision == "float64":
-        defines["REAL_DOUBLE"] = 1
     return build_program(context, "accumulate.cl", defines)
-
-
-@cache
-def _kernel(program, name: str):
-    import pyopencl as cl
-
-    return cl.Kernel(program, name)
 
 
 def _rows_per_launch(device, columns: int, itemsize: int) -> int:
@@ -727,8 +715,8 @@ def _run(ctx, pb: MapProblem, precision: str, name: str) -> np.ndarray:
     if len(pb.rows) == 0:
         return np.zeros((g.ny, g.nx), dtype=real)
     program = _program(ctx, precision, pb.weight == "beam", vec)
-    kernel = _kernel(program, name)
-    limit = int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, device))
+    kernel = kernel_of(program, name)
+    limit = max_work_group(kernel, device)
     while wgx * wgy > limit and wgx * wgy > 1:
         wgx, wgy = (wgx, wgy // 2) if wgy > 1 else (wgx // 2, wgy)
     items_x, items_y = _items(g.nx, g.ny, vec, wgx, wgy)
@@ -773,11 +761,10 @@ def _dense_stats(ctx, pb: MapProblem, precision: str) -> AccumulationStats:
 
 def _tile_shape(kernel, device, vec: int) -> tuple[int, int]:
     """:data:`TILES` for ``device``, its height cut to the kernel's largest work-group."""
-    import pyopencl as cl
 
     tw, th = TILES[device_kind(device)]
     tw = max(tw, vec) // vec * vec
-    limit = int(kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, device))
+    limit = max_work_group(kernel, device)
     return tw, max(1, min(th, limit // (tw // vec)))
 
 
@@ -819,7 +806,7 @@ def _run_tiles(ctx, pb: MapProblem, precision: str) -> tuple[np.ndarray, Accumul
     real = PRECISIONS[precision]
     itemsize = np.dtype(real).itemsize
     g = pb.grid
-    kernel = _kernel(_program(ctx, precision, pb.weight == "beam", vec), "loci_tiles")
+    kernel = kernel_of(_program(ctx, precision, pb.weight == "beam", vec), "loci_tiles")
     tw, th = _tile_shape(kernel, device, vec)
     bins = bin_loci(pb, (tw, th))
     nty, ntx = bins.shape

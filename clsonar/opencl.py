@@ -20,6 +20,8 @@ from dataclasses import dataclass
 from functools import cache
 from importlib import resources
 
+import numpy as np
+
 from .errors import DeviceError
 
 KERNEL_PACKAGE = "clsonar.kernels"
@@ -184,7 +186,7 @@ def queue(context):
 
 
 #: The arithmetic a kernel can be built for: ``precision`` name → NumPy type of its reals.
-PRECISIONS = {"float32": "float32", "float64": "float64"}
+PRECISIONS: dict[str, type[np.floating]] = {"float32": np.float32, "float64": np.float64}
 
 
 def context_for(context=None, device: str | None = None, precision: str = "float32"):
@@ -229,6 +231,42 @@ def _options(defines: dict[str, object]) -> tuple[str, ...]:
             v = repr(v)  # full float64 precision; the kernel casts to its own type
         opts.append(f"-D{k}={v}")
     return tuple(opts)
+
+
+def precision_defines(precision: str) -> dict[str, object]:
+    """The ``-D`` defines that select a kernel's arithmetic (``REAL_DOUBLE`` in
+    kernels/real.h for float64)."""
+    return {"REAL_DOUBLE": 1} if precision == "float64" else {}
+
+
+def beam_series_defines() -> dict[str, object]:
+    """``BEAM_TERMS``/``BEAM_SERIES``: the piston beam's power series
+    (:func:`clsonar.physics.beam_series_coefficients`) that kernels/common.h evaluates."""
+    from .physics import beam_series_coefficients
+
+    coeffs = beam_series_coefficients(14)
+    return {"BEAM_TERMS": len(coeffs),
+            "BEAM_SERIES": "{" + ",".join(repr(float(v)) for v in coeffs) + "}"}
+
+
+@cache
+def kernel(program, name: str):
+    """Kernel ``name`` of a built ``program`` (retrieved once: pyopencl's attribute access
+    makes a new kernel object each time)."""
+    return _cl().Kernel(program, name)
+
+
+def max_work_group(kernel, device) -> int:
+    """The largest work-group the device allows for ``kernel``."""
+    return int(kernel.get_work_group_info(_cl().kernel_work_group_info.WORK_GROUP_SIZE, device))
+
+
+@cache
+def work_group(kernel, device, wanted: int) -> int:
+    """A fixed work-group size for a 1-D kernel: ``wanted``, or the largest power of two the
+    kernel allows below it — fixed because PoCL compiles a kernel anew for each work-group
+    size it meets."""
+    return max(1, min(wanted, 1 << (max_work_group(kernel, device).bit_length() - 1)))
 
 
 _PROGRAMS: dict[tuple, object] = {}

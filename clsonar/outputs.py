@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from . import plots
+from .files import write_atomic
 from .pipeline import RunResult
-from .scene import write_atomic
 
 STAGE_PNGS = ("scene.png", "raw.png", "filtered.png", "thin.png", "profile.png")
 

@@ -28,12 +28,12 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Literal
 
 from .errors import SceneError
+from .files import read_text, write_atomic
 from .physics import (
     DEFAULT_PULSE_SIGMA_S,
     DEFAULT_REFLECTION_COEFFICIENT,
@@ -44,7 +44,6 @@ from .physics import (
 FORMAT_VERSION = 1
 
 #: Largest scene file read, in bytes: anything bigger is refused before parsing.
-MAX_FILE_BYTES = 64 * 1024 * 1024
 
 #: Deepest JSON nesting accepted (the format needs 5 levels).
 MAX_DEPTH = 16
@@ -893,26 +892,6 @@ def parse_scene_text(text: str, source: str = "<scene>") -> Scene:
     return scene_from_dict(data, source)
 
 
-def read_text(path: str | os.PathLike[str], error: type[SceneError] = SceneError,
-              max_bytes: int = MAX_FILE_BYTES) -> str:
-    """The UTF-8 text of the file ``path`` (a BOM allowed); any problem — unreadable, larger
-    than ``max_bytes``, not UTF-8 — raises ``error`` naming the file."""
-    source = os.fspath(path)
-    try:
-        size = os.path.getsize(source)
-        if size > max_bytes:
-            raise error(f"file is {size} bytes, larger than the {max_bytes} bytes it may have",
-                        source=source)
-        with open(source, "rb") as f:
-            raw = f.read()
-    except OSError as e:
-        raise error(f"cannot read file: {e.strerror or e}", source=source) from None
-    try:
-        return raw.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise error(f"not UTF-8 text (byte {e.start})", source=source) from None
-
-
 def load_scene(path: str | os.PathLike[str]) -> Scene:
     """Read and validate a scene file (format v1). Raises :class:`SceneError` on any problem."""
     return parse_scene_text(read_text(path), os.fspath(path))
@@ -970,34 +949,6 @@ def scene_to_dict(scene: Scene) -> dict[str, Any]:
         "surfaces": [_surface_dict(s) for s in scene.surfaces],
         "sensors": sensors,
     }
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-#: The process's umask, read once at import (os.umask can only be read by setting it).
-_UMASK = _umask()
-
-
-def write_atomic(path: str | os.PathLike[str], data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename,
-    so readers never see a half-written file. The file gets the permissions a plain
-    ``open`` would give it (0666 less the umask), not the temporary file's 0600."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        os.fchmod(fd, 0o666 & ~_UMASK)
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def scene_json(data: dict[str, Any]) -> str:

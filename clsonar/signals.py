@@ -55,8 +55,10 @@ import numpy as np
 
 from . import physics
 from .echoes import EchoTable
-from .opencl import context_for, device_kind
+from .opencl import PRECISIONS, context_for, device_kind
+from .opencl import kernel as kernel_of
 from .opencl import queue as queue_of
+from .opencl import work_group as fixed_work_group
 from .scene import Scene
 from .sensors import SensorArray, pairs, place_sensors
 
@@ -97,7 +99,6 @@ SLOTS_PER_LAUNCH = 1 << 22
 #: Longest box of the envelope filter, samples (private rings in the kernel).
 MAX_BOX = 4096
 
-PRECISIONS = {"float32": np.float32, "float64": np.float64}
 
 
 # --------------------------------------------------------------------------- results
@@ -626,30 +627,13 @@ def envelopes_reference(scene: Scene, sensors: SensorArray | None, echoes: EchoT
 
 def _program(context, precision: str, box: int, span: int, demod_period: int):
     """``kernels/signals.cl`` built for ``precision`` and the filter's sizes (memoised)."""
-    from .opencl import build_program
+    from .opencl import build_program, precision_defines
 
     defines: dict[str, object] = {
         "BOX": box, "SPAN": span, "RING": 2 * span + 1, "HIST_BINS": HIST_BINS,
         "HIST_BASE": HIST_BASE, "HIST_STRIDE": HIST_STRIDE, "DEMOD_PERIOD": demod_period,
     }
-    if precision == "float64":
-        defines["REAL_DOUBLE"] = 1
-    return build_program(context, "signals.cl", defines)
-
-
-@cache
-def _kernel(program, name: str):
-    import pyopencl as cl
-
-    return cl.Kernel(program, name)
-
-
-@cache
-def _work_group(kernel, device) -> int:
-    import pyopencl as cl
-
-    limit = kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, device)
-    return max(1, min(WORK_GROUP, 1 << (int(limit).bit_length() - 1)))
+    return build_program(context, "signals.cl", {**defines, **precision_defines(precision)})
 
 
 class _Runner:
@@ -704,8 +688,8 @@ class _Runner:
         return DEFAULT_CHUNK[("GPU" if device_kind(self.ctx.devices[0]) == "GPU" else "CPU", mode)]
 
     def launch(self, name: str, n_items: int, args: list) -> None:
-        kernel = _kernel(self.program, name)
-        group = self.work_group or _work_group(kernel, self.ctx.devices[0])
+        kernel = kernel_of(self.program, name)
+        group = self.work_group or fixed_work_group(kernel, self.ctx.devices[0], WORK_GROUP)
         padded = -(-n_items // group) * group
         kernel(self.queue, (padded,), (group,), *args)
 
@@ -989,8 +973,8 @@ def _kernel_philox(context, seed: int, tx: int, rx: int, block0: int, count: int
     normals = np.empty((count, 4), dtype=real)
     rb = cl.Buffer(context, cl.mem_flags.WRITE_ONLY, raw.nbytes)
     nb = cl.Buffer(context, cl.mem_flags.WRITE_ONLY, normals.nbytes)
-    kernel = _kernel(program, "philox_normals")
-    group = work_group or _work_group(kernel, context.devices[0])
+    kernel = kernel_of(program, "philox_normals")
+    group = work_group or fixed_work_group(kernel, context.devices[0], WORK_GROUP)
     padded = -(-count // group) * group
     kernel(queue, (padded,), (group,), np.uint32(seed & 0xFFFFFFFF),
            np.uint32((seed >> 32) & 0xFFFFFFFF), np.uint32(tx), np.uint32(rx),

@@ -4,10 +4,10 @@ import json
 
 import pytest
 
-from clsonar.bench import bench, loci_scene, markdown
 from clsonar.cli import main
-from clsonar.reproduce import bundled_scenes
+from clsonar.files import bundled_scenes
 from clsonar.scene import load_scene
+from clsonar.tools.bench import bench, loci_scene, markdown
 
 
 @pytest.fixture(scope="module")
@@ -71,7 +71,7 @@ def test_bench_skipping_keeps_the_output_and_knobs_are_compared(report):
 
 
 def test_pareto_front_and_settings_that_beat_the_thesis():
-    from clsonar.tradeoff import TradeoffRow, beats_thesis, pareto
+    from clsonar.tools.tradeoff import TradeoffRow, beats_thesis, pareto
 
     def row(scene, setting, t, err):
         return TradeoffRow(scene, setting, t, err, None, None)

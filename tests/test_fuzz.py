@@ -1,5 +1,5 @@
 """Hostile scene files (issue 6): every one ends in one clear error line and exit status 2,
-never a traceback, a hang or a half-written --out (clsonar/fuzz.py; the 10⁵-input run is in
+never a traceback, a hang or a half-written --out (clsonar/tools/fuzz.py; the 10⁵-input run is in
 docs/stability.md)."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import random
 
 import pytest
 
-from clsonar import fuzz
 from clsonar.cli import main
+from clsonar.tools import fuzz
 
 
 def test_a_bounded_fuzzing_run_finds_nothing():

@@ -17,14 +17,14 @@ import threading
 import numpy as np
 import pyqtgraph as pg
 import pytest
+from clsonar.gui import edits
+from clsonar.gui.app import MainWindow, main
+from clsonar.gui.worker import Job
 from PySide6.QtCore import QEvent, QPointF, QSettings, Qt
 from PySide6.QtGui import QMouseEvent
 from PySide6.QtWidgets import QApplication, QMessageBox
 
 import clsonar
-from clsonar.gui import edits
-from clsonar.gui.app import MainWindow, main
-from clsonar.gui.worker import Job
 from clsonar.pipeline import STAGES
 from clsonar.scene import Circular, Polyline, load_scene, scene_to_dict
 
@@ -386,7 +386,8 @@ PLANE = str(importlib.resources.files("clsonar.scenes") / "plane-2m.json")
 def test_sweeps_bench_and_ascan(qtbot, window):
     """RMS against distance and noise, and run time against error, run in a worker; the
     numbers are those of the pipeline itself. The A-scan shows the chosen pair."""
-    from clsonar import pipeline, reproduce
+    from clsonar import pipeline
+    from clsonar.tools import variants
 
     w = window
     assert w.open_file(PLANE)
@@ -395,7 +396,7 @@ def test_sweeps_bench_and_ascan(qtbot, window):
         assert w.plots.sweep("distance", [2.0, 4.0])
     kind, points = blocker.args
     assert kind == "distance" and [d for d, _ in points] == [2.0, 4.0]
-    direct = pipeline.run(reproduce.at_distance(scene, 2.0, 4.0)).metrics["rms_m"]
+    direct = pipeline.run(variants.at_distance(scene, 2.0, 4.0)).metrics["rms_m"]
     assert points[1][1] == pytest.approx(direct)
     xs, ys = w.plots.distance_plot.getPlotItem().listDataItems()[0].getData()
     assert list(xs) == [2.0, 4.0] and ys[1] == pytest.approx(direct)
@@ -403,7 +404,7 @@ def test_sweeps_bench_and_ascan(qtbot, window):
     with qtbot.waitSignal(w.plots.sweepFinished, timeout=RUN_TIMEOUT_MS) as blocker:
         assert w.plots.sweep("noise", [0.0, 0.5])
     _, points = blocker.args
-    direct = pipeline.run(reproduce.with_seed(scene, 0, 0.5)).metrics["rms_m"]
+    direct = pipeline.run(variants.with_seed(scene, 0, 0.5)).metrics["rms_m"]
     assert points[1] == (0.5, pytest.approx(direct))
 
     with qtbot.waitSignal(w.plots.sweepFinished, timeout=RUN_TIMEOUT_MS) as blocker:

@@ -15,7 +15,7 @@ import clsonar
 from clsonar.cli import main
 from clsonar.opencl import get_context
 from clsonar.pipeline import rerun_post
-from clsonar.reproduce import at_distance, with_seed
+from clsonar.tools.variants import at_distance, with_seed
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "scenes"

@@ -11,11 +11,11 @@ import pytest
 import clsonar
 from clsonar.echoes import compute_echoes
 from clsonar.errors import ClsonarError, SceneError
-from clsonar.floor import floor_scene
 from clsonar.opencl import get_context
 from clsonar.pipeline import rerun_post
 from clsonar.regions import combine_metrics, split_rooms
 from clsonar.scene import scene_from_dict, scene_to_dict
+from clsonar.tools.floors import floor_scene
 
 SCENES = Path(__file__).resolve().parents[1] / "scenes"
 

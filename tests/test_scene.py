@@ -265,7 +265,7 @@ def test_atomic_writes_get_ordinary_permissions(tmp_path):
     import os
     import stat
 
-    from clsonar.scene import write_atomic
+    from clsonar.files import write_atomic
 
     target = tmp_path / "report.json"
     write_atomic(target, b"{}")

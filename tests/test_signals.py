@@ -379,8 +379,8 @@ def test_skipping_silent_pairs_changes_no_detection(name, preset):
     detections are the same, value for value, as when every pair is scanned."""
     import clsonar
     from clsonar.echoes import compute_echoes
+    from clsonar.files import bundled_scenes
     from clsonar.pipeline import apply_preset
-    from clsonar.reproduce import bundled_scenes
     from clsonar.sensors import place_sensors
 
     scene = apply_preset(clsonar.load_scene(bundled_scenes() / f"{name}.json"), preset)

@@ -1,5 +1,5 @@
 """Numerical stability (issue 6): the float32 kernels against their float64 references on the
-hostile scenes of clsonar/stability.py — far and tiny scenes, T = R and nearly coincident
+hostile scenes of clsonar/tools/stability.py — far and tiny scenes, T = R and nearly coincident
 transducers, flat ellipses, grazing incidence, reflection points at wall ends and vertices,
 caustics, ±180° headings, beams leaving the map, ragged extents, a million loci, a long pair
 list — and the same results whatever the work-group size. ``clsonar stress`` runs the same
@@ -15,9 +15,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from clsonar import stability, stress
 from clsonar.cli import main
 from clsonar.opencl import get_context, has_fp64
+from clsonar.tools import stability, stress
 
 SEEDS = st.integers(0, 2**31 - 1)
 

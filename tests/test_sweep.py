@@ -10,13 +10,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from clsonar import sweep as sw
 from clsonar.cli import main
 from clsonar.errors import ClsonarError
 from clsonar.pipeline import run as run_pipeline
-from clsonar.reproduce import at_distance, with_seed
 from clsonar.scene import load_scene, scene_to_dict
-from clsonar.sweepplot import draw_spread
+from clsonar.tools import sweep as sw
+from clsonar.tools.sweepplot import draw_spread
+from clsonar.tools.variants import at_distance, with_seed
 
 ROOT = Path(__file__).resolve().parents[1]
 

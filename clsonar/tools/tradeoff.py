@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .pipeline import RunResult, Skips, run
-from .scene import RandomLines, Scene, WallFollowing
+from ..pipeline import RunResult, Skips, run
+from ..scene import RandomLines, Scene, WallFollowing
 
 
 def _cell(size: float) -> Callable[[Scene], Scene]:
@@ -170,7 +170,7 @@ def tradeoff_png(rows: list[TradeoffRow]) -> bytes:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .plots import png_bytes
+    from ..plots import png_bytes
 
     scenes = list(dict.fromkeys(r.scene for r in rows))
     cols = min(3, max(1, len(scenes)))

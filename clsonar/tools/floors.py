@@ -12,7 +12,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
-from .scene import Circle, Polyline, Scene, Sensors, WallFollowing
+from ..scene import Circle, Polyline, Scene, Sensors, WallFollowing
 
 
 def floor_scene(size_m: float = 50.0, room_m: float = 5.0, wall_m: float = 0.2,
@@ -25,8 +25,8 @@ def floor_scene(size_m: float = 50.0, room_m: float = 5.0, wall_m: float = 0.2,
     post-processing settings are those of ``base`` (default: the bundled closed room,
     ``scenes/room.json``)."""
     if base is None:
-        from .reproduce import bundled_scenes
-        from .scene import load_scene
+        from ..files import bundled_scenes
+        from ..scene import load_scene
 
         base = load_scene(bundled_scenes() / "room.json")
     n = max(1, round(size_m / room_m))
@@ -70,7 +70,7 @@ def run_floor(size_m: float, device: str | None = None) -> FloorRow:
     whole process's high-water mark, interpreter and OpenCL runtime included)."""
     import resource
 
-    from .pipeline import MOSAIC_BYTES_PER_CELL, run
+    from ..pipeline import MOSAIC_BYTES_PER_CELL, run
 
     scene = floor_scene(size_m)
     r = run(scene, device=device)
@@ -89,7 +89,7 @@ def bench_floor(size_m: float, device: str | None = None, timeout_s: float = 360
     import subprocess
     import sys
 
-    cmd = [sys.executable, "-m", "clsonar.floor", f"{size_m:g}"]
+    cmd = [sys.executable, "-m", "clsonar.tools.floors", f"{size_m:g}"]
     if device:
         cmd += ["--device", device]
     done = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, check=True)
@@ -97,12 +97,12 @@ def bench_floor(size_m: float, device: str | None = None, timeout_s: float = 360
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m clsonar.floor SIZE_M [--device D]``: map a floor, print its
+    """``python -m clsonar.tools.floors SIZE_M [--device D]``: map a floor, print its
     :class:`FloorRow` as one JSON line."""
     import argparse
     import json
 
-    parser = argparse.ArgumentParser(prog="python -m clsonar.floor")
+    parser = argparse.ArgumentParser(prog="python -m clsonar.tools.floors")
     parser.add_argument("size_m", type=float)
     parser.add_argument("--device")
     args = parser.parse_args(argv)

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .scene import write_atomic
+from ..files import write_atomic
 
 
 def draw_spread(ax, x: Sequence[float], samples: Sequence[Sequence[float]], style: str,
@@ -57,7 +57,7 @@ def metric_png(name: str, rows: list[dict[str, Any]], metric: str, param: str,
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .plots import png_bytes
+    from ..plots import png_bytes
 
     if not any(_numeric(r.get(metric)) for r in rows):
         return None
@@ -105,7 +105,7 @@ def plot_file_name(metric: str, param: str) -> str:
 def plot_sweep(folder: str | os.PathLike[str]) -> list[Path]:
     """Draw every numeric metric of the sweep in ``folder`` against each swept parameter
     into ``folder/plots/``; returns the PNGs written."""
-    from .errors import ClsonarError
+    from ..errors import ClsonarError
     from .sweep import read_sweep
 
     folder = Path(folder)

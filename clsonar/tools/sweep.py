@@ -12,10 +12,10 @@ The statistics are those the thesis plots against distance and noise (chapter 3,
   validated by :func:`~clsonar.scene.scene_from_dict`, so a wrong value fails with the scene
   loader's own message. Two more keys are not scene keys: ``preset`` (``thesis``/``best``,
   :data:`clsonar.pipeline.PRESETS`) and ``distance_m`` (a ``random-lines`` placement moved
-  to that distance from the surface, :func:`clsonar.reproduce.at_distance`; the scene entry
+  to that distance from the surface, :func:`clsonar.tools.reproduce.at_distance`; the scene entry
   declares its own distance).
 - Seed ``k`` advances the placement and noise seeds by ``k``
-  (:func:`clsonar.reproduce.with_seed`), as ``clsonar reproduce`` does.
+  (:func:`clsonar.tools.reproduce.with_seed`), as ``clsonar reproduce`` does.
 - Every run has a stable id, a hash of its final scene, preset, parameters and seed. Rows go
   to ``DIR/runs.jsonl`` as they finish: one line each, written with a single ``O_APPEND``
   write and ``fsync``; a line without its newline (a write cut short) is dropped when the
@@ -46,8 +46,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .errors import ClsonarError, SceneError
-from .scene import Scene, read_text, scene_from_dict, scene_to_dict, write_atomic
+from ..errors import ClsonarError, SceneError
+from ..files import read_text, write_atomic
+from ..scene import Scene, scene_from_dict, scene_to_dict
 
 #: Metrics a spec may collect: paths into :attr:`RunResult.metrics` (metrics.evaluate), or
 #: ``counts.NAME`` into :attr:`RunResult.counts`.
@@ -181,8 +182,8 @@ def _read_spec_file(path: Path) -> dict[str, Any]:
 
 
 def _scene_entry(entry: Any, key: str, base: Path, source: str) -> SceneEntry:
-    from .reproduce import bundled_scenes
-    from .scene import load_scene
+    from ..files import bundled_scenes
+    from ..scene import load_scene
 
     distance = None
     if isinstance(entry, dict):
@@ -242,7 +243,7 @@ def load_spec(path: str | os.PathLike[str]) -> Spec:
     Every run is expanded and its scene validated here, so a bad spec fails with one
     :class:`SpecError` (or the scene loader's :class:`SceneError`) before anything runs.
     """
-    from .pipeline import PRESETS
+    from ..pipeline import PRESETS
 
     path = Path(path)
     source = str(path)
@@ -315,7 +316,7 @@ def load_spec(path: str | os.PathLike[str]) -> Spec:
 def run_id(scene: Scene, preset: str | None, params: dict[str, Any], seed: int) -> str:
     """A stable id of a run: a hash of its final scene, preset, parameters, seed and the
     clsonar version (a sweep resumed by another version redoes its runs)."""
-    from . import __version__
+    from .. import __version__
 
     text = json.dumps({"scene": scene_to_dict(scene), "preset": preset, "params": params,
                        "seed": seed, "clsonar": __version__}, sort_keys=True,
@@ -326,7 +327,7 @@ def run_id(scene: Scene, preset: str | None, params: dict[str, Any], seed: int) 
 def make_run(index: int, label: str, scene: Scene, params: dict[str, Any], seed: int,
              preset: str | None) -> Run:
     """A :class:`Run` of ``scene`` (parameters already applied) at seed ``seed``."""
-    from .reproduce import with_seed
+    from .variants import with_seed
 
     seeded = with_seed(scene, seed)
     return Run(index, label, dict(params), seed, seeded, preset,
@@ -336,7 +337,7 @@ def make_run(index: int, label: str, scene: Scene, params: dict[str, Any], seed:
 def _apply(spec: Spec, entry: SceneEntry, params: dict[str, Any]) -> Scene:
     """``entry``'s scene with the scene-key parameters set (validated) and moved to
     ``distance_m`` if that is swept."""
-    from .reproduce import at_distance
+    from .variants import at_distance
 
     data = scene_to_dict(entry.scene)
     for key, value in params.items():
@@ -391,7 +392,7 @@ def metric_value(result, name: str) -> Any:
 
 def row_of(run: Run, result, metrics: Sequence[str]) -> dict[str, Any]:
     """The table row of ``run`` from its :class:`~clsonar.pipeline.RunResult`."""
-    from .pipeline import STAGES
+    from ..pipeline import STAGES
 
     row: dict[str, Any] = {"run": run.run_id, "index": run.index, "scene": run.label,
                            **run.params, "seed": run.seed}
@@ -410,7 +411,7 @@ def worker_context(device: str | None = None):
     """The OpenCL context of this process for ``device``, built on first use and reused by
     every later run (one per Dask worker process)."""
     if device not in _CONTEXTS:
-        from .opencl import get_context
+        from ..opencl import get_context
 
         _CONTEXTS[device] = get_context(device)
     return _CONTEXTS[device]
@@ -419,7 +420,7 @@ def worker_context(device: str | None = None):
 def run_one(run: Run, metrics: Sequence[str], device: str | None = None,
             context=None) -> dict[str, Any]:
     """Run the pipeline on ``run`` and return its row (the task a Dask worker executes)."""
-    from .pipeline import run as run_pipeline
+    from ..pipeline import run as run_pipeline
 
     ctx = context if context is not None else worker_context(device)
     result = run_pipeline(run.scene, context=ctx, preset=run.preset)
@@ -485,7 +486,7 @@ class RunTable:
 
 def columns(parameters: Sequence[str], metrics: Sequence[str]) -> list[str]:
     """The table's columns, in order."""
-    from .pipeline import STAGES
+    from ..pipeline import STAGES
 
     return (["run", "index", "scene", *parameters, "seed", *metrics]
             + [f"seconds.{s}" for s in (*STAGES, "total")] + ["device", "host"])

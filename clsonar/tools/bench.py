@@ -14,10 +14,10 @@ shared; ratios taken in one run are what to compare, absolute seconds wander):
   program a user would otherwise write), with the speed ratio, the pixel-locus tests per
   second, and whether the maps agree (float64: identical; float32: share of equal pixels).
 
-- **skipping**: the pipeline with every skip on and off (:mod:`clsonar.tradeoff`), the
+- **skipping**: the pipeline with every skip on and off (:mod:`clsonar.tools.tradeoff`), the
   speed-up and whether the output is identical.
 - **run time against error**: the thesis' shapes under every knob of
-  :data:`clsonar.tradeoff.KNOBS`, the Pareto front and the settings that beat the
+  :data:`clsonar.tools.tradeoff.KNOBS`, the Pareto front and the settings that beat the
   thesis-faithful ones on both time and error on every shape (``tradeoff.png``).
 
 Results go to ``bench.md``, ``bench.json`` and ``tradeoff.png``, written atomically.
@@ -34,9 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .floor import FloorRow, bench_floor
-from .pipeline import STAGES
-from .scene import Scene, load_scene, write_atomic
+from ..files import write_atomic
+from ..pipeline import STAGES
+from ..scene import Scene, load_scene
+from .floors import FloorRow, bench_floor
 from .tradeoff import (
     SkipRow,
     TradeoffRow,
@@ -112,10 +113,10 @@ def bench_stages(scene: Scene, context, repeat: int) -> StageRow:
     :func:`~clsonar.echoes.reference_echoes`) and the detection (:func:`clsonar.signals.detect`
     against :func:`~clsonar.signals.detect_reference`, which synthesises every pair's
     received signal) of ``scene``."""
-    from . import signals
-    from .echoes import compute_echoes, reference_echoes
-    from .geometry import build_geometry
-    from .sensors import pairs, place_sensors
+    from .. import signals
+    from ..echoes import compute_echoes, reference_echoes
+    from ..geometry import build_geometry
+    from ..sensors import pairs, place_sensors
 
     sensors = place_sensors(scene, build_geometry(scene))
     compute_echoes(scene, sensors, context=context)
@@ -198,11 +199,11 @@ def loci_scene(scene: Scene) -> Scene:
 def bench_accumulation(scene: Scene, context, repeat: int,
                        numpy: bool = True) -> AccumulationRow:
     """Time the locus accumulation of ``scene``'s detections (module docstring)."""
-    from . import mapping, signals
-    from .echoes import compute_echoes
-    from .geometry import build_geometry
-    from .opencl import has_fp64
-    from .sensors import place_sensors
+    from .. import mapping, signals
+    from ..echoes import compute_echoes
+    from ..geometry import build_geometry
+    from ..opencl import has_fp64
+    from ..sensors import place_sensors
 
     scene = loci_scene(scene)
     sensors = place_sensors(scene, build_geometry(scene))
@@ -374,9 +375,9 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     ``bench.md``, ``bench.json`` and ``tradeoff.png`` into ``out``: the pipeline under both
     settings, the accumulation against NumPy, skipping on against off, and (for the thesis'
     shapes among ``names``) the knobs' run time against error, and the ``floors`` (sizes in
-    metres, :mod:`clsonar.floor`) mapped room by room."""
-    from .opencl import get_context
-    from .reproduce import bundled_scenes
+    metres, :mod:`clsonar.tools.floors`) mapped room by room."""
+    from ..files import bundled_scenes
+    from ..opencl import get_context
 
     context = get_context(device)
     folder = scenes_dir or bundled_scenes()

@@ -33,7 +33,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .scene import PerWall, RandomLines, Scene, Signal, load_scene, write_atomic
+from ..files import bundled_scenes, write_atomic
+from ..scene import Scene, load_scene
+from .variants import at_distance
 
 if TYPE_CHECKING:
     from .sweep import Run
@@ -87,33 +89,6 @@ NOISE_DISTANCE_M = 5.0
 PRESETS = ("thesis", "best")
 
 
-def at_distance(scene: Scene, scene_distance: float, distance: float) -> Scene:
-    """``scene`` with its random-lines placement moved back by ``distance − scene_distance``
-    (against the direction the arrays face), renamed ``family-<distance>m``."""
-    p = scene.sensors.placement
-    if not isinstance(p, RandomLines) or p.start is None:
-        raise ValueError(f"{scene.name}: needs a random-lines placement with a start")
-    back = distance - scene_distance
-    a = math.radians(p.facing_deg)
-    start = (p.start[0] - back * math.cos(a), p.start[1] - back * math.sin(a))
-    name = f"{scene.name.rsplit('-', 1)[0]}-{distance:g}m"
-    sensors = dataclasses.replace(scene.sensors, placement=dataclasses.replace(p, start=start))
-    return dataclasses.replace(scene, name=name, sensors=sensors)
-
-
-def with_seed(scene: Scene, k: int, noise_std: float | None = None) -> Scene:
-    """``scene`` with placement and noise seeds advanced by ``k`` (and the noise σ set);
-    placements without randomness (``circular``, ``wall-following``) are kept."""
-    p = scene.sensors.placement
-    sensors = scene.sensors
-    if isinstance(p, (RandomLines, PerWall)):
-        sensors = dataclasses.replace(sensors, placement=dataclasses.replace(p, seed=p.seed + k))
-    sig = scene.signal
-    signal = Signal(noise_std=sig.noise_std if noise_std is None else noise_std,
-                    threshold=sig.threshold, seed=sig.seed + k)
-    return dataclasses.replace(scene, sensors=sensors, signal=signal)
-
-
 @dataclass(frozen=True)
 class Trial:
     """One run of the pipeline and what came out of it."""
@@ -129,12 +104,12 @@ class Trial:
     seconds: float
 
 
-#: The metrics each trial keeps (:func:`clsonar.sweep.metric_value` names).
+#: The metrics each trial keeps (:func:`clsonar.tools.sweep.metric_value` names).
 METRICS = ("rms_m", "accuracy_m.rms", "completeness.2cm")
 
 
 def trial_of(row: dict) -> Trial:
-    """The :class:`Trial` of one row of the sweep table (:mod:`clsonar.sweep`)."""
+    """The :class:`Trial` of one row of the sweep table (:mod:`clsonar.tools.sweep`)."""
     return Trial(row["family"], row["distance_m"], row["noise_std"], row["preset"],
                  row["seed"], row["rms_m"], row["accuracy_m.rms"], row["completeness.2cm"],
                  row["seconds.total"])
@@ -157,8 +132,8 @@ class RoomTrial:
 
 def run_room(scene: Scene, figure: str, context) -> tuple[RoomTrial, bytes]:
     """Run a closed room and draw its profile."""
-    from .outputs import render
-    from .pipeline import run
+    from ..outputs import render
+    from ..pipeline import run
 
     result = run(scene, context=context)
     m = result.metrics
@@ -193,7 +168,7 @@ def rooms_markdown(trials: list[RoomTrial]) -> str:
 
 def plan(scenes_dir: Path, seeds: int) -> list[Run]:
     """Every (family, distance, noise, preset, seed) of the table and the curves, once, as
-    the runs of a sweep (:mod:`clsonar.sweep`) with those as its parameters."""
+    the runs of a sweep (:mod:`clsonar.tools.sweep`) with those as its parameters."""
     from .sweep import make_run
 
     jobs: dict[tuple, Run] = {}
@@ -277,7 +252,7 @@ def curve_png(figure: str, family: str, varies: str, values, trials: list[Trial]
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .plots import png_bytes
+    from ..plots import png_bytes
     from .sweepplot import draw_spread
 
     fig = Figure(figsize=(6, 4), dpi=120, layout="constrained")
@@ -328,13 +303,6 @@ def curves_markdown(trials: list[Trial]) -> str:
     return "\n".join(out)
 
 
-def bundled_scenes() -> Path:
-    """The folder of the bundled scenes (``scenes/``, installed as ``clsonar.scenes``)."""
-    from importlib import resources
-
-    return Path(str(resources.files("clsonar.scenes")))
-
-
 def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = 5,
               device: str | None = None,
               progress: Callable[[int, int, str], None] | None = None,
@@ -342,12 +310,12 @@ def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = 5,
     """Run every experiment and write ``reproduce.md``, ``reproduce.json`` and the figures'
     PNGs into ``out``; returns the trials.
 
-    The trials run as a sweep (:mod:`clsonar.sweep`) whose table is ``out/runs.jsonl``: an
+    The trials run as a sweep (:mod:`clsonar.tools.sweep`) whose table is ``out/runs.jsonl``: an
     interrupted reproduce, run again, redoes only the trials it had not finished (the table
     is removed once everything is written). With a
     ``dask.distributed.Client`` they run on its cluster.
     """
-    from .opencl import get_context
+    from ..opencl import get_context
     from .sweep import RunTable, run_dask, run_local
 
     context = get_context(device)

@@ -52,12 +52,12 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import echoes as echoes_mod
-from . import mapping
-from .mapping import Loci
-from .scene import Circle, EchoModel, MappingSettings, Polyline, Scene, Sensors, Sinusoid
-from .scene import Transducer as SceneTransducer
-from .sensors import SensorArray
+from .. import echoes as echoes_mod
+from .. import mapping
+from ..mapping import Loci
+from ..scene import Circle, EchoModel, MappingSettings, Polyline, Scene, Sensors, Sinusoid
+from ..scene import Transducer as SceneTransducer
+from ..sensors import SensorArray
 
 EPS32 = float(np.finfo(np.float32).eps)
 
@@ -431,7 +431,7 @@ def map_case(family: str, seed: int, *, million: int = MILLION) -> MapCase:
 def _envelopes(rng: np.random.Generator, n_pairs: int, samples: int, dt: float) -> np.ndarray:
     """[n_pairs, samples] smooth envelopes: Gaussian echoes of the pulse's σ (thesis eq. 2.3)
     at random delays on a small noise floor, as the envelope detector gives them."""
-    from .physics import DEFAULT_PULSE_SIGMA_S
+    from ..physics import DEFAULT_PULSE_SIGMA_S
 
     t = np.arange(samples) * dt
     env = np.full((n_pairs, samples), 0.01)
@@ -565,12 +565,10 @@ def echo_work_group(size: int) -> Iterator[None]:
     """Run the echo kernels with work groups of ``size`` along the elements."""
     saved = echoes_mod.WORK_GROUP
     echoes_mod.WORK_GROUP = size
-    echoes_mod._work_group.cache_clear()
     try:
         yield
     finally:
         echoes_mod.WORK_GROUP = saved
-        echoes_mod._work_group.cache_clear()
 
 
 @contextlib.contextmanager
@@ -696,7 +694,7 @@ def _edge_detections(scene: Scene, echoes, sensors, jitters: int = 6) -> set[tup
     """(tx, rx, tof rounded to 10 µs) of detections that the float64 reference gains or
     loses when the echoes' amplitudes and times move by a few float32 roundings: threshold
     crossings and peak merges decided by rounding."""
-    from . import signals
+    from .. import signals
 
     def keys(d) -> set[tuple]:
         return {(t, r, round(x * 1e5)) for t, r, x in
@@ -715,8 +713,8 @@ def check_signal_case(family: str, seed: int, context, *, work_groups: bool = Fa
                       ) -> Findings:
     """Compare the float32 detection kernels (kernels/signals.cl) with the float64 reference
     (:func:`clsonar.signals.detect_reference`) on the float64 echoes of one case."""
-    from . import signals
-    from .sensors import place_sensors
+    from .. import signals
+    from ..sensors import place_sensors
 
     name = f"signal {family} seed={seed}"
     scene = signal_scene(family, seed)
@@ -888,7 +886,7 @@ def check_map_case(family: str, seed: int, context, *, million: int = MILLION,
     """Compare the float32 map kernel with float64 on one case: with the NumPy reference,
     or, for the ``million`` family, with the float64 kernel (bit-identical to the reference,
     tests/test_mapping.py) where the device has ``cl_khr_fp64``."""
-    from .opencl import has_fp64
+    from ..opencl import has_fp64
 
     name = f"map {family} seed={seed}"
     case = map_case(family, seed, million=million)

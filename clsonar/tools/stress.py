@@ -1,11 +1,11 @@
 """``clsonar stress``: the numerical-stability property suite at scale on the user's device.
 
-Runs ``count`` cases of the generators of :mod:`clsonar.stability` — echo families and map
+Runs ``count`` cases of the generators of :mod:`clsonar.tools.stability` — echo families and map
 families in turn, seeds 0, 1, 2, … — on one OpenCL device, the float32 kernels against the
 float64 references, and writes the worst error found per property and the bounds they are
 held to into ``stress.md`` and ``stress.json`` (atomically). One case in ``work_group_every``
 also reruns the kernels with other work-group sizes. The ``million`` map family draws
-:data:`clsonar.stability.MILLION` loci on one map; the ``many`` echo family one group of
+:data:`clsonar.tools.stability.MILLION` loci on one map; the ``many`` echo family one group of
 ``many`` transducers.
 """
 
@@ -17,8 +17,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from ..files import write_atomic
 from . import stability
-from .scene import write_atomic
 from .stability import BOUNDS, ECHO_FAMILIES, MAP_FAMILIES, SIGNAL_FAMILIES, Findings
 
 #: Cases of the ``million`` family run: one in this many map cases at most (they are slow).
@@ -80,7 +80,7 @@ def total(per_family: dict[str, Findings]) -> Findings:
 
 
 def passed(f: Findings) -> bool:
-    """Whether ``f`` holds every bound (:data:`clsonar.stability.BOUNDS`)."""
+    """Whether ``f`` holds every bound (:data:`clsonar.tools.stability.BOUNDS`)."""
     return (not f.failures and f.nonfinite == 0
             and f.differing <= BOUNDS["map_differing_fraction"] * max(f.pixels, 1))
 
@@ -192,7 +192,7 @@ once with {stability.MILLION:,} loci, and six cases under other work-group sizes
 
 ## Hostile scene files
 
-`python -m clsonar.fuzz --count 100000 --seed 0` feeds mutated bundled scenes (random bytes,
+`python -m clsonar.tools.fuzz --count 100000 --seed 0` feeds mutated bundled scenes (random bytes,
 truncated JSON, deep nesting, huge arrays, a wrong type at a random key, NaN/Inf at a random
 number, grids too large for memory, invalid UTF-8, byte edits) through the loader, the
 pipeline's memory check and the sensor placement, and each refused one through `clsonar run
@@ -220,7 +220,7 @@ def stress(out: Path, count: int, *, device: str | None = None, many: int = 200,
     """Run ``count`` cases and write ``out/stress.md`` and ``out/stress.json`` (or, when
     ``out`` ends in ``.md``, that file and the ``.json`` beside it); returns the merged
     findings."""
-    from .opencl import get_context
+    from ..opencl import get_context
 
     context = get_context(device)
     per_family, seconds = run_stress(count, context, many=many, progress=progress)

@@ -40,8 +40,9 @@ from PySide6.QtWidgets import (
 
 from .. import opencl, pipeline
 from ..errors import ClsonarError, SceneError
+from ..files import write_atomic
 from ..outputs import profile_csv
-from ..scene import Scene, write_atomic
+from ..scene import Scene
 from . import edits
 from .canvas import TOOLS, SceneCanvas
 from .editor import Document

@@ -17,7 +17,7 @@ count other programs), still running after 10·``limit_s`` s of wall time (a han
 exit.
 Inputs the loader accepts are counted, not run (a valid scene may legitimately take long).
 
-Run: ``python -m clsonar.fuzz --count 100000 [--seed 0] [--limit-s 1]`` (docs/stability.md).
+Run: ``python -m clsonar.tools.fuzz --count 100000 [--seed 0] [--limit-s 1]`` (docs/stability.md).
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from .errors import ClsonarError
+from ..errors import ClsonarError
 
 MUTATIONS = ("bytes", "truncate", "nesting", "huge-array", "wrong-type", "nonfinite",
              "huge-grid", "utf8", "edit")
@@ -53,7 +53,7 @@ NONFINITE = ("NaN", "Infinity", "-Infinity", "1e999", "-1e999", "nan", "inf")
 
 def seed_texts() -> list[str]:
     """The bundled scenes' JSON texts, the starting points of every mutation."""
-    from .reproduce import bundled_scenes
+    from ..files import bundled_scenes
 
     return [p.read_text(encoding="utf-8") for p in sorted(bundled_scenes().glob("*.json"))]
 
@@ -196,11 +196,11 @@ def _alarm(seconds: float):
 def preflight(path: str, device=None) -> None:
     """What ``clsonar run`` does with a scene file before the heavy stages: load and
     validate it, refuse a grid it cannot hold, place the sensors."""
-    from . import mapping
-    from .geometry import build_geometry
-    from .pipeline import PIPELINE_BYTES_PER_CELL
-    from .scene import load_scene
-    from .sensors import place_sensors
+    from .. import mapping
+    from ..geometry import build_geometry
+    from ..pipeline import PIPELINE_BYTES_PER_CELL
+    from ..scene import load_scene
+    from ..sensors import place_sensors
 
     scene = load_scene(path)
     mapping.check_map_memory(scene, scene.mapping.precision, device,
@@ -210,7 +210,7 @@ def preflight(path: str, device=None) -> None:
 
 def run_cli(path: str, out: str) -> tuple[int, str]:
     """``clsonar run path --out out`` in-process: (exit status, stderr)."""
-    from .cli import main
+    from ..cli import main
 
     err, sink = io.StringIO(), io.StringIO()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(sink):
@@ -288,8 +288,8 @@ def fuzz(count: int, seed: int = 0, *, limit_s: float = 1.0, device=None,
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m clsonar.fuzz``: exit status 0 when nothing was found, 1 otherwise."""
-    p = argparse.ArgumentParser(prog="python -m clsonar.fuzz",
+    """``python -m clsonar.tools.fuzz``: exit status 0 when nothing was found, 1 otherwise."""
+    p = argparse.ArgumentParser(prog="python -m clsonar.tools.fuzz",
                                 description="Fuzz the scene loader and clsonar run's "
                                             "handling of bad input.")
     p.add_argument("--count", type=int, default=10_000)
@@ -302,7 +302,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     device = None
     if args.device:
-        from .opencl import get_context
+        from ..opencl import get_context
 
         device = get_context(args.device).devices[0]
 
@@ -317,9 +317,9 @@ def main(argv: list[str] | None = None) -> int:
     for f in report.findings[:20]:
         print("FINDING", f)
     if args.out:
-        from .scene import write_atomic
+        from ..files import write_atomic
 
-        command = f"python -m clsonar.fuzz --count {args.count} --seed {args.seed}" + (
+        command = f"python -m clsonar.tools.fuzz --count {args.count} --seed {args.seed}" + (
             f" --limit-s {args.limit_s:g}" if args.limit_s != 1.0 else "") + f" --out {args.out}"
         write_atomic(args.out, markdown(report, command).encode())
     return 0 if not report.findings else 1

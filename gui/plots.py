@@ -27,12 +27,13 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from .. import bench, opencl, pipeline, reproduce, signals
+from .. import opencl, pipeline, signals
 from ..scene import Scene
+from ..tools import bench, variants
 from .worker import Job
 
 #: Where ``clsonar bench`` keeps its committed report, next to the package in a checkout.
-BENCH_JSON = Path(__file__).resolve().parents[2] / "docs" / "bench" / "bench.json"
+BENCH_JSON = Path(__file__).resolve().parents[1] / "docs" / "bench" / "bench.json"
 SETTING_PENS = {"thesis": pg.mkBrush(220, 120, 30), "best": pg.mkBrush(30, 100, 220)}
 
 
@@ -73,7 +74,7 @@ def sweep_distance(scene: Scene, d0: float, distances: list[float], context, pro
     out = []
     for i, d in enumerate(distances):
         progress(f"{d:g} m", i + 1, len(distances))
-        out.append((d, error_m(pipeline.run(reproduce.at_distance(scene, d0, d),
+        out.append((d, error_m(pipeline.run(variants.at_distance(scene, d0, d),
                                             context=context))))
     return out
 
@@ -84,7 +85,7 @@ def sweep_noise(scene: Scene, levels: list[float], context, progress
     out = []
     for i, sd in enumerate(levels):
         progress(f"noise {sd:g}", i + 1, len(levels))
-        out.append((sd, error_m(pipeline.run(reproduce.with_seed(scene, 0, sd),
+        out.append((sd, error_m(pipeline.run(variants.with_seed(scene, 0, sd),
                                              context=context))))
     return out
 
