@@ -1275,3 +1275,65 @@ def point_map(scene: Scene, points: np.ndarray,
     np.add.at(counts, (iy[ok], ix[ok]), 1.0)
     np.add.at(sums, (iy[ok], ix[ok]), points[ok])
     return counts, sums
+
+
+# --------------------------------------------------------------------------- registry
+# (temporary on main: the mapping package of issue 17 replaces this section)
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Votes:
+    """What a mapping method hands to post-processing: a raw map of votes, or estimated
+    reflection points (with their pairs) whose map is drawn after the line-of-sight check."""
+
+    raw: np.ndarray | None = None
+    points: np.ndarray | None = None
+    tx: np.ndarray | None = None
+    rx: np.ndarray | None = None
+    counts: dict[str, int] = dataclasses.field(default_factory=dict)
+
+
+def _merged_loci(scene: Scene, detections) -> Loci:
+    loci = as_loci(detections)
+    if scene.mapping.reciprocal == "merge":
+        loci = merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
+    return loci
+
+
+def _backprojection(scene, sensors, echoes, detections, context, tiles) -> Votes:
+    from . import signals
+    from .sensors import pairs
+
+    dt, env = signals.envelopes(scene, sensors, echoes, context=context)
+    return Votes(raw=backproject(scene, sensors, pairs(sensors), env, dt, context=context))
+
+
+def _tangents(scene, sensors, echoes, detections, context, tiles) -> Votes:
+    loci = _merged_loci(scene, detections)
+    points, source = tangent_points(scene, sensors, loci,
+                                    isolated_bias_m=scene.mapping.isolated_bias_m)
+    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source])
+
+
+def _loci(scene, sensors, echoes, detections, context, tiles) -> Votes:
+    loci = _merged_loci(scene, detections)
+    stats: list[AccumulationStats] = []
+
+    def draw(part) -> np.ndarray:
+        votes, st = accumulate_with_stats(scene, sensors, part, context=context, tiles=tiles)
+        stats.append(st)
+        return votes
+
+    raw = (count_viewpoints(scene, sensors, loci, draw)
+           if scene.mapping.combine == "viewpoints" else draw(loci))
+    return Votes(raw=raw, counts={
+        "tiles_total": sum(t.tiles_total for t in stats),
+        "tiles_skipped": sum(t.tiles_skipped for t in stats),
+        "pixel_locus_tests": sum(t.pixel_locus_tests for t in stats),
+        "dense_pixel_locus_tests": sum(t.dense_tests for t in stats)})
+
+
+METHODS = {"loci": _loci, "backprojection": _backprojection, "tangents": _tangents}
+
+
+def map_votes(scene, sensors, echoes, detections, *, context, tiles: bool = True) -> Votes:
+    return METHODS[scene.mapping.mode](scene, sensors, echoes, detections, context, tiles)

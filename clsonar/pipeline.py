@@ -1,8 +1,12 @@
-"""The whole mapping pipeline, stage by stage (DESIGN.md, "Data flow"; thesis §2.1.1).
+"""The whole mapping pipeline, stage by stage (docs/design.md, "Data flow"; thesis §2.1.1).
 
-``Scene → sensors → echoes → detections → raw map → filtered → occupied → thin → profile →
-metrics``: :func:`run` calls each stage's module in turn, times it and keeps its result in a
-:class:`RunResult`. Presets (:data:`PRESETS`) switch the detection, mapping and
+``scene → sensors → echoes → detections → votes → line of sight → raw map → filtered →
+occupied → thin → profile → metrics``: :func:`run` calls each stage's module in turn, in the
+order of the data, times it and keeps its result in a :class:`RunResult`. No stage calls a
+later one. The stages up to the votes (the *front*) read no post-processing setting and are
+what :class:`StageCache` keeps; everything after them is :func:`post_process`, which
+:func:`rerun_post` runs again on its own — so a run and a re-run of its post-processing are
+the same computation. Presets (:data:`PRESETS`) switch the detection, mapping and
 post-processing settings between the thesis' methods (``thesis``) and ours (``best``, the
 defaults of a scene file).
 """
@@ -18,16 +22,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import __version__, mapping, metrics, post, regions, rooms, signals
+from . import __version__, mapping, metrics, post, regions, sight, signals
 from .echoes import EchoTable, compute_echoes
 from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
+from .mapping import Votes
 from .opencl import get_context
 from .scene import DetectionSettings, MappingSettings, PostSettings, Scene, scene_to_dict
 from .sensors import SensorArray, pairs, place_sensors
+from .signals import Detections
 
-STAGES = ("sensors", "echoes", "detection", "accumulation", "filter", "thinning", "profile",
-          "metrics")
+#: The stages in the order of the data. The first four are the front (cached, no
+#: post-processing setting read); ``sight`` (line of sight, then the map of the points left)
+#: and the rest are post-processing (:func:`post_process`).
+STAGES = ("sensors", "echoes", "detection", "accumulation", "sight", "filter", "thinning",
+          "profile", "metrics")
+FRONT_STAGES = STAGES[:4]
 
 #: Settings of the thesis' method and of ours (the defaults of a scene file).
 PRESETS: dict[str, dict[str, object]] = {
@@ -65,8 +75,10 @@ class RunResult:
     geometry: Geometry
     sensors: SensorArray
     echoes: EchoTable
-    detections: object  # clsonar.signals.Detections
-    raw: np.ndarray  # [ny, nx] accumulated votes
+    detections: Detections
+    #: what the mapping method gave (None for a scene mapped room by room)
+    votes: Votes | None
+    raw: np.ndarray  # [ny, nx] accumulated votes (points: the points in sight)
     filtered: np.ndarray  # after the low-pass (eq. 2.4)
     occupied: np.ndarray  # bool, filtered ≥ level
     thin: np.ndarray  # bool, after thinning
@@ -159,16 +171,13 @@ STAGE_KEYS = {
 
 
 def stage_keys(scene: Scene, device: str, skips: Skips) -> dict[str, str]:
-    """The cache key of each stage: a hash of the scene keys it and the stages before it
-    read (:data:`STAGE_KEYS`), the device and the skips. Tangent points checked for line of
-    sight also read the post-processing settings (rooms.in_sight_of_map)."""
+    """The cache key of each front stage: a hash of the scene keys it and the stages before
+    it read (:data:`STAGE_KEYS`), the device and the skips. No front stage reads a
+    post-processing setting."""
     data = scene_to_dict(scene)
     keys, seen = {}, [device, repr(skips)]
     for stage, names in STAGE_KEYS.items():
         seen += [data.get(n) for n in names]
-        if stage == "accumulation" and scene.mapping.mode == "tangents" \
-                and scene.mapping.line_of_sight:
-            seen.append(data.get("post"))
         keys[stage] = hashlib.sha256(json.dumps(seen, sort_keys=True).encode()).hexdigest()
     return keys
 
@@ -181,7 +190,7 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     ``device``/``context`` choose the OpenCL device (:func:`clsonar.opencl.get_context`);
     ``preset`` applies :data:`PRESETS` first; ``progress(stage, i, n)`` is called as each
     stage starts. ``skips`` (:class:`Skips`) says which unneeded work to leave out;
-    ``cache`` (:class:`StageCache`) reuses the stages whose inputs are unchanged.
+    ``cache`` (:class:`StageCache`) reuses the front stages whose inputs are unchanged.
     """
     scene = apply_preset(scene, preset)
     ctx = context if context is not None else get_context(device)
@@ -191,45 +200,47 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     # Refuse a grid that cannot be held before any work is done (one clear message).
     mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
                              host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
+    front = _run_front(scene, ctx, skips, cache, progress)
+    return post_process(front, progress=progress, skips=skips)
+
+
+def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
+               progress: Progress | None) -> RunResult:
+    """The front stages (sensors → echoes → detection → votes), each reused from ``cache``
+    when its key is there; the result's maps and profile are still empty."""
     device_name = _device_name(ctx)
     keys = stage_keys(scene, device_name, skips) if cache is not None else {}
     clock = _Stopwatch(progress)
+    counts: dict[str, int] = {}
     reused: list[str] = []
 
-    def stage(name: str, compute: Callable[[], tuple]) -> tuple:
+    def stage(name: str, compute: Callable[[], tuple]) -> object:
+        """Run (or reuse) one stage: ``compute()`` gives its value and its counters."""
         clock.start(name)
-        value = cache.get(name, keys[name]) if cache is not None else None
-        if value is None:
-            value = compute()
+        found = cache.get(name, keys[name]) if cache is not None else None
+        if found is None:
+            found = compute()
             if cache is not None:
-                cache.put(name, keys[name], value)
+                cache.put(name, keys[name], found)
         else:
             reused.append(name)
+        value, stage_counts = found  # type: ignore[misc]
+        counts.update(stage_counts)
         return value
 
-    geom, sensors = stage("sensors", lambda: _sensors(scene))
-    echoes, echo_stats = stage("echoes", lambda: _echoes(scene, sensors, ctx, skips))
-    detections, detect_stats = stage("detection",
-                                     lambda: _detect(scene, sensors, echoes, ctx, skips))
-    raw, point_sums, point_window, ghosts, tile_counts = stage(
-        "accumulation", lambda: _accumulate(scene, sensors, echoes, detections, ctx, skips))
-    counts = {
-        "transducers": len(sensors),
-        "pairs": len(pairs(sensors)),
-        **echo_stats,
-        **detect_stats,
-        "echoes": len(echoes),
-        "detections": len(detections),
-        "map_cells": int(raw.size),
-        "cells_voted": int(np.count_nonzero(raw)),
-        "ghost_points": ghosts,
-        **tile_counts,
-        "stages_reused": len(reused),
-    }
-    front = RunResult(scene, geom, sensors, echoes, detections, raw, raw, raw, raw,
-                      post.Profile(()), {}, clock.stop(), counts, device_name, point_sums,
-                      point_window)
-    return rerun_post(front, scene.post, progress=progress, skips=skips)
+    geom, sensors = stage("sensors", lambda: (_sensors(scene), {}))
+    echoes = stage("echoes", lambda: _echoes(scene, sensors, ctx, skips))
+    detections = stage("detection", lambda: _detect(scene, sensors, echoes, ctx, skips))
+    votes = stage("accumulation", lambda: _votes(scene, sensors, echoes, detections, ctx,
+                                                  skips))
+    counts = {"transducers": len(sensors), "pairs": len(pairs(sensors)), **counts,
+              "echoes": len(echoes), "detections": len(detections),
+              "stages_reused": len(reused)}
+    empty = np.zeros((0, 0))
+    return RunResult(scene=scene, geometry=geom, sensors=sensors, echoes=echoes,
+                     detections=detections, votes=votes, raw=empty, filtered=empty,
+                     occupied=empty, thin=empty, profile=post.Profile(()), metrics={},
+                     seconds=clock.stop(), counts=counts, device=device_name)
 
 
 #: Host memory the mosaic of a scene mapped room by room holds per cell: raw and filtered
@@ -246,10 +257,8 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
     mapping.check_map_memory(scene, scene.mapping.precision, None,
                              host_bytes_per_cell=MOSAIC_BYTES_PER_CELL)
     shape = scene.grid_shape
-    raw = np.zeros(shape, np.float32)
-    filtered = np.zeros(shape, np.float32)
-    occupied = np.zeros(shape, bool)
-    thin = np.zeros(shape, bool)
+    maps = {"raw": np.zeros(shape, np.float32), "filtered": np.zeros(shape, np.float32),
+            "occupied": np.zeros(shape, bool), "thin": np.zeros(shape, bool)}
     parts: list[RunResult] = []
     seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
     counts: dict[str, int] = {}
@@ -260,35 +269,46 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
                 progress(stage, k * n + i, len(rooms) * n)
 
         r = run(room.scene, context=ctx, skips=inner, progress=tell)
-        ny, nx = r.raw.shape
-        window = (slice(room.row0, room.row0 + ny), slice(room.col0, room.col0 + nx))
-        raw[window] += r.raw
-        filtered[window] += r.filtered
-        occupied[window] |= r.occupied
-        thin[window] |= r.thin
+        _add_to_mosaic(maps, r, room)
         for stage, t in r.seconds.items():
             seconds[stage] += t
         for key, value in r.counts.items():
             counts[key] = counts.get(key, 0) + value
-        # keep only what the whole floor needs of each room (its maps are in the mosaic)
-        parts.append(dataclasses.replace(r, raw=None, filtered=None, occupied=None, thin=None,
-                                         point_sums=None, point_window=None))
-    counts.update(map_cells=int(raw.size), cells_voted=int(np.count_nonzero(raw)),
-                  rooms_mapped=len(rooms))
+        parts.append(r)
+    counts.update(map_cells=int(maps["raw"].size),
+                  cells_voted=int(np.count_nonzero(maps["raw"])), rooms_mapped=len(rooms))
+    pooled = regions.combine_metrics([p.metrics for p in parts])
+    return RunResult(scene=scene, geometry=build_geometry(scene), **_side_by_side(parts),
+                     votes=None, **maps, metrics=pooled, seconds=seconds, counts=counts,
+                     device=_device_name(ctx))
+
+
+def _add_to_mosaic(maps: dict[str, np.ndarray], r: RunResult, room: regions.Region) -> None:
+    """Add the maps of room result ``r`` into the scene's ``maps`` where the room's grid
+    sits (votes and filtered values added, occupied and thin cells or-ed)."""
+    ny, nx = r.raw.shape
+    window = (slice(room.row0, room.row0 + ny), slice(room.col0, room.col0 + nx))
+    maps["raw"][window] += r.raw
+    maps["filtered"][window] += r.filtered
+    maps["occupied"][window] |= r.occupied
+    maps["thin"][window] |= r.thin
+
+
+def _side_by_side(parts: list[RunResult]) -> dict[str, object]:
+    """The rooms' transducers, echoes, detections and profiles one after another (indices
+    of transducers and groups moved on by the rooms before)."""
     sensors = SensorArray(*(np.concatenate([getattr(p.sensors, f) for p in parts])
                             for f in ("positions", "headings_deg")),
                           np.concatenate(_offset_groups([p.sensors.groups for p in parts])),
                           np.concatenate([p.sensors.poses for p in parts]))
     first = np.cumsum([0] + [len(p.sensors) for p in parts])
-    echoes = EchoTable(**_stack([p.echoes for p in parts], first, EchoTable))
-    found = signals.Detections(**_stack([p.detections for p in parts], first,
-                                        signals.Detections))
-    profile = post.Profile(tuple(c for p in parts for c in p.profile.curves),
-                           np.concatenate([p.profile.vertices for p in parts]))
-    return RunResult(scene, build_geometry(scene), sensors, echoes, found, raw, filtered,
-                     occupied, thin, profile,
-                     regions.combine_metrics([p.metrics for p in parts]), seconds, counts,
-                     _device_name(ctx))
+    return {
+        "sensors": sensors,
+        "echoes": EchoTable(**_stack([p.echoes for p in parts], first, EchoTable)),
+        "detections": Detections(**_stack([p.detections for p in parts], first, Detections)),
+        "profile": post.Profile(tuple(c for p in parts for c in p.profile.curves),
+                                np.concatenate([p.profile.vertices for p in parts])),
+    }
 
 
 def _offset_groups(groups: list[np.ndarray]) -> list[np.ndarray]:
@@ -315,85 +335,129 @@ def _sensors(scene: Scene) -> tuple[Geometry, SensorArray]:
     return geom, place_sensors(scene, geom)
 
 
-def _echoes(scene: Scene, sensors: SensorArray, ctx, skips: Skips) -> tuple:
+def _echoes(scene: Scene, sensors: SensorArray, ctx, skips: Skips
+            ) -> tuple[EchoTable, dict[str, int]]:
     stats: dict[str, int] = {}
     table = compute_echoes(scene, sensors, context=ctx, skip_empty_pairs=skips.empty_pairs,
                            stats=stats)
     return table, stats
 
 
-def _detect(scene: Scene, sensors: SensorArray, echoes: EchoTable, ctx, skips: Skips) -> tuple:
+def _detect(scene: Scene, sensors: SensorArray, echoes: EchoTable, ctx, skips: Skips
+            ) -> tuple[Detections, dict[str, int]]:
     stats: dict[str, int] = {}
     found = signals.detect(scene, sensors, echoes, context=ctx, skip_silent=skips.silent_pairs,
                            skip_quiet=skips.quiet_samples, stats=stats)
     return found, stats
 
 
-def _accumulate(scene: Scene, sensors: SensorArray, echoes: EchoTable, detections,
-                ctx, skips: Skips) -> tuple:
-    """The raw map, the tangent-point sums (or None) and the cells they cover (None: all),
-    the number of ghost points and the tiled accumulation's counters."""
-    if scene.mapping.mode == "backprojection":
-        dt, env = signals.envelopes(scene, sensors, echoes, context=ctx)
-        return (mapping.backproject(scene, sensors, pairs(sensors), env, dt, context=ctx), None,
-                None, 0, {})
-    loci = mapping.as_loci(detections)
-    if scene.mapping.reciprocal == "merge":
-        loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
-    if scene.mapping.mode == "tangents":
-        points, source = mapping.tangent_points(
-            scene, sensors, loci, isolated_bias_m=scene.mapping.isolated_bias_m)
-        ghosts = 0
-        if scene.mapping.line_of_sight:
-            seen = rooms.in_sight_of_map(scene, sensors.positions, points,
-                                         loci.tx[source], loci.rx[source],
-                                         box=skips.empty_cells)
-            ghosts = int(np.count_nonzero(~seen))
-            points = points[seen]
-        if not skips.empty_cells:
-            raw, point_sums = mapping.point_map(scene, points)
-            return raw, point_sums, None, ghosts, {}
-        window = mapping.points_window(scene, points)  # the sums only where points are
-        counts, point_sums = mapping.point_map(scene, points, window)
-        return post.embed(scene.grid_shape, _slices(window), counts), point_sums, window, \
-            ghosts, {}
-    tile_stats: list[mapping.AccumulationStats] = []
-
-    def draw(part) -> np.ndarray:
-        votes, stats = mapping.accumulate_with_stats(scene, sensors, part, context=ctx,
-                                                     tiles=skips.tiles)
-        tile_stats.append(stats)
-        return votes
-
-    raw = (mapping.count_viewpoints(scene, sensors, loci, draw)
-           if scene.mapping.combine == "viewpoints" else draw(loci))
-    return raw, None, None, 0, {
-        "tiles_total": sum(t.tiles_total for t in tile_stats),
-        "tiles_skipped": sum(t.tiles_skipped for t in tile_stats),
-        "pixel_locus_tests": sum(t.pixel_locus_tests for t in tile_stats),
-        "dense_pixel_locus_tests": sum(t.dense_tests for t in tile_stats)}
+def _votes(scene: Scene, sensors: SensorArray, echoes: EchoTable, detections: Detections,
+           ctx, skips: Skips) -> tuple[Votes, dict[str, int]]:
+    """The mapping method's votes (:data:`clsonar.mapping.METHODS`, by ``mapping.mode``)."""
+    votes = mapping.map_votes(scene, sensors, echoes, detections, context=ctx,
+                              tiles=skips.tiles)
+    return votes, votes.counts
 
 
 def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
                progress: Progress | None = None, skips: Skips = Skips()) -> RunResult:
-    """``result`` with post-processing (filter → thinning → profile → metrics) run again.
+    """``result`` with post-processing run again, with ``settings`` if given.
 
-    The stages before it (sensors, echoes, detection, accumulation) are reused as they are,
-    so changing a :class:`~clsonar.scene.PostSettings` value costs only post-processing.
+    The front stages (sensors, echoes, detection, votes) are reused as they are; the rest
+    — line of sight, the map of the points, filter → thinning → profile → metrics — is
+    :func:`post_process`, the very code a full run ends with, so the result equals a fresh
+    :func:`run` of the scene with those settings.
     """
-    if result.counts.get("rooms_mapped"):
+    if result.votes is None:
         raise ClsonarError(f"{result.scene.name}: a scene mapped room by room cannot re-run "
                            "its post-processing alone; run it again")
     scene = result.scene if settings is None else dataclasses.replace(result.scene,
                                                                       post=settings)
-    raw, point_sums, outer = result.raw, result.point_sums, result.point_window
+    return post_process(dataclasses.replace(result, scene=scene), progress=progress,
+                        skips=skips)
+
+
+def post_process(front: RunResult, *, progress: Progress | None = None,
+                 skips: Skips = Skips()) -> RunResult:
+    """Every stage after the votes, on ``front`` (a result whose front stages are done):
+    the line of sight and the raw map (``sight``), then filter → thinning → profile →
+    metrics. Reads ``front.scene.post``; nothing it computes feeds an earlier stage."""
+    assert front.votes is not None
+    scene = front.scene
+    clock = _Stopwatch(progress)
+    clock.start("sight")
+    drawn = _raw_map(scene, front.sensors, front.votes, skips)
+    clock.start("filter")
+    maps = _post_maps(scene, drawn, skips, clock)
+    clock.start("metrics")
+    result_metrics = metrics.evaluate(scene, front.geometry, front.sensors, front.echoes,
+                                      maps.profile.points, maps.profile.vertices)
+    seconds = {k: v for k, v in front.seconds.items() if k in FRONT_STAGES}
+    seconds.update(clock.stop())
+    counts = {**{k: v for k, v in front.counts.items() if k not in _POST_COUNTS},
+              "map_cells": int(drawn.raw.size),
+              "cells_voted": int(np.count_nonzero(drawn.raw)),
+              "ghost_points": drawn.ghosts,
+              **maps.counts}
+    return dataclasses.replace(front, raw=drawn.raw, filtered=maps.filtered,
+                               occupied=maps.occupied, thin=maps.thin, profile=maps.profile,
+                               metrics=result_metrics, seconds=seconds, counts=counts,
+                               point_sums=drawn.point_sums, point_window=drawn.window)
+
+
+@dataclass(frozen=True, eq=False)
+class _Drawn:
+    """The raw map post-processing starts from: the votes, or the map of the points in
+    sight with their coordinate sums over ``window`` of cells (None: the whole grid)."""
+
+    raw: np.ndarray
+    point_sums: np.ndarray | None = None
+    window: tuple[int, int, int, int] | None = None
+    ghosts: int = 0
+
+
+def _raw_map(scene: Scene, sensors: SensorArray, votes: Votes, skips: Skips) -> _Drawn:
+    """The raw map of ``votes``: a method's map as it is; estimated reflection points
+    first checked for line of sight (:func:`clsonar.sight.in_sight_of_map`, when
+    ``mapping.line_of_sight``), the ghosts dropped, then counted per cell."""
+    if votes.points is None:
+        assert votes.raw is not None
+        return _Drawn(votes.raw)
+    points, ghosts = votes.points, 0
+    if scene.mapping.line_of_sight:
+        assert votes.tx is not None and votes.rx is not None
+        seen = sight.in_sight_of_map(scene, sensors.positions, points, votes.tx, votes.rx,
+                                     box=skips.empty_cells)
+        ghosts = int(np.count_nonzero(~seen))
+        points = points[seen]
+    if not skips.empty_cells:
+        raw, point_sums = mapping.point_map(scene, points)
+        return _Drawn(raw, point_sums, None, ghosts)
+    window = mapping.points_window(scene, points)  # the sums only where points are
+    counts, point_sums = mapping.point_map(scene, points, window)
+    return _Drawn(post.embed(scene.grid_shape, _slices(window), counts), point_sums, window,
+                  ghosts)
+
+
+@dataclass(frozen=True, eq=False)
+class _PostMaps:
+    filtered: np.ndarray
+    occupied: np.ndarray
+    thin: np.ndarray
+    profile: post.Profile
+    counts: dict[str, int]
+
+
+def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch) -> _PostMaps:
+    """Filter (eq. 2.4), threshold, thinning and profile of ``drawn``, within the cells
+    that can hold anything (the points' window, then the voted box when
+    ``skips.empty_cells``); the maps come back on the whole grid."""
+    raw, point_sums, outer = drawn.raw, drawn.point_sums, drawn.window
     if point_sums is not None and outer is not None and not scene.post.subcell:
         # cell-centre profiles need the whole grid's indices: the sums on the whole grid
         point_sums, outer = post.embed((*raw.shape, 2), _slices(outer), point_sums), None
     outer = outer if point_sums is not None and outer is not None else (0, 0, *raw.shape)
     part = raw[_slices(outer)]  # post-processing needs no cell outside the points' window
-    clock = _Stopwatch(progress)
-    clock.start("filter")
     window, filtered, occupied = post.filter_box(part, scene.post, point_sums is not None,
                                                  box=skips.empty_cells)
     clock.start("thinning")
@@ -404,24 +468,16 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
                                    part if point_sums is not None else None, point_sums)
     inner = (outer[0] + window[0].start, outer[1] + window[1].start,
              window[0].stop - window[0].start, window[1].stop - window[1].start)
-    filtered = post.embed(raw.shape, _slices(outer), filtered)
-    thin = post.embed(raw.shape, _slices(outer), thin)
     occupied = post.embed(raw.shape, _slices(inner), occupied)
-    clock.start("metrics")
-    result_metrics = metrics.evaluate(scene, result.geometry, result.sensors, result.echoes,
-                                      profile.points, profile.vertices)
-    seconds = {k: v for k, v in result.seconds.items() if k in STAGES[:4]}
-    seconds.update(clock.stop())
-    counts = {**{k: v for k, v in result.counts.items() if k not in _POST_COUNTS},
-              "cells_post_processed": int(window[0].stop - window[0].start)
-              * int(window[1].stop - window[1].start),
-              "occupied_cells": int(np.count_nonzero(occupied)),
-              "thin_cells": int(np.count_nonzero(thin)),
-              "profile_curves": len(profile.curves),
-              "profile_points": len(profile.points)}
-    return dataclasses.replace(result, scene=scene, filtered=filtered, occupied=occupied,
-                               thin=thin, profile=profile, metrics=result_metrics,
-                               seconds=seconds, counts=counts)
+    thin = post.embed(raw.shape, _slices(outer), thin)
+    return _PostMaps(
+        filtered=post.embed(raw.shape, _slices(outer), filtered), occupied=occupied,
+        thin=thin, profile=profile,
+        counts={"cells_post_processed": int(inner[2]) * int(inner[3]),
+                "occupied_cells": int(np.count_nonzero(occupied)),
+                "thin_cells": int(np.count_nonzero(thin)),
+                "profile_curves": len(profile.curves),
+                "profile_points": len(profile.points)})
 
 
 def _slices(window: tuple[int, int, int, int]) -> tuple[slice, slice]:
@@ -430,8 +486,9 @@ def _slices(window: tuple[int, int, int, int]) -> tuple[slice, slice]:
     return slice(row0, row0 + ny), slice(col0, col0 + nx)
 
 
-_POST_COUNTS = ("cells_post_processed", "occupied_cells", "thin_cells", "profile_curves",
-                "profile_points")
+#: The counters :func:`post_process` sets (a re-run replaces them).
+_POST_COUNTS = ("map_cells", "cells_voted", "ghost_points", "cells_post_processed",
+                "occupied_cells", "thin_cells", "profile_curves", "profile_points")
 
 
 class _Stopwatch:

@@ -185,7 +185,7 @@ def test_edit_run_stages_post_save(qtbot, window, tmp_path):
     again = blocker.args[0]
     assert w.runs == {"full": 1, "post": 1}
     assert w.last_stages == POST
-    assert again.raw is result.raw and again.echoes is result.echoes
+    assert again.votes is result.votes and again.echoes is result.echoes
     assert again.scene.post.filter == "none"
     np.testing.assert_array_equal(again.filtered, result.raw.astype(float))
     assert {k: again.seconds[k] for k in STAGES[:4]} == {k: result.seconds[k]
