@@ -1,7 +1,7 @@
-"""Closed rooms (clsonar/rooms.py, mapping.scan_envelope, the room metrics; thesis §2.1.2 and
-§3.6): line of sight against the map, straight walls joined at corners and edges, circles
-from the patches of a cylinder, the envelope of a moving ring's T = R loci, and the
-end-to-end numbers of the bundled room scenes."""
+"""Closed rooms (clsonar/rooms.py, clsonar/post/walls.py, mapping.scan_envelope, the room
+metrics; thesis §2.1.2 and §3.6): line of sight against the map, straight walls joined at
+corners and edges, circles from the patches of a cylinder, the envelope of a moving ring's
+T = R loci, and the end-to-end numbers of the bundled room scenes."""
 
 from __future__ import annotations
 
@@ -20,16 +20,8 @@ from clsonar import rooms
 from clsonar.geometry import EDGE, build_geometry, true_vertices
 from clsonar.mapping import Loci, scan_envelope, tangent_points
 from clsonar.metrics import VERTEX_FOUND_M, cylinder_coverage, evaluate, vertex_errors
-from clsonar.rooms import (
-    Arc,
-    Wall,
-    find_circles,
-    first_hits,
-    join_walls,
-    line_of_sight,
-    merge_collinear,
-    split_straight,
-)
+from clsonar.post.walls import Arc, Wall, find_circles, join_walls, merge_collinear, split_straight
+from clsonar.rooms import first_hits, line_of_sight
 from clsonar.sensors import SensorArray
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"

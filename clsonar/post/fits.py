@@ -1,0 +1,70 @@
+"""The fitted profile (thesis §2.1.1, part 5): the thesis' polynomial along the points'
+principal axis (:func:`fit_polynomial`), a smoothing spline per curve (:func:`fit_spline`),
+and the :class:`Profile` a fit yields."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Profile:
+    """The estimated surfaces: curves of points in metres (the fitted profile), and the
+    corners and edges located as intersections of adjoining walls (``fit = "walls"``)."""
+
+    curves: tuple[np.ndarray, ...]
+    vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+    @property
+    def points(self) -> np.ndarray:
+        """[n, 2] all curves' points (``profile.csv``)."""
+        if not self.curves:
+            return np.zeros((0, 2))
+        return np.concatenate(self.curves)
+
+
+def fit_polynomial(points: np.ndarray, order: int, spacing: float) -> np.ndarray:
+    """The thesis' polynomial fit (§2.1.1, part 5; order 5–8 in chapter 3): in the frame of
+    the points' principal axis u, fit v = P(u) by least squares and sample it every
+    ``spacing`` over the points' span of u. Returns [n, 2] points."""
+    p = np.asarray(points, dtype=np.float64)
+    if len(p) <= order:
+        return p
+    centre = p.mean(axis=0)
+    _, _, vt = np.linalg.svd(p - centre, full_matrices=False)
+    u_axis, v_axis = vt[0], vt[1]
+    u = (p - centre) @ u_axis
+    v = (p - centre) @ v_axis
+    poly = np.polynomial.Polynomial.fit(u, v, order)
+    us = np.arange(u.min(), u.max() + 0.5 * spacing, spacing)
+    return centre + us[:, None] * u_axis + poly(us)[:, None] * v_axis
+
+
+def fit_spline(curve: np.ndarray, spacing: float, noise: float) -> np.ndarray:
+    """A smoothing spline through an ordered curve of points (scipy's parametric spline,
+    smoothing chosen so the residual RMS is about ``noise``), sampled every ``spacing`` of
+    arc length. Short or degenerate curves come back unchanged."""
+    from scipy import interpolate
+
+    p = np.asarray(curve, dtype=np.float64)
+    keep = np.r_[True, np.any(np.diff(p, axis=0) != 0, axis=1)]
+    p = p[keep]
+    if len(p) < 4:
+        return p
+    steps = np.hypot(*np.diff(p, axis=0).T)
+    closed = len(p) > 8 and np.hypot(*(p[0] - p[-1])) <= 2 * np.median(steps)
+    if closed and np.any(p[0] != p[-1]):
+        p = np.concatenate([p, p[:1]])
+        steps = np.r_[steps, np.hypot(*(p[-1] - p[-2]))]
+    arc = np.r_[0.0, np.cumsum(steps)]
+    try:
+        tck, _ = interpolate.splprep(p.T, u=arc, s=len(p) * noise**2, k=3, per=int(closed))
+    except (ValueError, TypeError):
+        return p
+    samples = np.arange(0.0, arc[-1] + 0.5 * spacing, spacing)
+    return np.stack(interpolate.splev(samples, tck), axis=-1)
+
+
+__all__ = ["Profile", "fit_polynomial", "fit_spline"]

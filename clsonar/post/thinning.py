@@ -1,0 +1,164 @@
+"""Thinning of the occupied cells (thesis §2.1.1, part 5).
+
+- :func:`thin_thesis`: the template of eq. 2.5 exactly as the thesis writes it;
+- :func:`thin`: a proper thinning (Guo and Hall's parallel algorithm) that leaves one-pixel
+  wide, 8-connected curves and keeps every curve's connectivity;
+- :func:`thin_map`: the stage, one or the other as the settings say.
+
+Maps are indexed ``[iy, ix]`` with ``iy`` growing with y (docs/design.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy import ndimage
+
+from ..scene import PostSettings
+
+#: Correlation weights giving each pixel an 8-bit code of its neighbours: bit k−1 is
+#: neighbour x_k of Guo and Hall, counted counter-clockwise from x1 = east (array rows grow
+#: downwards here, so "north" is row − 1; the algorithm is symmetric and does not care).
+_NEIGHBOUR_BITS = np.array([[8, 4, 2], [16, 0, 1], [32, 64, 128]])
+
+
+def thin_thesis(binary: np.ndarray, up: tuple[int, int] = (0, -1)) -> np.ndarray:
+    """Thinning as thesis eq. 2.5 is written: keep a cell that matches
+
+    ::
+
+        0 0 0
+        X 1 X      (X: don't care)
+        1 1 1
+
+    i.e. the three cells "above" it are empty and the three "below" it are occupied; every
+    other cell is zeroed. This keeps one edge of each thick band, one pixel wide where the
+    band is at least two pixels deep; cells outside the map count as empty.
+
+    ``up`` is the array step ``(diy, dix)`` to the row above. The thesis' MATLAB maps index
+    their rows by x ("a wall located 9 m away from the origin along the x direction" is a
+    row of the image), so by default the row above a cell is the one at smaller x, and the
+    template keeps the edge of a band that faces the sensors of the thesis' scenes.
+    """
+    b = np.pad(np.asarray(binary, dtype=bool), 1)
+    ny, nx = binary.shape
+    side = (up[1], up[0])  # perpendicular to up
+
+    def shifted(dy: int, dx: int) -> np.ndarray:
+        return b[1 + dy:1 + dy + ny, 1 + dx:1 + dx + nx]
+
+    centre = shifted(0, 0)
+    above = np.zeros_like(centre)
+    below = np.ones_like(centre)
+    for k in (-1, 0, 1):
+        oy, ox = k * side[0], k * side[1]
+        above |= shifted(up[0] + oy, up[1] + ox)
+        below &= shifted(-up[0] + oy, -up[1] + ox)
+    return centre & ~above & below
+
+
+def _guo_hall_tables() -> tuple[np.ndarray, np.ndarray]:
+    """Deletion tables of the two sub-iterations of Guo and Hall (1989), indexed by the
+    8-bit neighbour code (bit k−1 = neighbour x_k, x1 = east, counter-clockwise)."""
+    first = np.zeros(256, dtype=bool)
+    second = np.zeros(256, dtype=bool)
+    for code in range(256):
+        # x[1..8] the neighbours, x[9] = x1 again; x[0] is never read
+        x = [0] + [(code >> k) & 1 for k in range(8)] + [code & 1]
+        crossings = sum(1 for i in (1, 3, 5, 7) if not x[i] and (x[i + 1] or x[i + 2]))
+        n1 = sum(x[2 * k - 1] | x[2 * k] for k in range(1, 5))
+        n2 = sum(x[2 * k] | x[2 * k + 1] for k in range(1, 5))
+        if crossings != 1 or not 2 <= min(n1, n2) <= 3:
+            continue
+        first[code] = ((x[2] | x[3] | (1 - x[8])) & x[1]) == 0
+        second[code] = ((x[6] | x[7] | (1 - x[4])) & x[5]) == 0
+    return first, second
+
+
+_DELETE_FIRST, _DELETE_SECOND = _guo_hall_tables()
+
+
+def _simple_table() -> np.ndarray:
+    """Whether a foreground pixel with a given neighbour code is *simple*: deleting it keeps
+    the topology (its neighbours form one 8-connected foreground component and it touches
+    one 4-connected background component)."""
+    table = np.zeros(256, dtype=bool)
+    four = ndimage.generate_binary_structure(2, 1)
+    for code in range(256):
+        patch = (code & _NEIGHBOUR_BITS) > 0
+        n_fg = ndimage.label(patch, np.ones((3, 3)))[1]
+        bg, _ = ndimage.label(~patch & (_NEIGHBOUR_BITS > 0), four)
+        touching = {bg[i, j] for i, j in ((0, 1), (1, 0), (1, 2), (2, 1)) if bg[i, j]}
+        table[code] = n_fg == 1 and len(touching) == 1
+    return table
+
+
+_SIMPLE = _simple_table()
+
+
+def _codes_at(b: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
+    """The neighbour code (the correlation with :data:`_NEIGHBOUR_BITS`) of the pixels
+    ``(iy, ix)`` of ``b`` only — thinning needs it at set pixels, a few per cent of a map."""
+    p = np.pad(b, 1)
+    code = np.zeros(len(iy), dtype=np.int64)
+    for i in range(3):
+        for j in range(3):
+            if _NEIGHBOUR_BITS[i, j]:
+                code += int(_NEIGHBOUR_BITS[i, j]) * p[iy + i, ix + j]
+    return code
+
+
+def _redundant_at(b: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
+    """Whether the set pixels ``(iy, ix)`` make a curve thicker than one pixel in the
+    8-connected sense: two orthogonal 4-neighbours set (a staircase corner, or part of a
+    2×2 block)."""
+    p = np.pad(b, 1)
+    north, south = p[iy + 2, ix + 1], p[iy, ix + 1]
+    east, west = p[iy + 1, ix + 2], p[iy + 1, ix]
+    return (north | south) & (east | west)
+
+
+def _guo_hall(skeleton: np.ndarray, max_iterations: int) -> np.ndarray:
+    """Guo and Hall's two sub-iterations on ``skeleton`` (in place) until nothing changes."""
+    for _ in range(max_iterations):
+        before = np.count_nonzero(skeleton)
+        for table in (_DELETE_FIRST, _DELETE_SECOND):
+            iy, ix = np.nonzero(skeleton)
+            gone = table[_codes_at(skeleton, iy, ix)]
+            skeleton[iy[gone], ix[gone]] = False
+        if np.count_nonzero(skeleton) == before:
+            break
+    return skeleton
+
+
+def thin(binary: np.ndarray, max_iterations: int = 10_000) -> np.ndarray:
+    """Thin occupied bands to one-pixel-wide 8-connected curves, keeping the connectivity
+    (and the holes) of every band.
+
+    Guo and Hall's parallel thinning (the algorithm of ``skimage.morphology.thin``) runs
+    to convergence; it can leave 2×2 blocks and staircase corners, whose *simple* pixels
+    (deleting them keeps the topology) are then deleted one parity subfield at a time —
+    pixels of one subfield are never neighbours, so deleting them together cannot
+    disconnect anything. Both steps repeat until nothing changes. Each step looks only at
+    the set pixels.
+    """
+    skeleton = np.asarray(binary, dtype=bool).copy()
+    for _ in range(max_iterations):
+        before = np.count_nonzero(skeleton)
+        skeleton = _guo_hall(skeleton, max_iterations)
+        for a, b in ((0, 0), (0, 1), (1, 0), (1, 1)):
+            iy, ix = np.nonzero(skeleton)
+            mine = (iy % 2 == a) & (ix % 2 == b)
+            iy, ix = iy[mine], ix[mine]
+            gone = _redundant_at(skeleton, iy, ix) & _SIMPLE[_codes_at(skeleton, iy, ix)]
+            skeleton[iy[gone], ix[gone]] = False
+        if np.count_nonzero(skeleton) == before:
+            break
+    return skeleton
+
+
+def thin_map(occupied: np.ndarray, settings: PostSettings) -> np.ndarray:
+    """The thinning stage: eq. 2.5 as written (``thesis``) or :func:`thin` (``guo-hall``)."""
+    return thin_thesis(occupied) if settings.thinning == "thesis" else thin(occupied)
+
+
+__all__ = ["thin", "thin_map", "thin_thesis"]

@@ -1,0 +1,376 @@
+"""A room's profile as walls meeting at corners and edges, and circles for cylinders
+(thesis §3.6; ``post.fit = "walls"``).
+
+:func:`fit_walls`: the profile of a room as straight walls where the data are straight
+(split-and-merge of the linked curves, total-least-squares lines, collinear pieces merged)
+and smoothing splines elsewhere (sinusoids); adjoining walls are extended to their
+intersection, which locates the corners and edges that the arcs themselves round off (the
+thesis' maps lost them, §3.6); short pieces whose normals meet at one point are the patches
+of a cylinder, fitted as a circle (:func:`find_circles`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene import PostSettings
+from .fits import Profile, fit_spline
+
+# --------------------------------------------------------------------------- walls
+
+#: Split-and-merge tolerance: a curve is cut where it leaves its chord by more than this.
+SPLIT_TOL_M = 0.01
+
+#: A piece is a straight wall when the RMS distance of its points to their
+#: total-least-squares line is at most this (sub-cell points of a wall scatter 1–3 mm; a
+#: 0.5 m arc of a 2 m cylinder leaves about 5 mm).
+WALL_RESIDUAL_M = 0.004
+
+#: Shortest straight piece taken for a wall.
+MIN_WALL_M = 0.1
+
+#: Pieces within this angle and distance of each other's line are one wall.
+COLLINEAR_DEG = 3.0
+COLLINEAR_M = 0.02
+
+#: Walls meet at a vertex only if their lines cross at more than this angle.
+MIN_VERTEX_DEG = 20.0
+
+#: Walls meet at a vertex only if both are at least this long: the short, nearly straight
+#: patches a ring sees of a cylinder must not be joined into a polygon.
+MIN_JOIN_WALL_M = 0.5
+
+
+@dataclass
+class Wall:
+    """A straight wall: the total-least-squares line of its ``points`` through ``centre``
+    along unit ``direction``, spanning ``[lo, hi]`` of the coordinate along it."""
+
+    points: np.ndarray
+    centre: np.ndarray
+    direction: np.ndarray
+    lo: float
+    hi: float
+    residual: float
+    joins: int = 0  # ends extended or trimmed to a vertex
+
+    @classmethod
+    def fit(cls, points: np.ndarray) -> Wall:
+        p = np.asarray(points, dtype=np.float64)
+        centre = p.mean(axis=0)
+        _, sv, vt = np.linalg.svd(p - centre, full_matrices=False)
+        u = vt[0]
+        t = (p - centre) @ u
+        residual = float(sv[1] / math.sqrt(len(p))) if len(sv) > 1 else 0.0
+        return cls(p, centre, u, float(t.min()), float(t.max()), residual)
+
+    @property
+    def length(self) -> float:
+        return self.hi - self.lo
+
+    def at(self, t: float) -> np.ndarray:
+        return self.centre + t * self.direction
+
+    def offset(self, q: np.ndarray) -> float:
+        """Distance of point ``q`` from the wall's line."""
+        d = q - self.centre
+        return abs(d[0] * self.direction[1] - d[1] * self.direction[0])
+
+    def sample(self, spacing: float) -> np.ndarray:
+        n = max(2, math.ceil(self.length / spacing) + 1)
+        return self.at(0.0)[None] + np.linspace(self.lo, self.hi, n)[:, None] * self.direction
+
+
+def split_straight(curve: np.ndarray, tol: float = SPLIT_TOL_M) -> list[tuple[int, int]]:
+    """Index ranges ``[i, j]`` (inclusive) of the pieces of ``curve`` [n, 2] that each stay
+    within ``tol`` of their chord (Douglas–Peucker split; a closed curve is first cut at
+    the point farthest from its start)."""
+    n = len(curve)
+    if n < 3:
+        return [(0, n - 1)]
+    stack = [(0, n - 1)]
+    out = []
+    while stack:
+        i, j = stack.pop()
+        if j - i < 2:
+            out.append((i, j))
+            continue
+        a, b = curve[i], curve[j]
+        ab = b - a
+        norm = math.hypot(*ab)
+        seg = curve[i + 1:j] - a
+        dev = (np.abs(seg[:, 0] * ab[1] - seg[:, 1] * ab[0]) / norm if norm > 1e-12
+               else np.hypot(seg[:, 0], seg[:, 1]))
+        k = int(np.argmax(dev))
+        if dev[k] > tol:
+            stack += [(i + 1 + k, j), (i, i + 1 + k)]
+        else:
+            out.append((i, j))
+    return sorted(out)
+
+
+def _pieces(curves: list[np.ndarray]) -> tuple[list[Wall], list[np.ndarray]]:
+    """Straight walls and the remaining curved runs of the linked ``curves``."""
+    walls, bends = [], []
+    for c in curves:
+        run: list[np.ndarray] = []
+        for i, j in split_straight(c):
+            piece = c[i:j + 1]
+            wall = Wall.fit(piece) if len(piece) >= 3 else None
+            if wall is not None and wall.length >= MIN_WALL_M and wall.residual <= WALL_RESIDUAL_M:
+                walls.append(wall)
+                if run:
+                    bends.append(np.concatenate(run))
+                run = []
+            else:
+                run.append(piece)
+        if run:
+            bends.append(np.concatenate(run))
+    return walls, bends
+
+
+def merge_collinear(walls: list[Wall], max_gap: float) -> list[Wall]:
+    """Walls on one line (within :data:`COLLINEAR_DEG`, and the shorter's ends within
+    :data:`COLLINEAR_M` of the longer's line) whose spans overlap or lie within ``max_gap``
+    of each other become one wall, refitted."""
+    walls = list(walls)
+    cos_tol = math.cos(math.radians(COLLINEAR_DEG))
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(walls)):
+            for j in range(i + 1, len(walls)):
+                a, b = walls[i], walls[j]
+                if abs(a.direction @ b.direction) < cos_tol:
+                    continue
+                long, short = (a, b) if a.length >= b.length else (b, a)
+                if max(long.offset(short.at(short.lo)), long.offset(short.at(short.hi))
+                       ) > COLLINEAR_M:
+                    continue
+                t = (b.points - a.centre) @ a.direction
+                if t.min() > a.hi + max_gap or t.max() < a.lo - max_gap:
+                    continue
+                walls[i] = Wall.fit(np.concatenate([a.points, b.points]))
+                del walls[j]
+                merged = True
+                break
+            if merged:
+                break
+    return walls
+
+
+def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
+    cross = a.direction[0] * b.direction[1] - a.direction[1] * b.direction[0]
+    if abs(cross) < math.sin(math.radians(MIN_VERTEX_DEG)):
+        return None
+    d = b.centre - a.centre
+    t = (d[0] * b.direction[1] - d[1] * b.direction[0]) / cross
+    return a.at(t)
+
+
+def join_walls(walls: list[Wall], join_m: float) -> np.ndarray:
+    """Extend or trim adjoining walls to the intersection of their lines — a corner or an
+    edge — when it lies within ``join_m`` of an end of each (pairs of long walls first,
+    then the nearest, each end at most once: a short chamfer across a corner must not take
+    the ends of the two walls that meet there). Changes the walls' spans; returns the
+    vertices [k, 2]."""
+    candidates = []
+    for i in range(len(walls)):
+        for j in range(i + 1, len(walls)):
+            if min(walls[i].length, walls[j].length) < MIN_JOIN_WALL_M:
+                continue
+            x = _intersection(walls[i], walls[j])
+            if x is None:
+                continue
+            ends = []
+            for w in (walls[i], walls[j]):
+                t = (x - w.centre) @ w.direction
+                end = 0 if abs(t - w.lo) <= abs(t - w.hi) else 1
+                ends.append((end, t, abs(t - (w.lo, w.hi)[end])))
+            if ends[0][2] <= join_m and ends[1][2] <= join_m:
+                shorter = min(walls[i].length, walls[j].length)
+                candidates.append((-shorter, ends[0][2] + ends[1][2], i, j, x, ends))
+    used: set[tuple[int, int]] = set()
+    vertices = []
+    for *_, i, j, x, ends in sorted(candidates, key=lambda c: c[:2]):
+        if (i, ends[0][0]) in used or (j, ends[1][0]) in used:
+            continue
+        for k, (end, t, _) in zip((i, j), ends, strict=True):
+            used.add((k, end))
+            walls[k].joins += 1
+            if end == 0:
+                walls[k].lo = t
+            else:
+                walls[k].hi = t
+        vertices.append(x)
+    return np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
+
+
+# --------------------------------------------------------------------------- circles
+
+#: Pieces whose points lie within this median distance of a circle belong to it.
+CIRCLE_RESIDUAL_M = 0.008
+
+#: Gaps between a circle's patches up to this angle are bridged (besides ``max_gap_m``):
+#: a fitted circle says what lies between patches seen all around it.
+CIRCLE_MAX_GAP_DEG = 60.0
+
+#: Pieces wholly this close to a found circle, but not on it, are dropped with it.
+CIRCLE_ABSORB_M = 0.25
+
+#: A circle needs at least this many pieces (patches seen from different poses).
+MIN_CIRCLE_PIECES = 3
+
+#: Radii considered for cylinders, metres.
+CIRCLE_RADII_M = (0.05, 20.0)
+
+
+@dataclass
+class Arc:
+    """A circle (``centre``, ``radius``) fitted to the ``points`` of several pieces."""
+
+    centre: np.ndarray
+    radius: float
+    points: np.ndarray
+
+    def holds(self, points: np.ndarray) -> bool:
+        """Whether ``points`` lie wholly within :data:`CIRCLE_ABSORB_M` of the circle: a
+        locus's tangent stretch drawn through it, not a surface of its own."""
+        d = np.abs(np.hypot(*(points - self.centre).T) - self.radius)
+        return bool(np.all(d <= CIRCLE_ABSORB_M))
+
+    def sample(self, spacing: float, max_gap: float) -> list[np.ndarray]:
+        """The arcs the points cover, gaps up to ``max_gap`` of arc length or
+        :data:`CIRCLE_MAX_GAP_DEG` bridged, sampled every ``spacing``."""
+        d = self.points - self.centre
+        theta = np.sort(np.arctan2(d[:, 1], d[:, 0]))
+        gaps = np.diff(np.r_[theta, theta[0] + 2 * math.pi])
+        open_gaps = np.flatnonzero((gaps * self.radius > max_gap)
+                                   & (gaps > math.radians(CIRCLE_MAX_GAP_DEG)))
+        if len(open_gaps) == 0:
+            runs = [(theta[0], theta[0] + 2 * math.pi)]
+        else:
+            starts = theta[(open_gaps + 1) % len(theta)]
+            ends = theta[open_gaps]
+            ends = np.roll(ends, -1)
+            runs = [(a, b if b >= a else b + 2 * math.pi) for a, b in zip(starts, ends,
+                                                                          strict=True)]
+        out = []
+        for a, b in runs:
+            n = max(2, math.ceil((b - a) * self.radius / spacing) + 1)
+            t = np.linspace(a, b, n)
+            out.append(self.centre + self.radius * np.stack([np.cos(t), np.sin(t)], axis=-1))
+        return out
+
+
+def _circle_through(a: Wall, b: Wall) -> tuple[np.ndarray, float] | None:
+    """The circle that both pieces would be patches of: their normals' crossing and the
+    mean distance to it (None when the normals are nearly parallel or the distances
+    disagree)."""
+    na = np.array([-a.direction[1], a.direction[0]])
+    nb = np.array([-b.direction[1], b.direction[0]])
+    cross = na[0] * nb[1] - na[1] * nb[0]
+    if abs(cross) < math.sin(math.radians(3.0)):
+        return None
+    d = b.centre - a.centre
+    s = (d[0] * nb[1] - d[1] * nb[0]) / cross
+    centre = a.centre + s * na
+    ra, rb = math.hypot(*(a.centre - centre)), math.hypot(*(b.centre - centre))
+    if abs(ra - rb) > 4 * CIRCLE_RESIDUAL_M or not CIRCLE_RADII_M[0] <= ra <= CIRCLE_RADII_M[1]:
+        return None
+    return centre, 0.5 * (ra + rb)
+
+
+def _refine_circle(points: np.ndarray, centre: np.ndarray, radius: float
+                   ) -> tuple[np.ndarray, float]:
+    """Geometric least-squares circle through ``points`` from a first guess."""
+    from scipy.optimize import least_squares
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return np.hypot(points[:, 0] - x[0], points[:, 1] - x[1]) - x[2]
+
+    x = least_squares(residuals, np.r_[centre, radius]).x
+    return x[:2], float(abs(x[2]))
+
+
+def find_circles(pieces: list[np.ndarray]) -> tuple[list[Arc], list[np.ndarray]]:
+    """Cylinders among short, unjoined ``pieces`` (the patches a moving ring sees of a
+    convex curved surface, each around a specular point whose normal points at the ring):
+    the normals of patches of one circle meet at its centre. Each pair of pieces proposes
+    the circle through both; the circle that most pieces agree with (median distance
+    within :data:`CIRCLE_RESIDUAL_M`) is refined by least squares on their points and kept
+    if at least :data:`MIN_CIRCLE_PIECES` agree; repeated on the rest. Pieces lying
+    wholly within :data:`CIRCLE_ABSORB_M` of a kept circle but not on it — a locus's
+    tangent stretch drawn through a curved surface — are dropped with it. Returns the
+    circles and the pieces left over."""
+    fits = {k: Wall.fit(p) for k, p in enumerate(pieces) if len(p) >= 3}
+    left = list(fits)
+    arcs = []
+    while len(left) >= MIN_CIRCLE_PIECES:
+        best: list[int] = []
+        best_circle = None
+        for n, i in enumerate(left):
+            for j in left[n + 1:]:
+                circle = _circle_through(fits[i], fits[j])
+                if circle is None:
+                    continue
+                members = [k for k in left if _on_circle(pieces[k], *circle)]
+                if len(members) > len(best):
+                    best, best_circle = members, circle
+        if len(best) < MIN_CIRCLE_PIECES or best_circle is None:
+            break
+        centre, radius = _refine_circle(np.concatenate([pieces[k] for k in best]),
+                                        *best_circle)
+        on = [k for k in left if _on_circle(pieces[k], centre, radius)]
+        arc = Arc(centre, radius, np.concatenate([pieces[k] for k in on or best]))
+        near = [k for k in left if arc.holds(pieces[k])]
+        arcs.append(arc)
+        left = [k for k in left if k not in set(best) | set(on) | set(near)]
+    used = set(fits) - set(left)
+    return arcs, [p for k, p in enumerate(pieces) if k not in used]
+
+
+def _on_circle(points: np.ndarray, centre: np.ndarray, radius: float) -> bool:
+    """Whether the median distance of ``points`` to the circle is within
+    :data:`CIRCLE_RESIDUAL_M`."""
+    d = np.abs(np.hypot(*(points - centre).T) - radius)
+    return bool(np.median(d) <= CIRCLE_RESIDUAL_M)
+
+
+def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) -> Profile:
+    """A room's profile from its linked, refined ``curves`` (metres): straight walls where
+    the data are straight, joined at corners and edges (:func:`join_walls`, within
+    ``settings.join_m``), circles where several short pieces are patches of one
+    (:func:`find_circles`; gaps up to ``settings.max_gap_m`` of arc bridged), and a
+    smoothing spline through each remaining piece that is not the rounding of a found
+    vertex."""
+    walls, bends = _pieces(curves)
+    walls = merge_collinear(walls, settings.max_gap_m)
+    vertices = join_walls(walls, settings.join_m)
+
+    def rounding(points: np.ndarray) -> bool:
+        """All within join_m of a vertex: the rounded-off or chamfered corner or edge that
+        the vertex replaces."""
+        if len(vertices) == 0:
+            return False
+        d = np.hypot(*(points[:, None] - vertices[None]).transpose(2, 0, 1))
+        return bool(np.all(d.min(axis=1) <= settings.join_m))
+
+    long = [w for w in walls if w.joins or w.length >= MIN_JOIN_WALL_M]
+    short = [w.points for w in walls if not (w.joins or w.length >= MIN_JOIN_WALL_M)]
+    arcs, rest = find_circles([p for p in short + bends if not rounding(p)])
+    long = [w for w in long if w.joins or not any(arc.holds(w.points) for arc in arcs)]
+    out = [w.sample(spacing) for w in long]
+    for arc in arcs:
+        out += arc.sample(spacing, settings.max_gap_m)
+    out += [fit_spline(p, spacing, spacing / 2) for p in rest]
+    return Profile(tuple(out), vertices)
+
+
+__all__ = ["CIRCLE_ABSORB_M", "CIRCLE_MAX_GAP_DEG", "CIRCLE_RADII_M", "CIRCLE_RESIDUAL_M",
+           "COLLINEAR_DEG", "COLLINEAR_M", "MIN_CIRCLE_PIECES", "MIN_JOIN_WALL_M",
+           "MIN_VERTEX_DEG", "MIN_WALL_M", "SPLIT_TOL_M", "WALL_RESIDUAL_M", "Arc", "Wall",
+           "find_circles", "fit_walls", "join_walls", "merge_collinear", "split_straight"]
