@@ -52,7 +52,7 @@ def test_plane_at_5m_with_noise_1_stays_accurate():
 def test_run_result_has_every_stage():
     scene = clsonar.load_scene(SCENES / "plane-4m.json")
     r = clsonar.run(scene, context=get_context())
-    assert set(r.seconds) == {"sensors", "echoes", "detection", "accumulation", "filter",
+    assert set(r.seconds) == {"sensors", "echoes", "detection", "accumulation", "sight", "filter",
                               "thinning", "profile", "metrics"}
     assert r.raw.shape == r.filtered.shape == r.thin.shape == scene.grid_shape
     assert r.counts["detections"] == len(r.detections) > 0

@@ -1,4 +1,4 @@
-"""Closed rooms (clsonar/rooms.py, clsonar/post/walls.py, mapping.scan_envelope, the room
+"""Closed rooms (clsonar/sight.py, clsonar/post/walls.py, mapping.scan_envelope, the room
 metrics; thesis §2.1.2 and §3.6): line of sight against the map, straight walls joined at
 corners and edges, circles from the patches of a cylinder, the envelope of a moving ring's
 T = R loci, and the end-to-end numbers of the bundled room scenes."""
@@ -16,17 +16,16 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 import clsonar
-from clsonar import rooms
 from clsonar.geometry import EDGE, build_geometry, true_vertices
 from clsonar.mapping import Loci, scan_envelope, tangent_points
 from clsonar.metrics import VERTEX_FOUND_M, cylinder_coverage, evaluate, vertex_errors
 from clsonar.post.walls import Arc, Wall, find_circles, join_walls, merge_collinear, split_straight
-from clsonar.rooms import first_hits, line_of_sight
 from clsonar.sensors import SensorArray
+from clsonar.sight import SIGHT_BIN_RAD, SIGHT_MARGIN_CELLS, first_hits, line_of_sight
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 CELL = 0.01
-MARGIN = rooms.SIGHT_MARGIN_CELLS * CELL  # line_of_sight's default margin, 4 cm
+MARGIN = SIGHT_MARGIN_CELLS * CELL  # line_of_sight's default margin, 4 cm
 
 
 def xy(x: float, y: float) -> np.ndarray:
@@ -57,14 +56,14 @@ def sight(points, origin, occluders=WALL_CELLS, **kw) -> np.ndarray:
 def test_first_hits_of_a_wall_are_its_distance_along_each_direction():
     hits = first_hits(np.array([0.0, 2.0]), WALL_CELLS, CELL)
     bins = len(hits)
-    assert bins == round(2 * math.pi / rooms.SIGHT_BIN_RAD) == 3600
-    theta = (np.arange(bins) + 0.5) * rooms.SIGHT_BIN_RAD
+    assert bins == round(2 * math.pi / SIGHT_BIN_RAD) == 3600
+    theta = (np.arange(bins) + 0.5) * SIGHT_BIN_RAD
     theta = np.where(theta > math.pi, theta - 2 * math.pi, theta)
     facing = np.abs(theta) <= math.radians(40.0)  # the wall spans ±45° from (0, 2)
     # a bin's hit is the nearest cell covering it (a cell covers ±0.75·cell/D): within
     # D·tan θ·(bin/2 + 0.75·cell/D) of the wall along the bin's middle, to first order
     along = WALL_X / np.cos(theta[facing])
-    slack = along * np.abs(np.tan(theta[facing])) * (rooms.SIGHT_BIN_RAD / 2 + 0.75 * CELL / along)
+    slack = along * np.abs(np.tan(theta[facing])) * (SIGHT_BIN_RAD / 2 + 0.75 * CELL / along)
     np.testing.assert_array_less(np.abs(hits[facing] - along), slack + CELL**2 / WALL_X)
     assert hits[0] == pytest.approx(2.0, abs=1e-12)  # straight ahead: the cell at (2, 2)
     assert np.all(np.isinf(hits[np.abs(theta) >= math.radians(46.0)]))
@@ -118,7 +117,7 @@ def test_line_of_sight_drops_exactly_what_the_wall_hides(tx, ty, points):
             else:
                 d = math.hypot(WALL_X - tx, y_cross - ty)
                 tan = abs(y_cross - ty) / (WALL_X - tx)
-                tol = d * tan * (rooms.SIGHT_BIN_RAD + 1.5 * CELL / d) + 0.002
+                tol = d * tan * (SIGHT_BIN_RAD + 1.5 * CELL / d) + 0.002
                 if abs(dist - (d + MARGIN)) <= tol:
                     continue  # a tie at the margin
                 expected = dist <= d + MARGIN
