@@ -2,6 +2,8 @@
 # bundled closed room, `make test` runs the tests. Both create the virtual environment and install an OpenCL
 # runtime that can build kernels when the machine has none (Debian's pocl-opencl-icd).
 
+SHELL  := /bin/bash
+.SHELLFLAGS := -o pipefail -c
 PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin

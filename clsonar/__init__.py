@@ -2,6 +2,7 @@
 
 from .errors import ClsonarError, DeviceError, SceneError
 from .scene import Scene, load_scene, save_scene
+from .version import __version__
 
 
 def run(scene: Scene, *, device: str | None = None, context=None, preset: str | None = None,
@@ -18,6 +19,13 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
                 **options)
 
 
-__all__ = ["ClsonarError", "DeviceError", "Scene", "SceneError", "load_scene", "run",
-           "save_scene"]
-__version__ = "0.1.0"
+__all__ = [
+    "ClsonarError",
+    "DeviceError",
+    "Scene",
+    "SceneError",
+    "__version__",
+    "load_scene",
+    "run",
+    "save_scene",
+]

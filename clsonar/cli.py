@@ -20,8 +20,8 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 
-from . import __version__
 from .errors import ClsonarError
+from .version import __version__
 
 EXIT_USAGE = 2
 

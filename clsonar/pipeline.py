@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import __version__, mapping, metrics, post, regions, sight, signals
+from . import mapping, metrics, post, regions, sight, signals
 from .echoes import EchoTable, compute_echoes
 from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
@@ -31,6 +31,7 @@ from .opencl import get_context
 from .scene import DetectionSettings, MappingSettings, PostSettings, Scene, scene_to_dict
 from .sensors import SensorArray, pairs, place_sensors
 from .signals import Detections
+from .version import __version__
 
 #: The stages in the order of the data. The first four are the front (cached, no
 #: post-processing setting read); ``sight`` (line of sight, then the map of the points left)

@@ -316,7 +316,7 @@ def load_spec(path: str | os.PathLike[str]) -> Spec:
 def run_id(scene: Scene, preset: str | None, params: dict[str, Any], seed: int) -> str:
     """A stable id of a run: a hash of its final scene, preset, parameters, seed and the
     clsonar version (a sweep resumed by another version redoes its runs)."""
-    from .. import __version__
+    from ..version import __version__
 
     text = json.dumps({"scene": scene_to_dict(scene), "preset": preset, "params": params,
                        "seed": seed, "clsonar": __version__}, sort_keys=True,
