@@ -1,12 +1,14 @@
-"""The map (clsonar/mapping.py, kernels/accumulate.cl): the OpenCL kernels against the NumPy
+"""The map (clsonar/mapping/, kernels/accumulate.cl): the OpenCL kernels against the NumPy
 float64 reference, and both against an independent float64 model of the loci (thesis §2.1.1,
 parts 3–4), on PoCL's CPU device."""
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import time
+import typing
 from types import SimpleNamespace
 
 import numpy as np
@@ -15,6 +17,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import clsonar.mapping as mapping
+import clsonar.mapping.launch as map_launch
+import clsonar.mapping.tangents as map_tangents
 from clsonar import physics
 from clsonar.errors import ClsonarError
 from clsonar.mapping import (
@@ -74,7 +78,7 @@ def make_loci(rows) -> Loci:
 
 
 def cell_grid(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
-    """Cell centres [ny, nx] by DESIGN.md's convention, in scene coordinates."""
+    """Cell centres [ny, nx] by docs/design.md's convention, in scene coordinates."""
     ny, nx = scene.grid_shape
     xmin, ymin = scene.extent[:2]
     x = xmin + (np.arange(nx) + 0.5) * scene.cell
@@ -387,7 +391,7 @@ def test_votes_add_up_over_loci_and_launch_blocks(precision, monkeypatch):
     ring = kernel_map(scene, sensors, make_loci([rows[0]]), precision) > 0
     assert np.all(whole[ring] >= 2.5 - 1e-6)
     # blocks of loci per launch do not change the sum, to the bit
-    monkeypatch.setattr(mapping, "MAX_ROWS_PER_LAUNCH", 3)
+    monkeypatch.setattr(map_launch, "MAX_ROWS_PER_LAUNCH", 3)
     assert np.array_equal(kernel_map(scene, sensors, make_loci(rows), precision), whole)
 
 
@@ -643,7 +647,7 @@ def test_locus_samples_computed_near_the_beam_equal_every_sample_tested(seed, ha
     gap = np.hypot(*(pos[rx] - pos[tx]).T)
     path = gap + rng.choice([0.0, 1e-9, 1e-4, 0.3, 3.0], 40) * rng.uniform(0.5, 1.0, 40)
     loci = mapping.Loci(tx, rx, path / c, np.ones(40))
-    p, inside, a = mapping._locus_samples(scene, sensors, loci)
+    p, inside, a = map_tangents._locus_samples(scene, sensors, loci)
     # every sample, tested directly
     cut_sin2, _ = scene.transducer.beam(c)
     T, R = pos[tx], pos[rx]
@@ -655,8 +659,94 @@ def test_locus_samples_computed_near_the_beam_equal_every_sample_tested(seed, ha
     full = (0.5 * (T + R)[:, None] + (a[:, None] * np.cos(phi))[..., None] * u[:, None]
             + (b[:, None] * np.sin(phi))[..., None] * v[:, None])
     axes = sensors.axes
-    want = (mapping._in_beams(full, T[:, None], axes[tx][:, None], cut_sin2)
-            & mapping._in_beams(full, R[:, None], axes[rx][:, None], cut_sin2)
+    want = (mapping.in_beams(full, T[:, None], axes[tx][:, None], cut_sin2)
+            & mapping.in_beams(full, R[:, None], axes[rx][:, None], cut_sin2)
             & (a > f)[:, None])
     assert np.array_equal(inside, want)
     assert np.array_equal(p[inside], full[want])
+
+
+# --------------------------------------------------------------------------- methods (mapping.mode)
+
+
+def test_the_methods_are_the_allowed_modes():
+    mode = typing.get_type_hints(MappingSettings)["mode"]
+    assert set(mapping.METHODS) == set(typing.get_args(mode))
+
+
+@functools.cache
+def bundled_inputs():
+    """plane-2m's scene, sensors, echoes and detections (the stages before the map)."""
+    from clsonar import signals
+    from clsonar.echoes import compute_echoes
+    from clsonar.files import bundled_scenes
+    from clsonar.scene import load_scene
+    from clsonar.sensors import place_sensors
+
+    scene = load_scene(bundled_scenes() / "plane-2m.json")
+    sensors = place_sensors(scene)
+    echoes = compute_echoes(scene, sensors, context=context())
+    return scene, sensors, echoes, signals.detect(scene, sensors, echoes, context=context())
+
+
+def direct_votes(scene, sensors, echoes, detections, tiles):
+    """What each method does, spelt out with the module's functions."""
+    from clsonar import signals
+    from clsonar.sensors import pairs
+
+    if scene.mapping.mode == "backprojection":
+        dt, env = signals.envelopes(scene, sensors, echoes, context=context())
+        return backproject(scene, sensors, pairs(sensors), env, dt, context=context()), {}
+    loci = mapping.as_loci(detections)
+    if scene.mapping.reciprocal == "merge":
+        loci = mapping.merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
+    if scene.mapping.mode == "tangents":
+        points, source = mapping.tangent_points(scene, sensors, loci,
+                                                isolated_bias_m=scene.mapping.isolated_bias_m)
+        return (points, loci.tx[source], loci.rx[source]), {}
+    stats = []
+
+    def draw(part):
+        votes, one = mapping.accumulate_with_stats(scene, sensors, part, context=context(),
+                                                   tiles=tiles)
+        stats.append(one)
+        return votes
+
+    raw = (mapping.count_viewpoints(scene, sensors, loci, draw)
+           if scene.mapping.combine == "viewpoints" else draw(loci))
+    return raw, {"tiles_total": sum(s.tiles_total for s in stats),
+                 "tiles_skipped": sum(s.tiles_skipped for s in stats),
+                 "pixel_locus_tests": sum(s.pixel_locus_tests for s in stats),
+                 "dense_pixel_locus_tests": sum(s.dense_tests for s in stats)}
+
+
+@pytest.mark.parametrize("mode, changes, tiles", [
+    ("backprojection", {}, True),
+    ("loci", {"combine": "viewpoints", "reciprocal": "merge"}, True),
+    ("loci", {"combine": "sum", "reciprocal": "both"}, False),
+    ("tangents", {"isolated_bias_m": 0.005}, True),
+])
+def test_map_votes_runs_the_method_the_scene_names(mode, changes, tiles):
+    scene, sensors, echoes, detections = bundled_inputs()
+    scene = dataclasses.replace(
+        scene, mapping=dataclasses.replace(scene.mapping, mode=mode, **changes))
+    got = mapping.map_votes(scene, sensors, echoes, detections, context=context(), tiles=tiles)
+    want, counts = direct_votes(scene, sensors, echoes, detections, tiles)
+    assert got.counts == counts
+    if mode == "tangents":
+        assert got.raw is None and len(want[0]) > 0
+        for a, b in zip((got.points, got.tx, got.rx), want, strict=True):
+            assert b is not None and np.array_equal(a, b)
+    else:
+        assert got.points is None and got.tx is None and got.rx is None
+        assert got.raw is not None and np.count_nonzero(want) > 0
+        assert got.raw.dtype == want.dtype and np.array_equal(got.raw, want)
+    if mode == "loci":
+        assert counts["tiles_total"] > 0 if tiles else counts["tiles_total"] == 0
+
+
+def test_map_votes_refuses_an_unknown_mode():
+    scene, sensors, echoes, detections = bundled_inputs()
+    scene = dataclasses.replace(scene, mapping=dataclasses.replace(scene.mapping, mode="none"))
+    with pytest.raises(ValueError, match="unknown mapping mode"):
+        mapping.map_votes(scene, sensors, echoes, detections, context=context())

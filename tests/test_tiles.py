@@ -1,4 +1,4 @@
-"""Tiled locus accumulation (clsonar/mapping.py ``bin_loci``, kernel ``loci_tiles``): the same
+"""Tiled locus accumulation (clsonar/mapping/tiles.py ``bin_loci``, kernel ``loci_tiles``): the same
 map as the dense kernel to the bit, in both precisions and weights, whatever the tile shape,
 the tiles per launch and where the loci fall; the counters; maps drawn in several launches."""
 
@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import clsonar.mapping as mapping
+import clsonar.mapping.launch as map_launch
 from clsonar.mapping import Loci, accumulate_reference, accumulate_with_stats
 from clsonar.opencl import get_context, has_fp64
 from clsonar.scene import MappingSettings, Scene, TransducerModel
@@ -58,7 +59,7 @@ def draw_both(scene, sensors, loci, precision, tile=None, launch_bytes=None):
         patches.append(mock.patch.dict(mapping.TILES, {"CPU": tile, "GPU": tile,
                                                        "other": tile}))
     if launch_bytes is not None:
-        patches.append(mock.patch.object(mapping, "MAX_LAUNCH_BYTES", launch_bytes))
+        patches.append(mock.patch.object(map_launch, "MAX_LAUNCH_BYTES", launch_bytes))
     kw = dict(context=context(), precision=precision)
     dense, _ = accumulate_with_stats(scene, sensors, loci, tiles=False, **kw)
     for p in patches:
@@ -215,7 +216,7 @@ def test_counters_and_launches(precision):
     assert not dense_stats.tiled and dense_stats.tiles_total == 0
     assert dense_stats.pixel_locus_tests == dense_stats.dense_tests == stats.dense_tests
     assert dense_stats.dense_tests >= 300 * 250 * 5 and dense_stats.launches == 1
-    with mock.patch.object(mapping, "MAX_ROWS_PER_LAUNCH", 2):
+    with mock.patch.object(map_launch, "MAX_ROWS_PER_LAUNCH", 2):
         blocks = accumulate_with_stats(scene, sensors, loci, context=context(),
                                        precision=precision, tiles=False)
     assert blocks[1].launches == 3 and np.array_equal(blocks[0], dense)
@@ -314,9 +315,9 @@ def test_every_vector_width_tiles_the_same_map(vec, group):
 def test_launches_split_the_tiles_by_count_and_by_pairs(monkeypatch):
     start = np.array([0, 3, 3, 10, 11, 11, 20])  # tiles 0..5: 3, 0, 7, 1, 0, 9 loci
     live = np.array([0, 2, 3, 5])
-    split = mapping._launches
+    split = map_launch._launches
     assert [x.tolist() for x in split(start, live, 10)] == [[0, 2, 3, 5]]
     assert [x.tolist() for x in split(start, live, 3)] == [[0, 2, 3], [5]]
-    monkeypatch.setattr(mapping, "MAX_PAIRS_PER_LAUNCH", 8)
+    monkeypatch.setattr(map_launch, "MAX_PAIRS_PER_LAUNCH", 8)
     assert [x.tolist() for x in split(start, live, 10)] == [[0], [2, 3], [5]]
     assert [x.tolist() for x in split(start, live[:0], 10)] == []

@@ -820,7 +820,7 @@ def value_tolerance(pb: mapping.MapProblem, ref: np.ndarray) -> np.ndarray:
 def _beam_slope(pb: mapping.MapProblem) -> float:
     """max |d(b(θ))/dθ| inside the beam cut (rad⁻¹), b the kernels' beam series."""
     theta = np.linspace(0.0, math.asin(math.sqrt(min(pb.cut_sin2, 1.0))), 2001)
-    b = mapping._ref_beam(np.sin(theta) ** 2, pb.beam_u)
+    b = mapping.reference_beam(np.sin(theta) ** 2, pb.beam_u)
     return float(np.max(np.abs(np.diff(b)) / np.diff(theta)))
 
 

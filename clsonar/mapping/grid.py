@@ -1,0 +1,163 @@
+"""The map's grid: its pixels and local origin (:class:`MapGrid`), the width of a locus
+(:func:`band_m`) and the memory check run before any map is drawn (:func:`check_map_memory`).
+
+Numerics: coordinates are taken relative to the centre of an *origin pixel* in the middle of
+the map, in float64 on the host, so the kernels see pixel centres as exact integers times the
+cell and distances of at most the map's half-diagonal.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import geometry
+from ..errors import ClsonarError
+from ..opencl import PRECISIONS, device_kind
+from ..scene import MappingSettings, Scene
+
+#: (pixels along x per work item, i.e. the ``realN`` vector width; work-group shape in work
+#: items) by device kind and precision. A CPU gets one AVX2 register per work item (8 floats
+#: or 4 doubles) and 64 pixels of a row per group; a GPU one pixel per work item.
+LAUNCH = {
+    ("CPU", "float32"): (8, (8, 1)),
+    ("CPU", "float64"): (4, (16, 1)),
+    ("GPU", "float32"): (1, (64, 2)),
+    ("GPU", "float64"): (1, (64, 2)),
+    ("other", "float32"): (1, (32, 1)),
+    ("other", "float64"): (1, (32, 1)),
+}
+
+#: Largest number of pixels along x or y: float32 represents pixel indices exactly below it.
+MAX_CELLS_PER_AXIS = 1 << 24
+
+#: float64 arrays of the map's size the NumPy reference holds at once (estimate).
+REFERENCE_TEMPORARIES = 24
+
+
+@dataclass(frozen=True)
+class MapGrid:
+    """The pixels a kernel computes and the local origin of their coordinates.
+
+    Pixel ``(iy, ix)`` of the map has its centre at ``((col0 + ix)·cell, (row0 + iy)·cell)``
+    relative to ``origin``, the centre of the map's pixel ``(-row0, -col0)``.
+    """
+
+    ny: int
+    nx: int
+    cell: float
+    origin: tuple[float, float]
+    col0: int
+    row0: int
+
+
+def map_grid(scene: Scene) -> MapGrid:
+    """The scene's map (``scene.grid_shape`` cells of ``scene.cell``) around its middle pixel."""
+    ny, nx = scene.grid_shape
+    ox, oy = nx // 2, ny // 2
+    x, y = geometry.cell_centres(scene.extent, scene.cell, np.asarray(oy), np.asarray(ox))
+    return MapGrid(ny, nx, float(scene.cell), (float(x), float(y)), -ox, -oy)
+
+
+def cell_centres(scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """``(x [nx], y [ny])``: the map's cell centres in scene coordinates
+    (:func:`clsonar.geometry.cell_centres`)."""
+    ny, nx = scene.grid_shape
+    x = geometry.cell_centres(scene.extent, scene.cell, np.zeros(nx, np.int64), np.arange(nx))
+    y = geometry.cell_centres(scene.extent, scene.cell, np.arange(ny), np.zeros(ny, np.int64))
+    return x[:, 0], y[:, 1]
+
+
+def band_m(scene: Scene, settings: MappingSettings | None = None) -> float:
+    """Width of a locus in path length: ``settings.band_m``, or 2√2·cell when it is null.
+
+    |p−T| + |p−R| changes at most twice as fast as the distance across the locus (exactly
+    twice for T = R), so 2√2·cell of path length make every locus at least √2 cells thick
+    on the map: one 8-connected band, never a dotted one."""
+    settings = settings if settings is not None else scene.mapping
+    return settings.band_m if settings.band_m is not None else 2.0 * math.sqrt(2.0) * scene.cell
+
+
+# --------------------------------------------------------------------------- memory
+
+
+def _bytes(n: float) -> str:
+    for unit, size in (("PB", 1e15), ("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if n >= size:
+            return f"{n / size:.3g} {unit}"
+    return f"{n:.0f} B"
+
+
+def _host_available_bytes() -> int | None:
+    """Memory this machine can still give (MemAvailable), None if unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def work_items(nx: int, ny: int, vec: int, wgx: int, wgy: int) -> tuple[int, int]:
+    """Work items along x and y covering nx × ny pixels, in whole work-groups."""
+    def ceil_div(a: int, b: int) -> int:
+        return -(-a // b)
+
+    return ceil_div(ceil_div(nx, vec), wgx) * wgx, ceil_div(ny, wgy) * wgy
+
+
+def _grid_error(scene: Scene, problem: str) -> ClsonarError:
+    ny, nx = scene.grid_shape
+    xmin, ymin, xmax, ymax = scene.extent
+    return ClsonarError(
+        f"{scene.name}: the map of {ny} × {nx} cells (extent {xmax - xmin:g} m × "
+        f"{ymax - ymin:g} m, cell {scene.cell:g} m) {problem}: use a larger cell or a "
+        "smaller extent")
+
+
+def _check_device_memory(scene: Scene, precision: str, device) -> None:
+    """Raise when one buffer of the padded map does not fit on ``device``."""
+    ny, nx = scene.grid_shape
+    vec, group = LAUNCH[device_kind(device), precision]
+    items_x, items_y = work_items(nx, ny, vec, *group)
+    padded = float(items_x * vec) * items_y * np.dtype(PRECISIONS[precision]).itemsize
+    limit = min(int(device.max_mem_alloc_size), int(device.global_mem_size))
+    if padded > limit:
+        raise _grid_error(scene, f"needs {_bytes(padded)} as a {precision} map, more than "
+                                 f"one buffer on {device.name.strip()} can hold "
+                                 f"({_bytes(limit)})")
+
+
+def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
+                     reference: bool = False, host_bytes_per_cell: float | None = None) -> None:
+    """Raise :class:`~clsonar.errors.ClsonarError` naming the size needed when the scene's
+    map cannot be held: by ``device`` (a ``pyopencl.Device``: one buffer of the padded map),
+    by this machine's free memory (the result, plus the reference's temporaries when
+    ``reference``, or ``host_bytes_per_cell`` for a caller that holds several maps), or by
+    float32 pixel indices (at most :data:`MAX_CELLS_PER_AXIS` a side).
+    """
+    ny, nx = scene.grid_shape
+    if max(ny, nx) > MAX_CELLS_PER_AXIS:
+        side = "x" if nx >= ny else "y"
+        raise _grid_error(scene, f"has more than the {MAX_CELLS_PER_AXIS} cells along {side} "
+                                 "that the kernels index exactly")
+    if device is not None:
+        _check_device_memory(scene, precision, device)
+    if host_bytes_per_cell is not None:
+        needed = float(ny) * nx * host_bytes_per_cell
+    elif reference:
+        needed = float(ny) * nx * 8 * REFERENCE_TEMPORARIES
+    else:  # padded transfer copy, result, its caller
+        needed = float(ny) * nx * np.dtype(PRECISIONS[precision]).itemsize * 3
+    available = _host_available_bytes()
+    if available is not None and needed > available:
+        raise _grid_error(scene, f"needs {_bytes(needed)} of memory, more than this machine "
+                                 f"has available ({_bytes(available)})")

@@ -1,0 +1,110 @@
+"""The mapping methods by name (``mapping.mode``; the shape of pyroomacoustics'
+``algorithms = {"SRP": SRP, ...}``): :data:`METHODS` maps each name to a function of the
+scene, its sensors, echoes and detections that returns the method's :class:`Votes`, and
+:func:`map_votes` runs the one the scene names. The line-of-sight check and the drawing of
+the point map are left to the caller (the pipeline), which does them in the open."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .. import signals
+from ..echoes import EchoTable
+from ..scene import Scene
+from ..sensors import SensorArray, pairs
+from ..signals import Detections
+from .launch import AccumulationStats, accumulate_with_stats, backproject
+from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
+from .tangents import tangent_points
+
+if TYPE_CHECKING:
+    import pyopencl as cl
+
+
+@dataclass(frozen=True, eq=False)
+class Votes:
+    """What a mapping method hands to post-processing: a raw map of votes, or estimated
+    reflection points (with their pairs) whose map is drawn after the line-of-sight check."""
+
+    raw: np.ndarray | None = None  # [ny, nx] votes (loci, backprojection)
+    points: np.ndarray | None = None  # [n, 2] estimated reflection points (tangents)
+    tx: np.ndarray | None = None  # [n] transmitter index of each point's pair
+    rx: np.ndarray | None = None  # [n] receiver index
+    counts: dict[str, int] = field(default_factory=dict)  # the stage's counters
+
+
+#: ``(scene, sensors, echoes, detections, context, tiles) → Votes``.
+MapMethod = Callable[[Scene, SensorArray, EchoTable, Detections, "cl.Context", bool], Votes]
+
+
+def _loci(scene: Scene, detections: Detections) -> Loci:
+    """The detections as loci, reciprocal pairs merged when ``mapping.reciprocal`` is
+    ``"merge"`` (within 6 pulse σ)."""
+    loci = as_loci(detections)
+    if scene.mapping.reciprocal == "merge":
+        loci = merge_reciprocal(loci, 6.0 * scene.transducer.pulse_sigma_s)
+    return loci
+
+
+def backprojection_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+                         detections: Detections, context: cl.Context, tiles: bool) -> Votes:
+    """``"backprojection"``: every fired pair's envelope back-projected
+    (:func:`~clsonar.mapping.backproject`); the detections are not used."""
+    dt, env = signals.envelopes(scene, sensors, echoes, context=context)
+    return Votes(raw=backproject(scene, sensors, pairs(sensors), env, dt, context=context))
+
+
+def loci_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+               detections: Detections, context: cl.Context, tiles: bool) -> Votes:
+    """``"loci"`` (the thesis): the loci drawn (:func:`~clsonar.mapping.accumulate`), all in
+    one map (``combine = "sum"``) or counted by viewpoint (``"viewpoints"``,
+    :func:`~clsonar.mapping.count_viewpoints`); counts the tiled accumulation's work."""
+    stats: list[AccumulationStats] = []
+
+    def draw(part) -> np.ndarray:
+        votes, one = accumulate_with_stats(scene, sensors, part, context=context, tiles=tiles)
+        stats.append(one)
+        return votes
+
+    loci = _loci(scene, detections)
+    raw = (count_viewpoints(scene, sensors, loci, draw)
+           if scene.mapping.combine == "viewpoints" else draw(loci))
+    return Votes(raw=raw, counts={
+        "tiles_total": sum(t.tiles_total for t in stats),
+        "tiles_skipped": sum(t.tiles_skipped for t in stats),
+        "pixel_locus_tests": sum(t.pixel_locus_tests for t in stats),
+        "dense_pixel_locus_tests": sum(t.dense_tests for t in stats)})
+
+
+def tangent_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+                  detections: Detections, context: cl.Context, tiles: bool) -> Votes:
+    """``"tangents"`` (the default): the tangent points of the loci
+    (:func:`~clsonar.mapping.tangent_points`) and the pair of the locus each came from."""
+    loci = _loci(scene, detections)
+    points, source = tangent_points(scene, sensors, loci,
+                                    isolated_bias_m=scene.mapping.isolated_bias_m)
+    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source])
+
+
+#: The mapping methods by ``mapping.mode``.
+METHODS: dict[str, MapMethod] = {
+    "loci": loci_votes,
+    "backprojection": backprojection_votes,
+    "tangents": tangent_votes,
+}
+
+
+def map_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable, detections: Detections,
+              *, context: cl.Context, tiles: bool = True) -> Votes:
+    """Run the method ``scene.mapping.mode`` names (:data:`METHODS`); ``tiles`` lets the
+    loci be drawn tile by tile (the same map)."""
+    try:
+        method = METHODS[scene.mapping.mode]
+    except KeyError:
+        raise ValueError(f"unknown mapping mode {scene.mapping.mode!r} "
+                         f"(choose from {', '.join(METHODS)})") from None
+    return method(scene, sensors, echoes, detections, context, tiles)

@@ -1,0 +1,251 @@
+"""Tangent points (``mapping.mode = "tangents"``, the default): the points where the loci of
+neighbouring transducers cross inside all beams, with the loci's tangent segments around
+them (:func:`tangent_points`; docs/mapping.md)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..scene import Scene
+from ..sensors import SensorArray
+from .envelope import ENVELOPE_ARC_BIAS_M, in_beams, scan_envelope
+from .loci import Loci, as_loci
+
+#: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
+#: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
+TANGENT_BIAS_M = 0.002
+
+#: Samples of each locus (an ellipse with foci T and R) searched for crossings: 0.25°.
+LOCUS_SAMPLES = 1440
+
+#: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
+_ARC_MARGIN = 2
+
+
+def _locus_samples(scene: Scene, sensors: SensorArray, loci: Loci):
+    """[n, S, 2] points of each locus (ellipse with foci T, R and path length c·τ) and
+    [n, S] whether each lies inside both beams; [n] the half path length a.
+
+    Only the samples near T's beam are computed (the others are left 0 and outside): with T
+    a focus, the ray from T at angle ν from the major axis meets the ellipse once, at
+    eccentric anomaly E = 2·atan2(√(1+e)·sin(ν/2), √(1−e)·cos(ν/2)) (e = f/a), so T's beam
+    (ν within ±α of its axis) is one arc of samples; two samples more either side are
+    tested as well, and each sample is then tested exactly as before."""
+    pos, axes = sensors.positions, sensors.axes
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+    T, R = pos[loci.tx], pos[loci.rx]
+    a = 0.5 * scene.medium.c * loci.tof_s
+    f = 0.5 * np.hypot(*(R - T).T)
+    b = np.sqrt(np.maximum(a * a - f * f, 0.0))
+    u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
+    v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
+    phi = 2 * np.pi * np.arange(LOCUS_SAMPLES) / LOCUS_SAMPLES
+    centre = 0.5 * (T + R)
+    rows, ks = _beam_arc_samples(u, v, axes[loci.tx], a, f, cut_sin2)
+    p = np.zeros((len(a), LOCUS_SAMPLES, 2))
+    p[rows, ks] = (centre[rows] + (a[rows] * np.cos(phi[ks]))[:, None] * u[rows]
+                   + (b[rows] * np.sin(phi[ks]))[:, None] * v[rows])
+    inside = np.zeros((len(a), LOCUS_SAMPLES), dtype=bool)
+    inside[rows, ks] = in_beams(p[rows, ks], T[rows], axes[loci.tx][rows], cut_sin2)
+    inside &= (a > f)[:, None]
+    i, k = np.nonzero(inside)  # R's beam tested only where T's holds (a small part)
+    inside[i, k] = in_beams(p[i, k], R[i], axes[loci.rx][i], cut_sin2)
+    return p, inside, a
+
+
+def _beam_arc_samples(u: np.ndarray, v: np.ndarray, axis: np.ndarray, a: np.ndarray,
+                      f: np.ndarray, cut_sin2: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows, samples)``: for each locus (a > f), the sample indices of its arc inside
+    the beam of its focus T (axis ``axis``), with :data:`_ARC_MARGIN` more either side."""
+    alpha = math.asin(math.sqrt(min(cut_sin2, 1.0)))
+    ok = a > f
+    e = np.where(ok, f / np.where(ok, a, 1.0), 0.0)
+    beta = np.arctan2(np.sum(v * axis, -1), np.sum(u * axis, -1))  # axis angle from u
+    step = 2 * np.pi / LOCUS_SAMPLES
+
+    def anomaly(nu: np.ndarray) -> np.ndarray:
+        nu = np.angle(np.exp(1j * nu))  # into (−π, π]
+        return 2 * np.arctan2(np.sqrt(1 + e) * np.sin(nu / 2), np.sqrt(1 - e) * np.cos(nu / 2))
+
+    lo, hi = anomaly(beta - alpha), anomaly(beta + alpha)
+    hi = np.where(hi < lo, hi + 2 * np.pi, hi)
+    k0 = np.floor(lo / step).astype(np.int64) - _ARC_MARGIN
+    k1 = np.ceil(hi / step).astype(np.int64) + _ARC_MARGIN
+    width = np.where(ok, np.minimum(k1 - k0 + 1, LOCUS_SAMPLES), 0)
+    rows = np.repeat(np.arange(len(a)), width)
+    first = np.repeat(np.cumsum(np.r_[0, width[:-1]]), width)
+    ks = (np.repeat(k0, width) + np.arange(int(width.sum())) - first) % LOCUS_SAMPLES
+    return rows, ks
+
+
+@dataclass(frozen=True, eq=False)
+class _Sampled:
+    """The loci, their samples (:func:`_locus_samples`) and what the crossings need."""
+
+    loci: Loci
+    p: np.ndarray  # [n, S, 2] samples
+    inside: np.ndarray  # [n, S] in both beams
+    a: np.ndarray  # [n] half path length
+    T: np.ndarray  # [n, 2] transmitter positions
+    R: np.ndarray  # [n, 2] receiver positions
+    centre: np.ndarray  # [n, 2] (T + R)/2
+    axes: np.ndarray  # the sensors' unit axes
+    cut_sin2: float
+
+
+def _neighbours(s: _Sampled, groups: np.ndarray, i: int, max_bias_m: float) -> np.ndarray:
+    """The later loci of i's viewpoint whose centres lie within sqrt(8·a·max_bias_m) of
+    i's (none when i has no sample in its beams)."""
+    others = np.flatnonzero((groups == groups[i]) & (np.arange(len(s.loci)) > i))
+    if len(others) == 0 or not s.inside[i].any():
+        return others[:0]
+    reach = np.sqrt(8.0 * s.a[i] * max_bias_m)
+    return others[np.hypot(*(s.centre[others] - s.centre[i]).T) <= reach]
+
+
+def _residual(s: _Sampled, q: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """[others, q]: each other locus' path-length residual |q−T| + |q−R| − 2a at ``q``."""
+    return (np.hypot(*(q[None] - s.T[others, None]).transpose(2, 0, 1))
+            + np.hypot(*(q[None] - s.R[others, None]).transpose(2, 0, 1))
+            - 2 * s.a[others, None])
+
+
+def _crossings(s: _Sampled, i: int, others: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q, k, b)``: where locus i crosses ``others`` between samples k and k+1 (both in
+    i's beams), interpolated, and the locus b crossed; in every beam of b or not, unchecked.
+    The residuals are evaluated only at those steps (the in-beam arc is a small part)."""
+    pi = s.p[i]  # [S, 2]
+    steps = np.flatnonzero(s.inside[i] & np.roll(s.inside[i], -1))
+    none = (np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, np.int64))
+    if len(steps) == 0:
+        return none
+    g_here = _residual(s, pi[steps], others)
+    g_next = _residual(s, pi[(steps + 1) % LOCUS_SAMPLES], others)
+    j, m = np.nonzero(np.sign(g_here) != np.sign(g_next))
+    if len(j) == 0:
+        return none
+    k = steps[m]
+    g0, g1 = g_here[j, m], g_next[j, m]
+    t = g0 / (g0 - g1)
+    q = pi[k] + t[:, None] * (pi[(k + 1) % LOCUS_SAMPLES] - pi[k])
+    return q, k, others[j]
+
+
+def _tangent_segments(s: _Sampled, i: int, ks: np.ndarray,
+                      max_bias_m: float) -> list[np.ndarray]:
+    """The locus stays within max_bias_m of the surface for ±sqrt(2·r·bias) of arc around
+    its tangent point: the in-beam samples of locus i that far around each sample in ``ks``."""
+    half = int(np.sqrt(2.0 * max_bias_m / s.a[i]) / (2 * np.pi / LOCUS_SAMPLES))
+    out = []
+    for centre_k in np.unique(ks):
+        idx = (centre_k + np.arange(-half, half + 1)) % LOCUS_SAMPLES
+        out.append(s.p[i][idx[s.inside[i, idx]]])
+    return out
+
+
+def _isolated_points(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.ndarray,
+                     bias: float) -> list[np.ndarray]:
+    """Per locus in ``isolated``, the middle of its in-beam arc or, where the scan envelope
+    has points on it, the arcs around them inside the element's beam."""
+    if len(isolated) == 0:
+        return []
+    env = scan_envelope(scene, sensors, s.loci)
+    found = []
+    for i in isolated:
+        mine = np.flatnonzero(env[0] == i)
+        if len(mine) == 0:
+            found.append(_middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
+        else:  # around the scan envelope's points, inside the element's beam
+            arcs = np.concatenate([_arc_around(env[1][m], env[2][m], env[3][m],
+                                               min(bias, ENVELOPE_ARC_BIAS_M))
+                                   for m in mine])
+            found.append(arcs[in_beams(arcs, s.T[i], s.axes[s.loci.tx[i]], s.cut_sin2)])
+    return found
+
+
+def tangent_points(scene: Scene, sensors: SensorArray, loci,
+                   max_bias_m: float = TANGENT_BIAS_M,
+                   isolated_bias_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """``(points [m, 2], source [m])``: the points where the loci of neighbouring
+    transducers cross, inside all beams, and the index of the locus each came from.
+
+    A smooth surface is the envelope of the loci of its echoes: each locus touches it at its
+    reflection point. Two loci of transducers δ apart, tangent to the surface at points
+    δ apart, cross within δ²/(8r) of it (r the range) — even where their bands overlap
+    over a long stretch — so the crossings of loci from one viewpoint (pair group) whose
+    centres lie within sqrt(8·r·max_bias_m) of each other are surface points (the
+    arc-transversal idea of sonar mapping). Each locus is sampled every 0.25° and crossings
+    are found as sign changes of the other locus' path-length residual, interpolated. Around
+    each crossing the locus' own tangent segment is added: the ±sqrt(2·r·max_bias_m) of arc
+    over which it stays within ``max_bias_m`` of its tangent. With ``isolated_bias_m`` > 0
+    a locus that crosses no neighbour contributes the middle of its in-beam arc,
+    ±sqrt(2·r·isolated_bias_m): a surface facing the beams' middle (the line of sight,
+    thesis §2.1.1 part 1) is there to within that — or, for a T = R locus of a moving
+    ring, the same stretch around its point of the scan's envelope (:func:`scan_envelope`).
+    """
+    loci = as_loci(loci)
+    if len(loci) < 2:
+        return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
+    p, inside, a = _locus_samples(scene, sensors, loci)
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+    T, R = sensors.positions[loci.tx], sensors.positions[loci.rx]
+    s = _Sampled(loci, p, inside, a, T, R, 0.5 * (T + R), sensors.axes, cut_sin2)
+    groups = sensors.groups[loci.tx]
+    found: list[np.ndarray] = []
+    source: list[np.ndarray] = []
+    crossed = np.zeros(len(loci), dtype=bool)
+    for i in range(len(loci)):
+        others = _neighbours(s, groups, i, max_bias_m)
+        if len(others) == 0:
+            continue
+        q, k, b = _crossings(s, i, others)
+        if len(q) == 0:
+            continue
+        keep = (in_beams(q, T[b], s.axes[loci.tx[b]], cut_sin2)
+                & in_beams(q, R[b], s.axes[loci.rx[b]], cut_sin2))
+        found.append(q[keep])
+        source.append(np.full(int(keep.sum()), i))
+        crossed[i] |= keep.any()
+        crossed[b[keep]] = True
+        for segment in _tangent_segments(s, i, k[keep], max_bias_m):
+            found.append(segment)
+            source.append(np.full(len(segment), i))
+    isolated = np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0))
+    arcs = _isolated_points(scene, sensors, s, isolated, isolated_bias_m)
+    for locus, arc in zip(isolated, arcs, strict=True):
+        found.append(arc)
+        source.append(np.full(len(arc), locus))
+    if not found:
+        return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
+    return np.concatenate(found), np.concatenate(source).astype(np.int64)
+
+
+def _arc_around(centre: np.ndarray, radius: float, point: np.ndarray,
+                bias: float) -> np.ndarray:
+    """Samples (every 0.25°) of the circle (``centre``, ``radius``) within ±sqrt(2·r·bias)
+    of arc around its ``point``: where it stays within ``bias`` of its tangent there."""
+    step = 2 * np.pi / LOCUS_SAMPLES
+    half = int(np.sqrt(2.0 * bias / radius) / step)
+    phi = np.arctan2(*(point - centre)[::-1]) + step * np.arange(-half, half + 1)
+    return centre + radius * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+
+
+def _middle_of_arc(samples: np.ndarray, inside: np.ndarray, a: float,
+                   bias: float) -> np.ndarray:
+    """The samples within ±sqrt(2·a·bias) of arc around the middle of the in-beam run."""
+    idx = np.flatnonzero(inside)
+    if len(idx) == 0:
+        return np.zeros((0, 2))
+    # the in-beam run may wrap around sample 0: unwrap it before taking its middle
+    gaps = np.diff(idx)
+    if len(gaps) and gaps.max() > 1:
+        start = int(np.argmax(gaps)) + 1
+        idx = np.r_[idx[start:], idx[:start] + LOCUS_SAMPLES]
+    middle = int(idx[len(idx) // 2])
+    half = int(np.sqrt(2.0 * bias / a) / (2 * np.pi / LOCUS_SAMPLES))
+    window = np.arange(middle - half, middle + half + 1) % LOCUS_SAMPLES
+    return samples[window[inside[window]]]
