@@ -1,5 +1,5 @@
 // The map: per-pixel accumulation of time-of-flight loci and delay-and-sum back-projection
-// (thesis §2.1.1, parts 3–4; model and NumPy float64 reference in clsonar/mapping.py).
+// (thesis §2.1.1, parts 3–4; host code in clsonar/mapping/launch.py, NumPy float64 reference in clsonar/mapping/reference.py).
 //
 // Both kernels run over a rectangle of pixels: work item (gx, gy) owns VEC consecutive
 // pixels of one row, columns col0 + gx·VEC + lane (lane = 0..VEC−1) and row row0 + gy, where
@@ -161,7 +161,7 @@ __kernel void loci_map(__constant real4 *loci, int n_loci, real cell, real half_
 }
 
 // Tiled loci: the same votes, each tile of the map testing only the loci whose band can
-// reach it (clsonar/mapping.py bins them on the host, conservatively). One work-group per
+// reach it (clsonar/mapping/tiles.py bins them on the host, conservatively). One work-group per
 // non-empty tile of tw × th pixels (the group is tw/VEC × th work items): work item
 // (lx, ly) of group t owns the VEC pixels at column col0 + at[t].x + lx·VEC and row
 // row0 + at[t].y + ly (counted from the origin pixel as above) and writes them, tile after
