@@ -90,7 +90,7 @@ def test_knife_edge_pixels_are_recognised():
     path = np.hypot(px - row[0], py - row[1]) + np.hypot(px - row[2], py - row[3])
     middle = np.argmin(np.abs(path - row[8]))
     edge = np.argmin(np.abs(np.abs(path - row[8]) - pb.half_band))
-    one = mapping.prepare_loci(case.scene, case.sensors, stability.Loci(
+    one = mapping.prepare_loci(case.scene, case.sensors, mapping.Loci(
         case.loci.tx[:1], case.loci.rx[:1], case.loci.tof_s[:1], case.loci.amplitude[:1]))
     flags = stability.edge_pixels(one, iy[[middle, edge]], ix[[middle, edge]])
     assert flags.tolist() == [False, True]
