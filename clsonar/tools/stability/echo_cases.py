@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -43,7 +44,7 @@ class _Builder:
     size: tuple[float, float] = (4.0, 3.0)
     surfaces: list[Surface] = field(default_factory=list)
     transducers: list[tuple[float, float, float, int]] = field(default_factory=list)
-    echo: dict[str, float] = field(default_factory=dict)
+    echo: dict[str, Any] = field(default_factory=dict)  # EchoModel keys
 
     def room(self) -> None:
         w, h = self.size

@@ -156,8 +156,8 @@ def map_launch(vec: int, group: tuple[int, int], tile: tuple[int, int]) -> Itera
     saved = dict(mapping.LAUNCH), dict(mapping.TILES)
     for key in mapping.LAUNCH:
         mapping.LAUNCH[key] = (vec if key[0] == "CPU" else 1, group)
-    for key in mapping.TILES:
-        mapping.TILES[key] = tile
+    for kind in mapping.TILES:
+        mapping.TILES[kind] = tile
     try:
         yield
     finally:

@@ -102,20 +102,25 @@ def set_key(data: dict[str, Any], path: str, value: Any) -> dict[str, Any]:
     return out
 
 
+def _parse_toml(text: str, source: str) -> Any:
+    """The TOML document ``text`` (Python 3.11 or later: ``tomllib``)."""
+    if sys.version_info >= (3, 11):
+        import tomllib
+
+        try:
+            return tomllib.loads(text)
+        except tomllib.TOMLDecodeError as e:
+            raise SpecError(f"invalid TOML: {e}", source=source) from None
+    raise SpecError("TOML specs need Python 3.11 or later: write the spec as JSON",
+                    source=source)
+
+
 def _read_spec_file(path: Path) -> dict[str, Any]:
     """The spec file's table (TOML) or object (JSON)."""
     source = str(path)
     text = read_text(path, SpecError)
     if path.suffix.lower() == ".toml":
-        if sys.version_info < (3, 11):
-            raise SpecError("TOML specs need Python 3.11 or later: write the spec as JSON",
-                            source=source)
-        import tomllib
-
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as e:
-            raise SpecError(f"invalid TOML: {e}", source=source) from None
+        data = _parse_toml(text, source)
     else:
         def _constant(name: str) -> float:
             raise ValueError(f"{name} is not a number")
