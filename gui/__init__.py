@@ -19,9 +19,11 @@ def main(argv: list[str] | None = None) -> int:
     """``clsonar-gui``: one error line and status 2 when PySide6 or pyqtgraph is missing,
     else the app (:func:`clsonar.gui.app.main`)."""
     if any(importlib.util.find_spec(name) is None for name in QT_PACKAGES):
+        from ..cli import EXIT_USAGE
+
         print("clsonar-gui: error: the desktop app needs PySide6 and pyqtgraph: "
               "pip install 'clsonar[gui]'", file=sys.stderr)
-        return 2
+        return EXIT_USAGE
     from .app import main as app_main
 
     return app_main(argv)

@@ -43,6 +43,7 @@ from PySide6.QtWidgets import (
 )
 
 from .. import opencl, pipeline
+from ..cli import EXIT_USAGE
 from ..errors import ClsonarError, SceneError
 from ..files import write_atomic
 from ..outputs import error_summary, metric, profile_csv
@@ -389,7 +390,7 @@ class MainWindow(QMainWindow):
         job.cancelled.connect(lambda j=job: self._cancelled(j))
         self.job = job
         self.progress.setRange(0, len(pipeline.STAGES))
-        self.progress.setValue(0 if kind == "full" else 4)
+        self.progress.setValue(0 if kind == "full" else pipeline.STAGES.index("filter"))
         self.progress.setVisible(True)
         self.run_action.setEnabled(False)
         self.cancel_action.setEnabled(True)
@@ -542,7 +543,7 @@ def main(argv: list[str] | None = None) -> int:
             load_scene(args.scene)
         except SceneError as e:
             print(f"clsonar-gui: error: {e}", file=sys.stderr)
-            return 2
+            return EXIT_USAGE
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setOrganizationName(ORGANISATION)
     app.setApplicationName(APP_NAME)

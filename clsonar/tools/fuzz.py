@@ -50,6 +50,9 @@ WRONG_VALUES: tuple[Any, ...] = (None, True, False, "x", "", 0, -1, 1, 2**64, -(
                                  [None, None], "NaN", [1e308, 1e308])
 NONFINITE = ("NaN", "Infinity", "-Infinity", "1e999", "-1e999", "nan", "inf")
 
+#: Seconds of CPU an input may take (``--limit-s``).
+LIMIT_S = 1.0
+
 
 def seed_texts() -> list[str]:
     """The bundled scenes' JSON texts, the starting points of every mutation."""
@@ -274,7 +277,7 @@ def _timed(report: FuzzReport, label: str, elapsed: float, limit_s: float) -> No
         report.findings.append(f"{label}: took {elapsed:.2f} s > {limit_s:g} s")
 
 
-def fuzz(count: int, seed: int = 0, *, limit_s: float = 1.0, device=None,
+def fuzz(count: int, seed: int = 0, *, limit_s: float = LIMIT_S, device=None,
          progress: Progress | None = None) -> FuzzReport:
     """Feed ``count`` hostile inputs (seeded by ``seed``) through :func:`preflight` and, for
     the refused ones, through ``clsonar run``; collect findings (see the module docstring)."""
@@ -310,10 +313,12 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m clsonar.tools.fuzz",
                                 description="Fuzz the scene loader and clsonar run's "
                                             "handling of bad input.")
-    p.add_argument("--count", type=int, default=10_000)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--limit-s", type=float, default=1.0,
-                   help="seconds an input may take (default 1)")
+    p.add_argument("--count", type=int, default=10_000,
+                   help="hostile inputs to try (default 10000)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the mutations: the same seed, the same inputs (default 0)")
+    p.add_argument("--limit-s", type=float, default=LIMIT_S,
+                   help=f"seconds an input may take (default {LIMIT_S:g})")
     p.add_argument("--out", metavar="FILE.md", help="also write the result as markdown")
     p.add_argument("--device", help="OpenCL device for the memory check (default: none, "
                                     "this machine's memory only)")
@@ -336,8 +341,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         from ..files import write_atomic
 
-        command = f"python -m clsonar.tools.fuzz --count {args.count} --seed {args.seed}" + (
-            f" --limit-s {args.limit_s:g}" if args.limit_s != 1.0 else "") + f" --out {args.out}"
+        limit = f" --limit-s {args.limit_s:g}" if args.limit_s != LIMIT_S else ""
+        command = (f"python -m clsonar.tools.fuzz --count {args.count} --seed {args.seed}"
+                   f"{limit} --out {args.out}")
         write_atomic(args.out, markdown(report, command).encode())
     return 0 if not report.findings else 1
 
