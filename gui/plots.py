@@ -74,10 +74,10 @@ def scene_distance(scene: Scene) -> float | None:
     return float(m.group(1)) if m else None
 
 
-def sweep_distance(scene: Scene, d0: float, distances: list[float], context, progress
-                   ) -> list[tuple[float, float | None]]:
-    """``(distance, error)`` of the scene's arrays moved to each distance (reproduce
-    .at_distance; thesis Figs 3.5, 3.19)."""
+def sweep_distance(scene: Scene, d0: float, distances: list[float], context,
+                   progress: pipeline.Progress) -> list[tuple[float, float | None]]:
+    """``(distance, error)`` of the scene's arrays moved to each distance
+    (:func:`clsonar.tools.variants.at_distance`; thesis Figs 3.5, 3.19)."""
     out = []
     for i, d in enumerate(distances):
         progress(f"{d:g} m", i + 1, len(distances))
@@ -86,7 +86,7 @@ def sweep_distance(scene: Scene, d0: float, distances: list[float], context, pro
     return out
 
 
-def sweep_noise(scene: Scene, levels: list[float], context, progress
+def sweep_noise(scene: Scene, levels: list[float], context, progress: pipeline.Progress
                 ) -> list[tuple[float, float | None]]:
     """``(noise σ, error)`` of the scene at each noise level (thesis Figs 3.6, 3.20)."""
     out = []

@@ -1,5 +1,5 @@
 """Numerical stability (issue 6): the float32 kernels against their float64 references on the
-hostile scenes of clsonar/tools/stability.py — far and tiny scenes, T = R and nearly coincident
+hostile scenes of clsonar/tools/stability/ — far and tiny scenes, T = R and nearly coincident
 transducers, flat ellipses, grazing incidence, reflection points at wall ends and vertices,
 caustics, ±180° headings, beams leaving the map, ragged extents, a million loci, a long pair
 list — and the same results whatever the work-group size. ``clsonar stress`` runs the same
