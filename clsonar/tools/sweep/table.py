@@ -18,6 +18,7 @@ from ...outputs import metric
 from ...pipeline import STAGES, RunResult
 from .plan import Run
 
+#: The files of a sweep folder: the rows as runs finish, the CSV table, the plan.
 TABLE_JSONL = "runs.jsonl"
 TABLE_CSV = "table.csv"
 SWEEP_JSON = "sweep.json"
