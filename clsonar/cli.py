@@ -1,7 +1,10 @@
-"""The ``clsonar`` command line (DESIGN.md, "Command line — a contract").
+"""The ``clsonar`` command line (docs/design.md, "Command line — a contract").
 
 - ``clsonar run SCENE.json --out DIR`` runs the whole pipeline and writes report.json,
-  stages.npz, profile.csv, echoes.csv and one PNG per stage into DIR (outputs.py).
+  stages.npz, profile.csv, echoes.csv and one PNG per stage into DIR (outputs.py; without
+  matplotlib, everything but the PNGs and one warning line).
+- ``clsonar reproduce``, ``bench``, ``sweep``, ``plot`` and ``stress`` run the tools of
+  :mod:`clsonar.tools`.
 - ``clsonar echoes SCENE.json`` prints the echo table as CSV:
   ``tx,rx,tof_s,amplitude,kind,order``.
 - ``clsonar devices`` lists the OpenCL devices, whether each can build kernels, and which one
@@ -16,12 +19,21 @@ from __future__ import annotations
 import argparse
 import io
 import os
+import shlex
 import sys
-import time
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, TypeAlias
 
+from . import outputs, pipeline
 from .errors import ClsonarError
+from .opencl import PRECISIONS
+from .tools import bench, reproduce
+from .tools.progress import ProgressLine
 from .version import __version__
+
+if TYPE_CHECKING:
+    Subparsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
 
 EXIT_USAGE = 2
 
@@ -32,66 +44,79 @@ def _device_args(p: argparse.ArgumentParser) -> None:
                         "(default: PYOPENCL_CTX, else the first GPU, else the CPU)")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="clsonar",
-        description="Ultrasonic sonar simulator and map builder for 2-D indoor scenes (OpenCL).")
-    parser.add_argument("--version", action="version", version=f"clsonar {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+def _out_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
 
+
+def _scheduler_arg(p: argparse.ArgumentParser, what: str = "") -> None:
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help=f"run {what}on this existing Dask cluster (needs clsonar[dask])")
+
+
+def _quiet_arg(p: argparse.ArgumentParser) -> None:
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+
+
+def _add_run(sub: Subparsers) -> None:
     p = sub.add_parser("run", help="run the whole mapping pipeline and write its outputs",
                        description="Sensors, echoes, detection, map accumulation, filtering, "
                                    "thinning, profile fit and metrics; writes report.json, "
                                    "stages.npz, profile.csv, echoes.csv and PNGs into DIR.")
     p.add_argument("scene", metavar="SCENE.json")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    p.add_argument("--preset", choices=("thesis", "best"),
+    _out_arg(p)
+    p.add_argument("--preset", choices=tuple(pipeline.PRESETS),
                    help="detection/mapping/post settings: the thesis' methods or ours "
                         "(default: the scene file's settings, which default to ours)")
     _device_args(p)
     p.add_argument("--no-skip", action="append", default=[], metavar="WORK",
-                   choices=("all", "empty_pairs", "silent_pairs", "quiet_samples", "tiles",
-                            "empty_cells", "rooms"),
+                   choices=("all", *pipeline.SKIP_NAMES),
                    help="do work the scene does not need anyway (to measure what skipping "
-                        "saves; the output is the same): empty_pairs, silent_pairs, "
-                        "quiet_samples, tiles, "
-                        "empty_cells, rooms or all; repeatable")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+                        f"saves; the output is the same): {', '.join(pipeline.SKIP_NAMES)} "
+                        "or all; "
+                        "repeatable")
+    _quiet_arg(p)
     p.set_defaults(func=_cmd_run)
 
+
+def _add_reproduce(sub: Subparsers) -> None:
     p = sub.add_parser("reproduce", help="rerun the thesis' experiments and compare",
                        description="Plane, corner, edge, cylinder and sinusoid at the thesis' "
                                    "distances and the RMS curves of Figs 3.5, 3.6, 3.19, 3.20, "
                                    "with thesis-faithful and best settings; writes "
                                    "reproduce.md, reproduce.json and PNGs into DIR.")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    p.add_argument("--seeds", type=int, default=5, help="runs per experiment (default 5)")
+    _out_arg(p)
+    p.add_argument("--seeds", type=int, default=reproduce.DEFAULT_SEEDS,
+                   help=f"runs per experiment (default {reproduce.DEFAULT_SEEDS})")
     p.add_argument("--scenes", metavar="DIR", help="scene folder (default: the bundled ones)")
-    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
-                   help="run the trials on this existing Dask cluster (needs clsonar[dask])")
+    _scheduler_arg(p, "the trials ")
     _device_args(p)
     p.set_defaults(func=_cmd_reproduce)
 
+
+def _add_bench(sub: Subparsers) -> None:
     p = sub.add_parser("bench", help="time the pipeline against its error, and the "
                                      "accumulation against NumPy",
                        description="Whole-pipeline seconds per stage and error under the "
                                    "thesis' and our settings, and the locus accumulation on "
                                    "OpenCL (float32, float64) against the NumPy float64 "
                                    "reference; writes bench.md and bench.json into DIR.")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    _out_arg(p)
     p.add_argument("--scenes", metavar="NAMES",
                    help="comma-separated bundled scene names (default: the thesis' shapes "
                         "and two rooms)")
-    p.add_argument("--repeat", type=int, default=3, help="timed runs, best kept (default 3)")
+    p.add_argument("--repeat", type=int, default=bench.DEFAULT_REPEAT,
+                   help=f"timed runs, best kept (default {bench.DEFAULT_REPEAT})")
     p.add_argument("--no-numpy", action="store_true",
                    help="skip the NumPy baseline (slow on large maps)")
-    p.add_argument("--floors", default="50", metavar="SIZES",
+    p.add_argument("--floors", default=_sizes(bench.DEFAULT_FLOORS), metavar="SIZES",
                    help="comma-separated sizes (m) of multi-room floors mapped at 1 cm, each "
-                        "in its own process with its peak memory (default 50; '' for none; "
-                        "100 is 10^8 cells)")
+                        "in its own process with its peak memory (default "
+                        f"{_sizes(bench.DEFAULT_FLOORS)}; '' for none; 100 is 10^8 cells)")
     _device_args(p)
     p.set_defaults(func=_cmd_bench)
 
+
+def _add_sweep(sub: Subparsers) -> None:
     p = sub.add_parser("sweep", help="run a Monte-Carlo sweep: scenes × parameter grid × "
                                      "seeds, locally or on a Dask cluster",
                        description="Every (scene, grid point, seed) of the sweep spec (TOML "
@@ -99,13 +124,14 @@ def build_parser() -> argparse.ArgumentParser:
                                    "of DIR/table.csv; rows are saved as runs finish, so a "
                                    "sweep run again resumes where it stopped.")
     p.add_argument("spec", metavar="SPEC")
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
-    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
-                   help="run on this existing Dask cluster (needs clsonar[dask])")
+    _out_arg(p)
+    _scheduler_arg(p)
     _device_args(p)
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+    _quiet_arg(p)
     p.set_defaults(func=_cmd_sweep)
 
+
+def _add_plot(sub: Subparsers) -> None:
     p = sub.add_parser("plot", help="plot a sweep's metrics against its parameters",
                        description="One PNG per metric and swept parameter: mean over seeds "
                                    "with the spread (min–max) shaded, one line per value of "
@@ -113,6 +139,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("folder", metavar="DIR", help="a folder written by clsonar sweep")
     p.set_defaults(func=_cmd_plot)
 
+
+def _add_stress(sub: Subparsers) -> None:
     p = sub.add_parser("stress", help="stress-test the float32 kernels against float64",
                        description="Run the numerical-stability generators (far and tiny "
                                    "scenes, coincident transducers, grazing incidence, "
@@ -126,12 +154,14 @@ def build_parser() -> argparse.ArgumentParser:
     _device_args(p)
     p.set_defaults(func=_cmd_stress)
 
+
+def _add_echoes(sub: Subparsers) -> None:
     p = sub.add_parser("echoes", help="print the echo table of a scene as CSV",
                        description="Compute every echo return of every transmitter→receiver "
                                    "pair and print tx,rx,tof_s,amplitude,kind,order.")
     p.add_argument("scene", metavar="SCENE.json")
     _device_args(p)
-    p.add_argument("--precision", choices=("float32", "float64"), default="float32",
+    p.add_argument("--precision", choices=tuple(PRECISIONS), default="float32",
                    help="kernel arithmetic (float64 needs cl_khr_fp64; default float32)")
     p.add_argument("--reference", action="store_true",
                    help="use the NumPy float64 reference instead of OpenCL")
@@ -139,69 +169,70 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the CSV to FILE (atomically) instead of standard output")
     p.set_defaults(func=_cmd_echoes)
 
+
+def _add_devices(sub: Subparsers) -> None:
     p = sub.add_parser("devices", help="list OpenCL devices and the one clsonar would use")
     _device_args(p)
     p.set_defaults(func=_cmd_devices)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``clsonar`` parser: one subcommand per ``_add_*`` function, in this order."""
+    parser = argparse.ArgumentParser(
+        prog="clsonar",
+        description="Ultrasonic sonar simulator and map builder for 2-D indoor scenes (OpenCL).")
+    parser.add_argument("--version", action="version", version=f"clsonar {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for add in (_add_run, _add_reproduce, _add_bench, _add_sweep, _add_plot, _add_stress,
+                _add_echoes, _add_devices):
+        add(sub)
     return parser
 
 
-class _ProgressLine:
-    """``[3/8] detection`` on one rewritten line of stderr, only on a terminal."""
-
-    def __init__(self, enabled: bool) -> None:
-        self.enabled = enabled and sys.stderr.isatty()
-        self.start = time.perf_counter()
-
-    def __call__(self, stage: str, index: int, total: int) -> None:
-        if self.enabled:
-            bar = "#" * index + "." * (total - index)
-            elapsed = time.perf_counter() - self.start
-            print(f"\r[{bar}] {index}/{total} {stage:<13} {elapsed:6.1f} s", end="",
-                  file=sys.stderr, flush=True)
-
-    def done(self) -> None:
-        if self.enabled:
-            print(file=sys.stderr)
+def _sizes(values: Sequence[float]) -> str:
+    """``(50.0, 100.0)`` → ``"50,100"``: sizes as the command line writes them."""
+    return ",".join(f"{v:g}" for v in values)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from .scene import load_scene
 
     scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
-    from .outputs import write_outputs
-    from .pipeline import SKIP_NAMES, Skips, run
-
-    off = SKIP_NAMES if "all" in args.no_skip else args.no_skip
-    skips = Skips(**{name: name not in off for name in SKIP_NAMES})
-    progress = _ProgressLine(not args.quiet)
+    names = pipeline.SKIP_NAMES
+    off = names if "all" in args.no_skip else args.no_skip
+    skips = pipeline.Skips(**{name: name not in off for name in names})
+    line = ProgressLine(not args.quiet)
     try:
-        result = run(scene, device=args.device, preset=args.preset, progress=progress,
-                     skips=skips)
+        result = pipeline.run(scene, device=args.device, preset=args.preset,
+                              progress=line.stage, skips=skips)
     finally:
-        progress.done()
-    paths = write_outputs(result, args.out)
+        line.done()
+    pngs = outputs.plots_available()
+    paths = outputs.write_outputs(result, args.out, pngs=pngs)
+    if not pngs:
+        print("clsonar: warning: matplotlib is not installed: no PNGs written "
+              f"({outputs.PLOTS_INSTALL})", file=sys.stderr)
     if not args.quiet:
-        m = result.metrics
-        rms = m["rms_m"]
-        acc = m["accuracy_m"]["rms"]
-        done = m["completeness"]["2cm"]
-        print(f"{scene.name}: {result.counts['echoes']} echoes, "
-              f"{result.counts['detections']} detections, "
-              f"{sum(result.seconds.values()):.2f} s on {result.device}")
-        print("  " + ", ".join(x for x in (
-            None if rms is None else f"RMS (eq. 2.6) {rms * 100:.2f} cm",
-            None if acc is None else f"accuracy RMS {acc * 100:.2f} cm",
-            None if done is None else f"completeness within 2 cm {done * 100:.0f} %",
-        ) if x))
-        print(f"  outputs in {args.out}/: " + ", ".join(p.name for p in paths))
+        _print_run_summary(result, args.out, paths)
     return 0
 
 
+def _print_run_summary(result: pipeline.RunResult, out: str, paths: list[Path]) -> None:
+    """What ``clsonar run`` found and wrote, in three lines."""
+    m = result.metrics
+    rms, acc, done = (outputs.metric(m, k) for k in ("rms_m", "accuracy_m.rms", "completeness.2cm"))
+    print(f"{result.scene.name}: {result.counts['echoes']} echoes, "
+          f"{result.counts['detections']} detections, "
+          f"{sum(result.seconds.values()):.2f} s on {result.device}")
+    print("  " + ", ".join(x for x in (
+        None if rms is None else f"RMS (eq. 2.6) {rms * 100:.2f} cm",
+        None if acc is None else f"accuracy RMS {acc * 100:.2f} cm",
+        None if done is None else f"completeness within 2 cm {done * 100:.0f} %",
+    ) if x))
+    print(f"  outputs in {out}/: " + ", ".join(p.name for p in paths))
+
+
 def _cmd_reproduce(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from .tools.reproduce import reproduce
-
     if args.seeds < 1:
         raise ClsonarError(f"--seeds must be >= 1, not {args.seeds}")
     client = None
@@ -209,61 +240,63 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
         from .tools.sweep import connect
 
         client = connect(args.scheduler)
-    progress, done = _progress_line()
+    line = ProgressLine()
     try:
-        reproduce(Path(args.out), Path(args.scenes) if args.scenes else None,
-                  seeds=args.seeds, device=args.device, progress=progress, client=client)
+        reproduce.reproduce(Path(args.out), Path(args.scenes) if args.scenes else None,
+                            seeds=args.seeds, device=args.device, progress=line,
+                            client=client)
     finally:
-        done()
+        line.done()
         if client is not None:
             client.close()
     print(f"wrote {args.out}/reproduce.md, reproduce.json and the figures' PNGs")
     return 0
 
 
-def _progress_line() -> tuple[Callable[[int, int, str], None], Callable[[], None]]:
-    """A one-line progress display on a terminal (nothing otherwise) and its closer."""
-    show = sys.stderr.isatty()
-
-    def progress(i: int, n: int, what: str) -> None:
-        if show:
-            print(f"\r[{i}/{n}] {what:<48}", end="", file=sys.stderr, flush=True)
-
-    def done() -> None:
-        if show:
-            print(file=sys.stderr)
-
-    return progress, done
-
-
-def _cmd_bench(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
+def _bench_names(scenes: str | None) -> tuple[str, ...]:
+    """The bundled scenes ``--scenes`` names (default: :data:`bench.DEFAULT_SCENES`)."""
     from .files import bundled_scenes
-    from .tools.bench import DEFAULT_SCENES, bench
 
-    if args.repeat < 1:
-        raise ClsonarError(f"--repeat must be >= 1, not {args.repeat}")
-    names = tuple(n.strip() for n in args.scenes.split(",")) if args.scenes else DEFAULT_SCENES
+    names = tuple(n.strip() for n in scenes.split(",")) if scenes else bench.DEFAULT_SCENES
     missing = [n for n in names if not (bundled_scenes() / f"{n}.json").is_file()]
     if missing:
         raise ClsonarError(f"--scenes: no bundled scene {', '.join(missing)}")
+    return names
+
+
+def _bench_floors(floors: str) -> tuple[float, ...]:
+    """The floor sizes ``--floors`` gives, each 5 to 1000 m."""
     try:
-        floors = tuple(float(x) for x in args.floors.split(",") if x.strip())
+        sizes = tuple(float(x) for x in floors.split(",") if x.strip())
     except ValueError:
-        raise ClsonarError(f"--floors: not a list of sizes in metres: {args.floors!r}") from None
-    if any(not 5.0 <= f <= 1000.0 for f in floors):
-        raise ClsonarError(f"--floors: sizes must be 5 to 1000 m, not {args.floors!r}")
-    command = "clsonar bench --out " + args.out + (f" --scenes {args.scenes}"
-                                                   if args.scenes else "") + (
-        f" --floors {args.floors}" if args.floors != "50" else "") + (
-        f" --repeat {args.repeat}" if args.repeat != 3 else "")
-    progress, done = _progress_line()
+        raise ClsonarError(f"--floors: not a list of sizes in metres: {floors!r}") from None
+    if any(not 5.0 <= f <= 1000.0 for f in sizes):
+        raise ClsonarError(f"--floors: sizes must be 5 to 1000 m, not {floors!r}")
+    return sizes
+
+
+def _bench_command(args: argparse.Namespace) -> str:
+    """The ``clsonar bench`` command line that regenerates the report (defaults left out)."""
+    given = (("--scenes", args.scenes or None, None),
+             ("--floors", args.floors, _sizes(bench.DEFAULT_FLOORS)),
+             ("--repeat", args.repeat, bench.DEFAULT_REPEAT))
+    return f"clsonar bench --out {args.out}" + "".join(
+        f" {flag} {shlex.quote(str(value))}" for flag, value, default in given
+        if value != default)
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    if args.repeat < 1:
+        raise ClsonarError(f"--repeat must be >= 1, not {args.repeat}")
+    names = _bench_names(args.scenes)
+    floors = _bench_floors(args.floors)
+    line = ProgressLine()
     try:
-        bench(Path(args.out), names=names, repeat=args.repeat, numpy=not args.no_numpy,
-              device=args.device, progress=progress, command=command, floors=floors)
+        bench.bench(Path(args.out), names=names, repeat=args.repeat, numpy=not args.no_numpy,
+                    device=args.device, progress=line, command=_bench_command(args),
+                    floors=floors)
     finally:
-        done()
+        line.done()
     print(f"wrote {args.out}/bench.md and bench.json")
     return 0
 
@@ -295,19 +328,17 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 
 def _cmd_stress(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
     from .tools.stress import passed, stress
 
     if args.count < 1:
         raise ClsonarError(f"--count must be >= 1, not {args.count}")
     command = f"clsonar stress --count {args.count} --out {args.out}"
-    progress, done = _progress_line()
+    line = ProgressLine()
     try:
-        found = stress(Path(args.out), args.count, device=args.device, progress=progress,
+        found = stress(Path(args.out), args.count, device=args.device, progress=line,
                        command=command)
     finally:
-        done()
+        line.done()
     fraction = found.differing / max(found.pixels, 1)
     print(f"{found.cases} cases: {found.nonfinite} with NaN/Inf, max |Δτ| "
           f"{found.tof_max_s * 1e6:.4f} µs, {fraction:.4%} of map pixels differ "

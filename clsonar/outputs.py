@@ -1,31 +1,75 @@
-"""The files ``clsonar run SCENE --out DIR`` writes (DESIGN.md, "Command line — a contract").
+"""The files ``clsonar run SCENE --out DIR`` writes (docs/design.md, "Command line — a
+contract").
 
 ``report.json`` (scene, device, settings, counts, per-stage seconds, metrics),
 ``stages.npz`` (``raw``, ``filtered``, ``thin`` ``[iy, ix]`` with ``extent`` and ``cell``),
 ``profile.csv`` (``x,y``), ``echoes.csv`` (``tx,rx,tof_s,amplitude,kind,order``) and one PNG
 per stage with the true geometry drawn over it. Every file is built in memory first and
 written atomically (temporary name, then rename); a new DIR appears all at once.
+
+The PNGs need matplotlib (``clsonar[plots]``): :mod:`clsonar.plots` is imported only when
+they are drawn, so every other output is written without it (:func:`plots_available`).
 """
 
 from __future__ import annotations
 
+import importlib.util
 import io
 import json
 import os
 import shutil
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from . import plots
+from .errors import ClsonarError
 from .files import write_atomic
 from .pipeline import RunResult
 
-STAGE_PNGS = ("scene.png", "raw.png", "filtered.png", "thin.png", "profile.png")
+#: How to install what the pictures need.
+PLOTS_INSTALL = "pip install 'clsonar[plots]'"
 
 
-def _json_default(value):
+def plots_available() -> bool:
+    """Whether matplotlib, which every PNG needs, is installed."""
+    return importlib.util.find_spec("matplotlib") is not None
+
+
+def require_plots(what: str) -> None:
+    """Refuse, before any work, a command whose ``what`` needs matplotlib when it is not
+    installed (:class:`~clsonar.errors.ClsonarError`, one line)."""
+    if not plots_available():
+        raise ClsonarError(f"{what} needs matplotlib: {PLOTS_INSTALL}")
+
+
+def metric(metrics: Mapping[str, object], path: str) -> Any:
+    """The value at ``path`` in a run's metrics (``"rms_m"``, ``"accuracy_m.rms"``,
+    ``"completeness.2cm"``); None where the run has no such metric."""
+    value: Any = metrics
+    for key in path.split("."):
+        value = value.get(key) if isinstance(value, Mapping) else None
+    return value
+
+
+def headline_error(metrics: Mapping[str, object]) -> tuple[str, float | None]:
+    """The run's error in one number, with its name: the RMS of eq. 2.6 where it applies
+    (one wall), else the accuracy RMS (metres; None: no profile)."""
+    rms = metric(metrics, "rms_m")
+    if rms is not None:
+        return "RMS (eq. 2.6)", rms
+    return "accuracy RMS", metric(metrics, "accuracy_m.rms")
+
+
+def error_summary(metrics: Mapping[str, object]) -> str:
+    """``RMS (eq. 2.6) 0.42 cm`` (or the accuracy RMS, or ``n/a``): :func:`headline_error`."""
+    name, value = headline_error(metrics)
+    return f"{name} {'n/a' if value is None else f'{value * 100:.2f} cm'}"
+
+
+def _json_default(value: object) -> object:
     if isinstance(value, np.generic):
         return value.item()
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
@@ -36,47 +80,61 @@ def profile_csv(points: np.ndarray) -> str:
     return "x,y\n" + "".join(f"{x:.6f},{y:.6f}\n" for x, y in points)
 
 
-def render(result: RunResult) -> dict[str, bytes]:
-    """Every output file of ``result`` as bytes, by file name."""
-    s, g = result.scene, result.geometry
+def data_files(result: RunResult) -> dict[str, bytes]:
+    """Every output file of ``result`` but the PNGs, as bytes, by file name."""
+    s = result.scene
     npz = io.BytesIO()
     np.savez_compressed(npz, raw=result.raw, filtered=result.filtered, thin=result.thin,
                         extent=np.asarray(s.extent), cell=np.asarray(s.cell))
     echoes = io.StringIO()
     result.echoes.write_csv(echoes)
-    profile = profile_csv(result.profile.points)
-    m = result.metrics
-    rms = m.get("rms_m")
-    summary = (f"RMS (eq. 2.6) {rms * 100:.2f} cm" if rms is not None
-               else f"accuracy RMS {_cm(m['accuracy_m']['rms'])}")
     return {
         "report.json": (json.dumps(result.report(), indent=2, default=_json_default)
                         + "\n").encode(),
         "stages.npz": npz.getvalue(),
-        "profile.csv": profile.encode(),
+        "profile.csv": profile_csv(result.profile.points).encode(),
         "echoes.csv": echoes.getvalue().encode(),
+    }
+
+
+def profile_png(result: RunResult) -> bytes:
+    """``profile.png``: the thinned map with the profile, its corners and edges, titled
+    with the run's error (:func:`error_summary`)."""
+    from . import plots
+
+    s = result.scene
+    return plots.profile_png(s, result.geometry, result.thin,
+                             f"{s.name}: profile, {error_summary(result.metrics)}",
+                             result.profile, result.sensors)
+
+
+def stage_pngs(result: RunResult) -> dict[str, bytes]:
+    """One PNG per stage of ``result``, by file name (needs matplotlib)."""
+    from . import plots
+
+    s, g = result.scene, result.geometry
+    return {
         "scene.png": plots.scene_png(s, g, result.sensors, result.echoes.point),
         "raw.png": plots.map_png(s, g, result.raw, f"{s.name}: accumulated loci (raw)"),
         "filtered.png": plots.map_png(s, g, result.filtered,
                                       f"{s.name}: low-pass filtered (eq. 2.4)"),
         "thin.png": plots.map_png(s, g, result.thin, f"{s.name}: thinned ({s.post.thinning})",
                                   binary=True),
-        "profile.png": plots.profile_png(s, g, result.thin, f"{s.name}: profile, {summary}",
-                                         result.profile, result.sensors),
+        "profile.png": profile_png(result),
     }
 
 
-def _cm(value) -> str:
-    return "n/a" if value is None else f"{value * 100:.2f} cm"
-
-
-def write_outputs(result: RunResult, out: str | os.PathLike[str]) -> list[Path]:
-    """Write every output of ``result`` into folder ``out``; returns the paths written.
+def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
+                  pngs: bool = True) -> list[Path]:
+    """Write every output of ``result`` into folder ``out`` (the PNGs only if ``pngs``);
+    returns the paths written.
 
     A new folder is filled under a temporary name and renamed into place; in an existing
     folder each file is replaced atomically.
     """
-    files = render(result)
+    files = data_files(result)
+    if pngs:
+        files.update(stage_pngs(result))
     out = Path(out)
     if not out.exists():
         out.parent.mkdir(parents=True, exist_ok=True)

@@ -1,7 +1,9 @@
 """PNG pictures of a run's stages with the true geometry drawn over them (matplotlib, Agg).
 
-Uses matplotlib's object API (``Figure`` + Agg canvas), never ``pyplot``, so it keeps no
-global state and needs no display.
+Uses matplotlib's object API (``Figure`` + Agg canvas, :func:`figure`), never ``pyplot``, so
+it keeps no global state and needs no display. This is the one module that imports
+matplotlib (the ``clsonar[plots]`` extra): the tools draw their figures with
+:func:`figure` and :func:`png_bytes`, and import this module only when they draw.
 """
 
 from __future__ import annotations
@@ -14,7 +16,9 @@ from matplotlib.figure import Figure
 from scipy import ndimage
 
 from .geometry import Geometry, curve_point, true_vertices
+from .post import Profile
 from .scene import PerWall, Scene, WallFollowing
+from .sensors import SensorArray
 
 TRUTH_STYLE = {"color": "tab:red", "linewidth": 0.8, "alpha": 0.8}
 
@@ -32,9 +36,16 @@ def draw_truth(ax, scene: Scene, geom: Geometry) -> None:
         ax.plot(p[:, 0], p[:, 1], **TRUTH_STYLE)
 
 
-def _figure(scene: Scene, title: str):
-    fig = Figure(figsize=(7.5, 7.0), dpi=150, layout="constrained")
+def figure(figsize: tuple[float, float], dpi: int) -> Figure:
+    """A new figure on its own Agg canvas, laid out with ``constrained`` (no pyplot)."""
+    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
     FigureCanvasAgg(fig)
+    return fig
+
+
+def _scene_figure(scene: Scene, title: str):
+    """A figure whose axes span the scene's extent in metres (equal aspect), titled."""
+    fig = figure((7.5, 7.0), 150)
     ax = fig.add_subplot()
     xmin, ymin, xmax, ymax = scene.extent
     ax.set_xlim(xmin, xmax)
@@ -46,7 +57,7 @@ def _figure(scene: Scene, title: str):
     return fig, ax
 
 
-def png_bytes(fig) -> bytes:
+def png_bytes(fig: Figure) -> bytes:
     """The figure as PNG bytes."""
     buf = io.BytesIO()
     fig.savefig(buf, format="png")
@@ -55,7 +66,7 @@ def png_bytes(fig) -> bytes:
 
 def _map_axes(scene: Scene, geom: Geometry, image: np.ndarray, title: str, binary: bool):
     """A figure showing a map stage (``[iy, ix]``) with the true geometry in red over it."""
-    fig, ax = _figure(scene, title)
+    fig, ax = _scene_figure(scene, title)
     xmin, ymin = scene.extent[:2]
     ny, nx = image.shape
     # One map cell can be smaller than a pixel of the picture: show each pixel's maximum,
@@ -72,19 +83,14 @@ def _map_axes(scene: Scene, geom: Geometry, image: np.ndarray, title: str, binar
 
 
 def map_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, *,
-            binary: bool = False, sensors=None, points: np.ndarray | None = None) -> bytes:
+            binary: bool = False) -> bytes:
     """A map stage (``[iy, ix]``) as a PNG, the true geometry in red over it."""
-    fig, ax = _map_axes(scene, geom, image, title, binary)
-    if sensors is not None and len(sensors):
-        ax.plot(sensors.positions[:, 0], sensors.positions[:, 1], ".", color="tab:blue",
-                markersize=1.5)
-    if points is not None and len(points):
-        ax.plot(points[:, 0], points[:, 1], ".", color="black", markersize=1.0)
+    fig, _ = _map_axes(scene, geom, image, title, binary)
     return png_bytes(fig)
 
 
-def profile_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, profile,
-                sensors) -> bytes:
+def profile_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str,
+                profile: Profile, sensors: SensorArray) -> bytes:
     """The thinned map with the profile (``post.Profile``) in black, its corners and edges
     as red crosses, the true ones as grey circles, and the sensors drawn lightly."""
     fig, ax = _map_axes(scene, geom, image, title, binary=True)
@@ -130,10 +136,11 @@ def _legend(ax) -> None:
                          fontsize=7, frameon=False)
 
 
-def scene_png(scene: Scene, geom: Geometry, sensors, echo_points: np.ndarray) -> bytes:
+def scene_png(scene: Scene, geom: Geometry, sensors: SensorArray,
+              echo_points: np.ndarray) -> bytes:
     """The scene: true geometry, transducers with short axis ticks, the placement's poses
     (ring poses or array centres), and the reflection points of all echoes."""
-    fig, ax = _figure(scene, f"{scene.name}: {len(sensors)} transducers, "
+    fig, ax = _scene_figure(scene, f"{scene.name}: {len(sensors)} transducers, "
                              f"{len(echo_points)} echoes")
     draw_truth(ax, scene, geom)
     tick = 0.02 * max(scene.extent[2] - scene.extent[0], scene.extent[3] - scene.extent[1])

@@ -1,4 +1,4 @@
-"""The main window and ``clsonar-gui [SCENE.json] [--screenshot PNG]``.
+"""The main window and ``clsonar-gui [SCENE.json] [--screenshot PNG]`` (:func:`main`).
 
 Central scene canvas (:mod:`.canvas`), docks for the parameters (:mod:`.params`), the map
 stages (:mod:`.stages`) and the plots (:mod:`.plots`); the pipeline runs in a
@@ -9,9 +9,11 @@ stages (:mod:`.stages`) and the plots (:mod:`.plots`); the pipeline runs in a
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import sys
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 from PySide6.QtCore import (
@@ -33,15 +35,18 @@ from PySide6.QtWidgets import (
     QFileDialog,
     QLabel,
     QMainWindow,
+    QMenu,
     QMessageBox,
     QProgressBar,
+    QToolBar,
     QWidget,
 )
 
 from .. import opencl, pipeline
+from ..cli import EXIT_USAGE
 from ..errors import ClsonarError, SceneError
 from ..files import write_atomic
-from ..outputs import profile_csv
+from ..outputs import error_summary, metric, profile_csv
 from ..scene import Scene
 from . import edits
 from .canvas import TOOLS, SceneCanvas
@@ -53,7 +58,6 @@ from .worker import Job
 
 APP_NAME = "clsonar-gui"
 ORGANISATION = "clsonar"
-POST_STAGES = pipeline.STAGES[4:]  # filter, thinning, profile, metrics
 
 
 def new_scene() -> Scene:
@@ -68,10 +72,11 @@ def png_of(widget: QWidget) -> bytes:
     buf.open(QBuffer.OpenModeFlag.WriteOnly)
     widget.grab().save(buf, "PNG")
     buf.close()
-    return bytes(data)
+    return bytes(data.data())
 
 
 def default_recovery_dir() -> Path:
+    """Where unsaved edits are kept (the app's local data folder)."""
     base = QStandardPaths.writableLocation(QStandardPaths.StandardLocation.AppLocalDataLocation)
     return Path(base or Path.home() / ".clsonar") / "recovery"
 
@@ -141,7 +146,9 @@ class MainWindow(QMainWindow):
         self.statusBar().addPermanentWidget(self.stage_label)
         self.statusBar().addPermanentWidget(self.progress)
 
-    def _action(self, menu, text: str, slot, shortcut=None) -> QAction:
+    def _action(self, menu: QMenu | QToolBar, text: str, slot: Callable[..., object],
+                shortcut: QKeySequence.StandardKey | str | None = None) -> QAction:
+        """An action with ``text`` and ``shortcut`` calling ``slot``, added to ``menu``."""
         a = QAction(text, self)
         if shortcut is not None:
             a.setShortcut(QKeySequence(shortcut))
@@ -150,9 +157,16 @@ class MainWindow(QMainWindow):
         return a
 
     def _actions(self) -> None:
-        bar = self.menuBar()
+        """The menus and tool bars."""
+        self._file_menu()
+        self._edit_menu()
+        self._tool_bar()
+        self._run_bar()
+        self._view_menu()
+
+    def _file_menu(self) -> None:
         SK = QKeySequence.StandardKey
-        f = bar.addMenu("&File")
+        f = self.menuBar().addMenu("&File")
         self._action(f, "&New", self.new_file, SK.New)
         self._action(f, "&Open…", self.open_dialog, SK.Open)
         self._action(f, "&Save", self.save, SK.Save)
@@ -162,7 +176,10 @@ class MainWindow(QMainWindow):
         self._action(f, "Export profile as &CSV…", self.export_csv_dialog)
         f.addSeparator()
         self._action(f, "&Quit", self.close, SK.Quit)
-        e = bar.addMenu("&Edit")
+
+    def _edit_menu(self) -> None:
+        SK = QKeySequence.StandardKey
+        e = self.menuBar().addMenu("&Edit")
         undo = self.doc.undo.createUndoAction(self, "&Undo")
         redo = self.doc.undo.createRedoAction(self, "&Redo")
         self.undo_action, self.redo_action = undo, redo
@@ -170,10 +187,13 @@ class MainWindow(QMainWindow):
         redo.setShortcut(QKeySequence(SK.Redo))
         e.addActions([undo, redo])
         self._action(e, "&Delete selection", lambda: self.canvas.delete(), SK.Delete)
+
+    def _tool_bar(self) -> None:
+        """One checkable action per canvas tool (Ctrl+1 …), and the snap step."""
         tools = self.addToolBar("Tools")
         tools.setObjectName("toolbar-tools")
         group = QActionGroup(self)
-        self.tool_actions = {}
+        self.tool_actions: dict[str, QAction] = {}
         for n, tool in enumerate(TOOLS):
             a = QAction(tool, self, checkable=True)
             a.setShortcut(QKeySequence(f"Ctrl+{n + 1}"))
@@ -187,9 +207,12 @@ class MainWindow(QMainWindow):
         self.snap.setValue(self.canvas.grid)
         self.snap.valueChanged.connect(lambda v: setattr(self.canvas, "grid", v))
         tools.addWidget(self.snap)
+
+    def _run_bar(self) -> None:
+        """Run and Cancel, in the Run menu and a tool bar, and the OpenCL device."""
         runbar = self.addToolBar("Run")
         runbar.setObjectName("toolbar-run")
-        r = bar.addMenu("&Run")
+        r = self.menuBar().addMenu("&Run")
         self.run_action = self._action(r, "&Run", self.run, "F5")
         self.cancel_action = self._action(r, "&Cancel", self.cancel, "Esc")
         self.cancel_action.setEnabled(False)
@@ -206,7 +229,9 @@ class MainWindow(QMainWindow):
         self.device_box.currentIndexChanged.connect(
             lambda _: setattr(self, "device", self.device_box.currentData()))
         runbar.addWidget(self.device_box)
-        v = bar.addMenu("&View")
+
+    def _view_menu(self) -> None:
+        v = self.menuBar().addMenu("&View")
         for dock in self.docks.values():
             v.addAction(dock.toggleViewAction())
         v.addSeparator()
@@ -355,18 +380,17 @@ class MainWindow(QMainWindow):
         return self._start("post", lambda progress: pipeline.rerun_post(result, post,
                                                                         progress=progress))
 
-    def _start(self, kind: str, fn) -> bool:
+    def _start(self, kind: str, fn: Callable[[pipeline.Progress], pipeline.RunResult]) -> bool:
         if self.busy:
             return False
         job = Job(fn, kind, self)
-        job.generation = self._generation
         job.progressed.connect(self._progress)
-        job.succeeded.connect(lambda r, j=job: self._done(j, r))
+        job.succeeded.connect(functools.partial(self._done, job, self._generation))
         job.failed.connect(lambda m, j=job: self._failed(j, m))
         job.cancelled.connect(lambda j=job: self._cancelled(j))
         self.job = job
         self.progress.setRange(0, len(pipeline.STAGES))
-        self.progress.setValue(0 if kind == "full" else 4)
+        self.progress.setValue(0 if kind == "full" else pipeline.STAGES.index("filter"))
         self.progress.setVisible(True)
         self.run_action.setEnabled(False)
         self.cancel_action.setEnabled(True)
@@ -374,7 +398,7 @@ class MainWindow(QMainWindow):
         return True
 
     def cancel(self) -> None:
-        if self.busy:
+        if self.job is not None and self.job.isRunning():
             self.job.cancel()
 
     def _progress(self, stage: str, i: int, n: int) -> None:
@@ -391,9 +415,9 @@ class MainWindow(QMainWindow):
         if self.job is job:
             self.job = None
 
-    def _done(self, job: Job, result: pipeline.RunResult) -> None:
+    def _done(self, job: Job, generation: int, result: pipeline.RunResult) -> None:
         self._finish(job)
-        if job.generation != self._generation:
+        if generation != self._generation:
             return  # a run of a scene that is no longer open
         self.runs[job.name] += 1
         self.result = result
@@ -474,16 +498,11 @@ class MainWindow(QMainWindow):
 
 
 def summary(result: pipeline.RunResult) -> str:
-    """One line of the run's error: RMS (eq. 2.6) where it applies, else accuracy."""
-    m = result.metrics
-    if m.get("rms_m") is not None:
-        return f"RMS (eq. 2.6) {m['rms_m'] * 100:.2f} cm"
-    acc = (m.get("accuracy_m") or {}).get("rms")
-    comp = (m.get("completeness") or {}).get("2cm")
-    parts = [f"accuracy RMS {acc * 100:.2f} cm" if acc is not None else "accuracy n/a"]
-    if comp is not None:
-        parts.append(f"completeness(2 cm) {comp:.0%}")
-    return ", ".join(parts)
+    """One line of the run's error (:func:`clsonar.outputs.error_summary`: RMS of eq. 2.6
+    where it applies, else the accuracy RMS) and its completeness within 2 cm."""
+    comp = metric(result.metrics, "completeness.2cm")
+    return error_summary(result.metrics) + ("" if comp is None
+                                            else f", completeness(2 cm) {comp:.0%}")
 
 
 def wait_for_run(window: MainWindow) -> None:
@@ -514,6 +533,8 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``clsonar-gui``: open the main window (or, with ``--screenshot``, save a picture of it
+    after a run); returns the exit status. :func:`clsonar.gui.main` checks for Qt first."""
     args = _parser().parse_args(argv)
     if args.scene is not None:
         try:
@@ -522,7 +543,7 @@ def main(argv: list[str] | None = None) -> int:
             load_scene(args.scene)
         except SceneError as e:
             print(f"clsonar-gui: error: {e}", file=sys.stderr)
-            return 2
+            return EXIT_USAGE
     app = QApplication.instance() or QApplication(sys.argv[:1])
     app.setOrganizationName(ORGANISATION)
     app.setApplicationName(APP_NAME)

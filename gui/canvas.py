@@ -16,8 +16,8 @@ from PySide6.QtCore import QPointF, Qt, QTimer, Signal
 
 from ..errors import SceneError
 from ..geometry import build_geometry
-from ..scene import Circle, Circular, Polyline, Scene, Sinusoid, WallFollowing
-from ..sensors import place_sensors
+from ..scene import Circle, Circular, Polyline, Scene, Sinusoid, Surface, WallFollowing
+from ..sensors import SensorArray, place_sensors
 from . import edits
 from .editor import Document
 from .views import (
@@ -63,7 +63,7 @@ class SceneCanvas(pg.PlotWidget):
         self.selected: tuple[str, int] | None = None
         self.rois: list[tuple[tuple[str, int], pg.ROI]] = []
         self.draft: list[tuple[float, float]] = []
-        self.sensors = None  # SensorArray preview of the current scene
+        self.sensors: SensorArray | None = None  # preview of the current scene
         self._extent = pg.PlotCurveItem(pen=pg.mkPen((150, 150, 150), style=Qt.PenStyle.DotLine))
         self._curves = pg.PlotCurveItem(pen=TRUTH_PEN, connect="finite")
         self._beams = pg.PlotCurveItem(pen=BEAM_PEN, connect="finite")
@@ -199,6 +199,7 @@ class SceneCanvas(pg.PlotWidget):
             self._apply(new, "move transducer")
             return
         s = scene.surfaces[i]
+        surface: Surface
         if isinstance(s, Polyline):
             pts = tuple(edits.snap_point(p, g) for p in self.roi_points(roi))
             surface = Polyline(pts, s.closed)
@@ -292,7 +293,7 @@ class SceneCanvas(pg.PlotWidget):
         """End the shape being drawn and add it (one undo step)."""
         d, tool, scene = self.draft, self.tool, self.doc.scene
         self.cancel_draft()
-        surface = None
+        surface: Surface | None = None
         if tool == "wall" and len(d) >= 2:
             surface = Polyline(tuple(d), closed=False)
         elif tool == "room" and len(d) >= 3:

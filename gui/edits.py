@@ -88,16 +88,6 @@ def remove_surface(scene: Scene, index: int) -> Scene:
     return dataclasses.replace(scene, surfaces=tuple(s), sensors=sensors)
 
 
-def translate_surface(s: Surface, dx: float, dy: float) -> Surface:
-    """``s`` moved by ``(dx, dy)``."""
-    if isinstance(s, Polyline):
-        return dataclasses.replace(s, points=tuple((x + dx, y + dy) for x, y in s.points))
-    if isinstance(s, Circle):
-        return Circle((s.center[0] + dx, s.center[1] + dy), s.radius)
-    return dataclasses.replace(s, start=(s.start[0] + dx, s.start[1] + dy),
-                               end=(s.end[0] + dx, s.end[1] + dy))
-
-
 def add_transducer(scene: Scene, position: Point, heading_deg: float = 0.0,
                    group: int = 0) -> Scene:
     """``scene`` with one explicit transducer appended."""
@@ -139,8 +129,9 @@ def set_placement(scene: Scene, kind: str | None, **values: Any) -> Scene:
     else:
         cls = PLACEMENTS[kind]
         old = scene.sensors.placement
-        base = ({f.name: getattr(old, f.name) for f in dataclasses.fields(old)}
-                if isinstance(old, cls) else {})
+        base: dict[str, Any] = {}
+        if old is not None and isinstance(old, cls):
+            base = {f.name: getattr(old, f.name) for f in dataclasses.fields(old)}
         base.update(values)
         base.pop("type", None)
         placement = cls(**base)

@@ -62,6 +62,7 @@ def group_spec(name: str, obj: Any, skip: tuple[str, ...] = ("type",)) -> dict[s
 
 
 def placement_spec(scene: Scene) -> dict[str, Any]:
+    """The ``placement`` group: its ``type`` (or none) and the placement's own keys."""
     p = scene.sensors.placement
     kinds = [NO_PLACEMENT, *edits.PLACEMENTS]
     children = [{"name": "type", "type": "list", "limits": kinds,
@@ -84,7 +85,7 @@ def selection_spec(scene: Scene, key: tuple[str, int] | None) -> dict[str, Any] 
     """A group with the numbers of the selected surface or transducer (a sinusoid's
     amplitude and period, a circle's radius, a polyline's ``closed``, a heading…)."""
     obj = selected_object(scene, key)
-    if obj is None:
+    if key is None or obj is None:
         return None
     spec = group_spec(SELECTED, obj, skip=("points",))  # vertices: drag their handles
     spec["title"] = f"selected: {key[0]} {key[1]} ({type(obj).__name__.lower()})"
@@ -105,11 +106,11 @@ class ParamsPanel(QObject):
     """Keeps a ``ParameterTree`` and the document's scene in step."""
 
     message = Signal(str)
+    params: Parameter  # the tree's parameters, rebuilt by refresh()
 
     def __init__(self, doc: Document) -> None:
         super().__init__()
         self.tree = ParameterTree(showHeader=False)
-        self.params: Parameter | None = None
         self._updating = False
         self._pending = False
         self.selected: tuple[str, int] | None = None
@@ -172,6 +173,7 @@ class ParamsPanel(QObject):
     def _edited(self, group: str, key: str, value: Any) -> Scene:
         scene = self.doc.scene
         if group == SELECTED:
+            assert self.selected is not None  # the group is shown only for a selection
             obj = selected_object(scene, self.selected)
             old = getattr(obj, key)
             if isinstance(value, str) and not isinstance(old, str):
@@ -187,10 +189,12 @@ class ParamsPanel(QObject):
                 if value == NO_PLACEMENT:
                     return edits.set_placement(scene, None)
                 return edits.set_placement(scene, value, **edits.default_placement(scene, value))
-            old = getattr(scene.sensors.placement, key)
+            placement = scene.sensors.placement
+            assert placement is not None  # its keys are shown only when there is one
+            old = getattr(placement, key)
             if isinstance(value, str):
                 value = from_text(value, old)
-            return edits.set_placement(scene, scene.sensors.placement.type, **{key: value})
+            return edits.set_placement(scene, placement.type, **{key: value})
         old = getattr(scene if group == "scene" else getattr(scene, group), key)
         if isinstance(value, str) and not isinstance(old, str):
             value = from_text(value, old)

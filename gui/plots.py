@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import pyqtgraph as pg
@@ -28,8 +28,10 @@ from PySide6.QtWidgets import (
 )
 
 from .. import opencl, pipeline, signals
+from ..outputs import headline_error
 from ..scene import Scene
 from ..tools import bench, variants
+from .editor import Document
 from .worker import Job
 
 #: Where ``clsonar bench`` keeps its committed report, next to the package in a checkout.
@@ -38,12 +40,17 @@ SETTING_PENS = {"thesis": pg.mkBrush(220, 120, 30), "best": pg.mkBrush(30, 100, 
 
 
 def error_m(result: pipeline.RunResult) -> float | None:
-    """The run's error in metres: RMS of eq. 2.6 where it applies, else the accuracy RMS."""
-    m = result.metrics
-    if m.get("rms_m") is not None:
-        return float(m["rms_m"])
-    acc = (m.get("accuracy_m") or {}).get("rms")
-    return None if acc is None else float(acc)
+    """The run's error in metres: RMS of eq. 2.6 where it applies, else the accuracy RMS
+    (:func:`clsonar.outputs.headline_error`)."""
+    _, value = headline_error(result.metrics)
+    return None if value is None else float(value)
+
+
+def detections(result: pipeline.RunResult) -> signals.Detections:
+    """The run's detections (``RunResult.detections`` is typed ``object``)."""
+    d = result.detections
+    assert isinstance(d, signals.Detections)
+    return d
 
 
 def numbers(text: str) -> list[float]:
@@ -67,10 +74,10 @@ def scene_distance(scene: Scene) -> float | None:
     return float(m.group(1)) if m else None
 
 
-def sweep_distance(scene: Scene, d0: float, distances: list[float], context, progress
-                   ) -> list[tuple[float, float | None]]:
-    """``(distance, error)`` of the scene's arrays moved to each distance (reproduce
-    .at_distance; thesis Figs 3.5, 3.19)."""
+def sweep_distance(scene: Scene, d0: float, distances: list[float], context,
+                   progress: pipeline.Progress) -> list[tuple[float, float | None]]:
+    """``(distance, error)`` of the scene's arrays moved to each distance
+    (:func:`clsonar.tools.variants.at_distance`; thesis Figs 3.5, 3.19)."""
     out = []
     for i, d in enumerate(distances):
         progress(f"{d:g} m", i + 1, len(distances))
@@ -79,7 +86,7 @@ def sweep_distance(scene: Scene, d0: float, distances: list[float], context, pro
     return out
 
 
-def sweep_noise(scene: Scene, levels: list[float], context, progress
+def sweep_noise(scene: Scene, levels: list[float], context, progress: pipeline.Progress
                 ) -> list[tuple[float, float | None]]:
     """``(noise σ, error)`` of the scene at each noise level (thesis Figs 3.6, 3.20)."""
     out = []
@@ -95,17 +102,25 @@ def bench_rows(path: Path) -> list[dict[str, Any]]:
     return json.loads(Path(path).read_text())["pipeline"]
 
 
+class Shell(Protocol):
+    """What the plots need of the main window: the edited scene and the OpenCL device."""
+
+    doc: Document
+    device: str | None
+
+
 class PlotsPanel(QWidget):
     """Tabs of plots; ``message(str)`` reports problems, sweeps report progress."""
 
     message = Signal(str)
     sweepFinished = Signal(str, object)  # kind, [(x, error)]
 
-    def __init__(self, window) -> None:
+    def __init__(self, main: Shell) -> None:
         super().__init__()
-        self.window = window
+        self.main = main  # the scene and the device come from the main window
         self.result: pipeline.RunResult | None = None
         self.job: Job | None = None
+        self.sweep_plots: dict[str, pg.PlotWidget] = {}  # by kind: distance, noise
         self.tabs = QTabWidget()
         self.tabs.addTab(self._ascan_tab(), "A-scan")
         self.tabs.addTab(self._sweep_tab("distance"), "RMS vs distance")
@@ -125,8 +140,8 @@ class PlotsPanel(QWidget):
         self.load_bench(BENCH_JSON)
 
     def views(self) -> dict[str, QWidget]:
-        return {"a-scan": self.ascan, "rms-distance": self.distance_plot,
-                "rms-noise": self.noise_plot, "time-error": self.bench_plot}
+        return {"a-scan": self.ascan, "rms-distance": self.sweep_plots["distance"],
+                "rms-noise": self.sweep_plots["noise"], "time-error": self.bench_plot}
 
     # ------------------------------------------------------------------ A-scan
     def _ascan_tab(self) -> QWidget:
@@ -154,9 +169,10 @@ class PlotsPanel(QWidget):
         n = max(0, len(result.sensors) - 1)
         self.tx.setMaximum(n)
         self.rx.setMaximum(n)
-        if len(result.detections):
-            self.tx.setValue(int(result.detections.tx[0]))
-            self.rx.setValue(int(result.detections.rx[0]))
+        d = detections(result)
+        if len(d):
+            self.tx.setValue(int(d.tx[0]))
+            self.rx.setValue(int(d.rx[0]))
         self.show_ascan()
 
     def show_ascan(self) -> None:
@@ -183,8 +199,8 @@ class PlotsPanel(QWidget):
         for tof in r.echoes.tof_s[pair]:
             self.ascan.addItem(pg.InfiniteLine(tof, pen=pg.mkPen((30, 100, 220),
                                                                  style=pg.QtCore.Qt.PenStyle.DashLine)))
-        det = (r.detections.tx == tx) & (r.detections.rx == rx)
-        tofs = r.detections.tof_s[det]
+        d = detections(r)
+        tofs = d.tof_s[(d.tx == tx) & (d.rx == rx)]
         self.ascan.plot(tofs, np.full(len(tofs), thr), pen=None, symbol="t", symbolSize=12,
                         symbolBrush=(220, 30, 30), name="detected time of flight")
         times = np.concatenate([r.echoes.tof_s[pair], tofs])
@@ -207,8 +223,7 @@ class PlotsPanel(QWidget):
         plot = pg.PlotWidget()
         plot.setLabel("bottom", "distance (m)" if kind == "distance" else "noise σ")
         plot.setLabel("left", "RMS error (eq. 2.6)", units="m")
-        setattr(self, f"{kind}_plot", plot)
-        setattr(self, f"{kind}_values", values)
+        self.sweep_plots[kind] = plot
         v = QVBoxLayout(w)
         v.addLayout(form)
         v.addWidget(go)
@@ -223,7 +238,7 @@ class PlotsPanel(QWidget):
         """Run the sweep ``kind`` (``distance`` | ``noise``) over ``values`` in a worker."""
         if self.busy:
             return False
-        scene, spec = self.window.doc.scene, self.window.device
+        scene, spec = self.main.doc.scene, self.main.device
         if kind == "distance":
             d0 = scene_distance(scene) or self.d0.value()
             self.d0.setValue(d0)
@@ -236,9 +251,9 @@ class PlotsPanel(QWidget):
         """Time the pipeline on the scene under the thesis' settings and ours (bench)."""
         if self.busy:
             return False
-        scene, spec = self.window.doc.scene, self.window.device
+        scene, spec = self.main.doc.scene, self.main.device
 
-        def fn(progress):
+        def fn(progress: pipeline.Progress) -> list[dict[str, Any]]:
             rows = []
             for i, (name, preset) in enumerate(bench.SETTINGS):
                 progress(name, i + 1, len(bench.SETTINGS))
@@ -261,7 +276,7 @@ class PlotsPanel(QWidget):
         return True
 
     def cancel(self) -> None:
-        if self.busy:
+        if self.job is not None and self.job.isRunning():
             self.job.cancel()
 
     def _progress(self, what: str, i: int, n: int) -> None:
@@ -281,18 +296,18 @@ class PlotsPanel(QWidget):
     def _done(self, job: Job, out) -> None:
         self._ended(job, None)
         if job.name == "bench":
-            self.show_bench(out, f"{self.window.doc.scene.name} (this device)", clear=False)
+            self.show_bench(out, f"{self.main.doc.scene.name} (this device)", clear=False)
         else:
             self.show_sweep(job.name, out)
         self.sweepFinished.emit(job.name, out)
 
     def show_sweep(self, kind: str, points: list[tuple[float, float | None]]) -> None:
-        plot = getattr(self, f"{kind}_plot")
+        plot = self.sweep_plots[kind]
         plot.clear()
         xy = np.array([(x, e) for x, e in points if e is not None], dtype=float).reshape(-1, 2)
         plot.plot(xy[:, 0], xy[:, 1], pen=pg.mkPen((30, 100, 220), width=2), symbol="o")
         missing = [x for x, e in points if e is None]
-        plot.setTitle(f"{self.window.doc.scene.name}" +
+        plot.setTitle(f"{self.main.doc.scene.name}" +
                       (f" (no error at {', '.join(f'{x:g}' for x in missing)})" if missing
                        else ""))
 

@@ -10,6 +10,7 @@ from PySide6.QtCore import QPointF, Signal
 from PySide6.QtWidgets import QComboBox, QGridLayout, QHBoxLayout, QLabel, QVBoxLayout, QWidget
 
 from ..pipeline import RunResult
+from ..scene import Scene
 from .views import PROFILE_PEN, map_rect, truth_paths
 
 #: The true geometry over a map: thin and light, so the map under it stays visible.
@@ -94,23 +95,25 @@ class StageView(pg.GraphicsLayoutWidget):
             self.plot.addItem(self.profile)
             self.plot.addItem(self.vertices)
         self.data: np.ndarray | None = None
-        self.scene_ = None
+        self.scene_: Scene | None = None
         self.k = 0  # block size of the image on screen
         self.scene().sigMouseMoved.connect(self._moved)
         self.plot.vb.sigRangeChanged.connect(self._render)
         self.plot.vb.sigResized.connect(self._render)
 
-    def cells_per_pixel(self) -> float:
-        """Map cells per screen pixel at the current zoom (≥ 1: a pixel holds many cells)."""
+    def cells_per_pixel(self, cell: float) -> float:
+        """Map cells of ``cell`` metres per screen pixel at the current zoom (≥ 1: a pixel
+        holds many cells)."""
         (x0, x1), _ = self.plot.vb.viewRange()
         pixels = max(1.0, float(self.plot.vb.width()))
-        return (x1 - x0) / self.scene_.cell / pixels
+        return (x1 - x0) / cell / pixels
 
     def _render(self, *_: object) -> None:
         """Show the map with blocks of as many cells as one screen pixel holds."""
-        if self.data is None or self.plot.vb.width() < 2:
+        if self.data is None or self.scene_ is None or self.plot.vb.width() < 2:
             return  # hidden or not laid out yet: drawn when it gets a size
-        k = min(max(self.data.shape), max(1, int(np.ceil(self.cells_per_pixel() - 1e-9))))
+        per_pixel = self.cells_per_pixel(self.scene_.cell)
+        k = min(max(self.data.shape), max(1, int(np.ceil(per_pixel - 1e-9))))
         if k == self.k:
             return
         self.k = k
@@ -195,7 +198,7 @@ class StagesPanel(QWidget):
         r = self.result
         text = f"x = {x:.3f} m, y = {y:.3f} m"
         cell = None if r is None else cell_at(r, x, y)
-        if cell is None:
+        if r is None or cell is None:
             return text
         iy, ix = cell
         v = self.views[key].data

@@ -1,6 +1,6 @@
 """What the canvas and the stage views draw, as arrays (metres), and pyqtgraph set-up.
 
-Map arrays are ``[iy, ix]`` (DESIGN.md): with ``imageAxisOrder='row-major'`` and the cell
+Map arrays are ``[iy, ix]`` (docs/design.md): with ``imageAxisOrder='row-major'`` and the cell
 rectangle from :func:`map_rect`, row 0 sits at ``ymin`` and y grows upwards, so maps show
 the right way up in metres.
 """

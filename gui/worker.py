@@ -14,11 +14,10 @@ import traceback
 from collections.abc import Callable
 from typing import Any
 
-from PySide6.QtCore import QThread, Signal
+from PySide6.QtCore import QObject, QThread, Signal
 
 from ..errors import ClsonarError
-
-Progress = Callable[[str, int, int], None]
+from ..pipeline import Progress
 
 
 class Cancelled(Exception):
@@ -40,7 +39,8 @@ class Job(QThread):
     failed = Signal(str)
     cancelled = Signal()
 
-    def __init__(self, fn: Callable[[Progress], Any], name: str = "run", parent=None) -> None:
+    def __init__(self, fn: Callable[[Progress], Any], name: str = "run",
+                 parent: QObject | None = None) -> None:
         super().__init__(parent)
         self.fn = fn
         self.name = name

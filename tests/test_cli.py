@@ -111,3 +111,34 @@ def test_device_that_cannot_build_is_reported_not_used(monkeypatch, capsys):
     assert "unknown target CPU 'generic'" in out and "No device can build kernels" in out
     with pytest.raises(ocl.DeviceError, match="pocl-opencl-icd"):
         ocl.choose_device()
+
+
+def test_run_without_matplotlib_writes_all_but_the_pngs(tmp_path):
+    """Without matplotlib (the ``clsonar[plots]`` extra) ``clsonar run`` writes every other
+    output and says so in one warning line."""
+    out = tmp_path / "out"
+    code = ("import sys; sys.modules['matplotlib'] = None\n"
+            "from clsonar.cli import main\n"
+            f"raise SystemExit(main(['run', {str(ROOT / 'scenes' / 'plane-2m.json')!r}, "
+            f"'--out', {str(out)!r}, '-q']))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ("clsonar: warning: matplotlib is not installed: no PNGs written "
+                        "(pip install 'clsonar[plots]')\n")
+    assert sorted(p.name for p in out.iterdir()) == ["echoes.csv", "profile.csv",
+                                                     "report.json", "stages.npz"]
+
+
+@pytest.mark.parametrize("command", [["plot", "DIR"], ["reproduce", "--out", "DIR"]])
+def test_pictures_commands_without_matplotlib_refuse_in_one_line(tmp_path, capsys,
+                                                                 monkeypatch, command):
+    from clsonar import outputs
+
+    monkeypatch.setattr(outputs, "plots_available", lambda: False)
+    argv = [str(tmp_path / "d") if a == "DIR" else a for a in command]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and err[0].startswith(f"clsonar: error: clsonar {command[0]}")
+    assert err[0].endswith("needs matplotlib: pip install 'clsonar[plots]'")
+    assert list(tmp_path.iterdir()) == []

@@ -330,17 +330,38 @@ def test_main_bad_scene(tmp_path, capsys):
     assert len(err) == 1 and "bad.json" in err[0] and "cell" in err[0]
 
 
-def test_core_imports_no_qt():
-    """The core package (every module but clsonar.gui) loads neither PySide6 nor pyqtgraph."""
-    core = sorted(m.name for m in pkgutil.iter_modules(clsonar.__path__, "clsonar.")
-                  if m.name not in ("clsonar.gui", "clsonar.__main__"))
-    assert "clsonar.pipeline" in core and "clsonar.cli" in core
-    code = ("import sys\n" + "".join(f"import {m}\n" for m in core) +
+def test_core_imports_no_qt_and_pictures_alone_import_matplotlib():
+    """Every module of the package but the GUI (walked recursively) loads neither PySide6
+    nor pyqtgraph; every one but the pictures (clsonar.plots) and the tools loads no
+    matplotlib."""
+    core = sorted(m.name for m in pkgutil.walk_packages(clsonar.__path__, "clsonar.")
+                  if not m.name.startswith("clsonar.gui") and m.name != "clsonar.__main__")
+    assert {"clsonar.pipeline", "clsonar.cli", "clsonar.outputs",
+            "clsonar.tools.sweep.runners", "clsonar.tools.stability.map_judge"} <= set(core)
+    no_pictures = [m for m in core if m != "clsonar.plots" and not m.startswith("clsonar.tools.")]
+    code = ("import importlib, sys\n"
+            f"for m in {no_pictures!r}: importlib.import_module(m)\n"
+            "print('matplotlib' in sys.modules)\n"
+            f"for m in {core!r}: importlib.import_module(m)\n"
             "print(sorted({k.split('.')[0] for k in sys.modules} & "
             "{'PySide6', 'pyqtgraph', 'shiboken6'}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=120, check=True)
-    assert out.stdout.strip() == "[]"
+    assert out.stdout.split("\n")[:2] == ["False", "[]"]
+
+
+@pytest.mark.parametrize("missing", ["PySide6", "pyqtgraph"])
+def test_gui_entry_point_without_qt_is_one_line(missing):
+    """``clsonar-gui`` (clsonar.gui:main) without PySide6 or pyqtgraph: one error line
+    saying what to install, status 2, no traceback."""
+    code = (f"import sys; sys.modules[{missing!r}] = None\n"
+            "from clsonar.gui import main\n"
+            "raise SystemExit(main([]))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr == ("clsonar-gui: error: the desktop app needs PySide6 and pyqtgraph: "
+                        "pip install 'clsonar[gui]'\n")
 
 
 def test_qt_item_change_keeps_references():
@@ -398,7 +419,7 @@ def test_sweeps_bench_and_ascan(qtbot, window):
     assert kind == "distance" and [d for d, _ in points] == [2.0, 4.0]
     direct = pipeline.run(variants.at_distance(scene, 2.0, 4.0)).metrics["rms_m"]
     assert points[1][1] == pytest.approx(direct)
-    xs, ys = w.plots.distance_plot.getPlotItem().listDataItems()[0].getData()
+    xs, ys = w.plots.sweep_plots["distance"].getPlotItem().listDataItems()[0].getData()
     assert list(xs) == [2.0, 4.0] and ys[1] == pytest.approx(direct)
 
     with qtbot.waitSignal(w.plots.sweepFinished, timeout=RUN_TIMEOUT_MS) as blocker:

@@ -7,8 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
 import clsonar
 from clsonar import plots
@@ -27,9 +25,7 @@ def _placed(name):
 
 
 def _axes():
-    fig = Figure()
-    FigureCanvasAgg(fig)
-    return fig.add_subplot()
+    return plots.figure((6.4, 4.8), 100).add_subplot()
 
 
 def test_true_vertices_are_the_corners_and_edges():

@@ -1,5 +1,5 @@
 """Numerical stability (issue 6): the float32 kernels against their float64 references on the
-hostile scenes of clsonar/tools/stability.py — far and tiny scenes, T = R and nearly coincident
+hostile scenes of clsonar/tools/stability/ — far and tiny scenes, T = R and nearly coincident
 transducers, flat ellipses, grazing incidence, reflection points at wall ends and vertices,
 caustics, ±180° headings, beams leaving the map, ragged extents, a million loci, a long pair
 list — and the same results whatever the work-group size. ``clsonar stress`` runs the same
@@ -90,7 +90,7 @@ def test_knife_edge_pixels_are_recognised():
     path = np.hypot(px - row[0], py - row[1]) + np.hypot(px - row[2], py - row[3])
     middle = np.argmin(np.abs(path - row[8]))
     edge = np.argmin(np.abs(np.abs(path - row[8]) - pb.half_band))
-    one = mapping.prepare_loci(case.scene, case.sensors, stability.Loci(
+    one = mapping.prepare_loci(case.scene, case.sensors, mapping.Loci(
         case.loci.tx[:1], case.loci.rx[:1], case.loci.tof_s[:1], case.loci.amplitude[:1]))
     flags = stability.edge_pixels(one, iy[[middle, edge]], ix[[middle, edge]])
     assert flags.tolist() == [False, True]

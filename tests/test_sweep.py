@@ -228,7 +228,7 @@ def test_one_sweep_per_folder(tmp_path):
     spec = sw.load_spec(_spec(tmp_path))
     out = tmp_path / "out"
     out.mkdir()
-    with sw._Lock(out), pytest.raises(ClsonarError, match="another sweep is writing there"):
+    with sw.SweepLock(out), pytest.raises(ClsonarError, match="another sweep is writing there"):
         sw.sweep(spec, out)
 
 
@@ -299,7 +299,7 @@ def test_distributed_table_equals_local_row_for_row(cluster, local_sweep, tmp_pa
     from distributed import Client
 
     with Client(cluster.scheduler_address) as client:
-        built = client.run(lambda: sorted(map(str, sw._CONTEXTS)))
+        built = client.run(lambda: sorted(map(str, sw.CONTEXTS)))
     assert len(built) == 2 and all(v == ["None"] for v in built.values())
 
 

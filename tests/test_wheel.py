@@ -22,8 +22,14 @@ def test_wheel_installs_and_finds_its_kernels(tmp_path):
                    check=True, capture_output=True)
     wheel = next((tmp_path / "dist").glob("clsonar-*.whl"))
     import zipfile
-    names = zipfile.ZipFile(wheel).namelist()
+    archive = zipfile.ZipFile(wheel)
+    names = archive.namelist()
     assert "clsonar/kernels/echoes.cl" in names and "clsonar/kernels/common.h" in names
+    assert {"clsonar/gui/__init__.py", "clsonar/tools/sweep/runners.py",
+            "clsonar/tools/stability/map_judge.py"} <= set(names)
+    entry_points = next(n for n in names if n.endswith(".dist-info/entry_points.txt"))
+    scripts = archive.read(entry_points).decode()
+    assert "clsonar = clsonar.cli:main" in scripts and "clsonar-gui = clsonar.gui:main" in scripts
 
     venv = tmp_path / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)

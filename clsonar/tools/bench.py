@@ -31,13 +31,17 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 
 from ..files import write_atomic
+from ..outputs import metric, require_plots
 from ..pipeline import STAGES
 from ..scene import Scene, load_scene
 from .floors import FloorRow, bench_floor
+from .markdown import NONE, cm, percent
+from .progress import Progress
 from .tradeoff import (
     SkipRow,
     TradeoffRow,
@@ -54,6 +58,14 @@ DEFAULT_SCENES = ("plane-2m", "corner-4m", "edge-1m", "cylinder-2.1m", "sinusoid
 
 #: Settings compared in the pipeline table: the thesis' methods, and the scene's own (ours).
 SETTINGS = (("thesis", "thesis"), ("best", None))
+
+#: Timed runs of each measurement (the best is kept).
+DEFAULT_REPEAT = 3
+
+#: Sizes in metres of the multi-room floors mapped by default (:mod:`clsonar.tools.floors`).
+DEFAULT_FLOORS = (50.0,)
+
+T = TypeVar("T")
 
 
 @dataclass(frozen=True)
@@ -164,13 +176,13 @@ def stages_markdown(rows: list[StageRow]) -> list[str]:
                      f"{r.echoes_matched * 100:.2f} % | {r.unmatched_max_amplitude:.3f} | "
                      f"{r.detection_numpy_s:.2f} | "
                      f"{r.detection_opencl_s:.4f} | {r.detection_speedup:.0f}× | "
-                     f"{'yes' if r.detections_same else 'NO'} |")
+                     f"{_yes(r.detections_same)} |")
     return lines
 
 
-def best_time(fn: Callable[[], object], repeat: int) -> tuple[float, object]:
+def best_time(fn: Callable[[], T], repeat: int) -> tuple[float, T]:
     """The shortest of ``repeat`` wall-clock runs of ``fn`` and its last result."""
-    best, result = float("inf"), None
+    best = float("inf")
     for _ in range(max(1, repeat)):
         start = time.perf_counter()
         result = fn()
@@ -184,8 +196,8 @@ def bench_pipeline(scene: Scene, settings: str, preset: str | None, context,
     fastest = fastest_run(scene, context, repeat, preset=preset)
     m = fastest.metrics
     return PipelineRow(scene.name, settings, dict(fastest.seconds),
-                       float(sum(fastest.seconds.values())), m["rms_m"],
-                       m["accuracy_m"]["rms"], m["completeness"]["2cm"])
+                       float(sum(fastest.seconds.values())), metric(m, "rms_m"),
+                       metric(m, "accuracy_m.rms"), metric(m, "completeness.2cm"))
 
 
 def loci_scene(scene: Scene) -> Scene:
@@ -241,12 +253,12 @@ def bench_accumulation(scene: Scene, context, repeat: int,
         stats.tiles_skipped, stats.pixel_locus_tests)
 
 
-def _cm(value: float | None) -> str:
-    return "–" if value is None else f"{value * 100:.2f}"
+def _yes(flag: bool) -> str:
+    return "yes" if flag else "NO"
 
 
 def _ratio(value: float | None) -> str:
-    return "–" if value is None else f"{value:.0f}×"
+    return NONE if value is None else f"{value:.0f}×"
 
 
 def markdown(pipeline: list[PipelineRow], accumulation: list[AccumulationRow],
@@ -260,10 +272,10 @@ def markdown(pipeline: list[PipelineRow], accumulation: list[AccumulationRow],
              " | RMS eq. 2.6 (cm) | accuracy RMS (cm) | completeness ≤ 2 cm |",
              "| --- | --- |" + " ---: |" * (len(stages) + 4)]
     for r in pipeline:
-        comp = "–" if r.completeness_2cm is None else f"{r.completeness_2cm * 100:.0f} %"
         lines.append(f"| {r.scene} | {r.settings} | {r.total_s:.2f} | "
                      + " | ".join(f"{r.seconds.get(s, 0.0):.2f}" for s in stages)
-                     + f" | {_cm(r.rms_m)} | {_cm(r.accuracy_m)} | {comp} |")
+                     + f" | {cm(r.rms_m)} | {cm(r.accuracy_m)} | "
+                     f"{percent(r.completeness_2cm)} |")
     lines += ["", "`thesis`: threshold detection, loci summed, eq. 2.5 thinning, polynomial "
               "fit. `best`: the scene's own settings (envelope detection, tangent points, "
               "Guo–Hall thinning, spline or walls fit).", "",
@@ -280,15 +292,15 @@ def markdown(pipeline: list[PipelineRow], accumulation: list[AccumulationRow],
         f64 = a.opencl_s.get("float64")
         lines.append(
             f"| {a.scene} | {a.pixels:,} | {a.loci} | "
-            f"{'–' if a.numpy_s is None else f'{a.numpy_s:.2f}'} | "
-            f"{a.opencl_s['float32']:.3f} | {'–' if f64 is None else f'{f64:.3f}'} | "
+            f"{NONE if a.numpy_s is None else f'{a.numpy_s:.2f}'} | "
+            f"{a.opencl_s['float32']:.3f} | {NONE if f64 is None else f'{f64:.3f}'} | "
             f"{a.tests_per_s['float32']:.2e} | {_ratio(a.speedup.get('float32'))} | "
             f"{_ratio(a.speedup.get('float64'))} | "
-            f"{'–' if a.float64_identical is None else ('yes' if a.float64_identical else 'NO')}"
-            f" | {'–' if a.float32_equal_share is None else f'{a.float32_equal_share:.6f}'} | "
+            f"{NONE if a.float64_identical is None else _yes(a.float64_identical)}"
+            f" | {NONE if a.float32_equal_share is None else f'{a.float32_equal_share:.6f}'} | "
             f"{a.tiled_s:.4f} | {_ratio(a.tiled_speedup)} | "
             f"{a.tiles_skipped:,} of {a.tiles_total:,} | {a.tiled_tests:.2e} | "
-            f"{'yes' if a.tiled_identical else 'NO'} |")
+            f"{_yes(a.tiled_identical)} |")
     return "\n".join(lines) + "\n"
 
 
@@ -323,7 +335,7 @@ def skips_markdown(rows: list[SkipRow]) -> list[str]:
         c = r.counts
         lines.append(
             f"| {r.scene} | {r.settings} | {r.skipping_s:.3f} | {r.no_skipping_s:.3f} | "
-            f"{r.speedup:.1f}× | {'yes' if r.identical else 'NO'} | {c.get('pairs', 0):,} | "
+            f"{r.speedup:.1f}× | {_yes(r.identical)} | {c.get('pairs', 0):,} | "
             f"{c.get('pairs_skipped_empty', 0):,} | {c.get('pairs_skipped_silent', 0):,} | "
             f"{c.get('cells_post_processed', 0):,} of {c.get('map_cells', 0):,} |")
     return lines
@@ -337,9 +349,9 @@ def tradeoff_markdown(rows: list[TradeoffRow], winners: list[str]) -> list[str]:
              "| scene | setting | total s | accuracy RMS (cm) | RMS eq. 2.6 (cm) | "
              "completeness ≤ 2 cm | Pareto |", "| --- | --- |" + " ---: |" * 4 + " :---: |"]
     for r in rows:
-        comp = "–" if r.completeness_2cm is None else f"{r.completeness_2cm * 100:.0f} %"
-        lines.append(f"| {r.scene} | {r.setting} | {r.total_s:.3f} | {_cm(r.accuracy_m)} | "
-                     f"{_cm(r.rms_m)} | {comp} | {'★' if r.pareto else ''} |")
+        lines.append(f"| {r.scene} | {r.setting} | {r.total_s:.3f} | {cm(r.accuracy_m)} | "
+                     f"{cm(r.rms_m)} | {percent(r.completeness_2cm)} | "
+                     f"{'★' if r.pareto else ''} |")
     lines += ["", "Faster and more accurate than the thesis-faithful settings on every thesis "
               "scene: " + (", ".join(f"**{w}**" for w in winners) if winners else "none") + "."]
     return lines
@@ -357,20 +369,60 @@ def floors_markdown(rows: list[FloorRow]) -> list[str]:
              "completeness ≤ 2 cm | vertices found |",
              "| --- |" + " ---: |" * (10 + len(STAGES))]
     for f in rows:
-        comp = "–" if f.completeness_2cm is None else f"{f.completeness_2cm * 100:.1f} %"
         lines.append(f"| {f.scene} | {f.cells:,} | {f.rooms} | {f.transducers:,} | "
                      f"{f.pairs:,} | {f.total_s:.1f} | "
                      + " | ".join(f"{f.seconds.get(s, 0.0):.1f}" for s in STAGES)
                      + f" | {f.peak_rss_mb:,.0f} MB | {f.mosaic_mb:,.0f} MB | "
-                     f"{_cm(f.accuracy_m)} | {comp} | {f.vertices_found or '–'} |")
+                     f"{cm(f.accuracy_m)} | {percent(f.completeness_2cm, 1)} | "
+                     f"{f.vertices_found or NONE} |")
     return lines
 
 
+def _stepper(progress: Progress | None, steps: int) -> Callable[[str], None]:
+    """A callback that reports the next of ``steps`` steps, named, to ``progress``."""
+    step = 0
+
+    def tell(what: str) -> None:
+        nonlocal step
+        step += 1
+        if progress is not None:
+            progress(step, steps, what)
+    return tell
+
+
+def bench_scene(scene: Scene, context, repeat: int, numpy: bool, tell: Callable[[str], None]
+                ) -> tuple[list[PipelineRow], list[SkipRow], AccumulationRow, StageRow | None]:
+    """Every per-scene measurement of ``scene``: the pipeline and skipping under each of
+    :data:`SETTINGS`, the accumulation, and (with ``numpy``) the echo and detection stages."""
+    pipeline, skips = [], []
+    for label, preset in SETTINGS:
+        tell(f"{scene.name}: pipeline, {label} settings")
+        pipeline.append(bench_pipeline(scene, label, preset, context, repeat))
+        tell(f"{scene.name}: skipping on and off, {label} settings")
+        skips.append(bench_skips(scene, label, preset, context, repeat))
+    tell(f"{scene.name}: accumulation")
+    accumulation = bench_accumulation(scene, context, repeat, numpy)
+    stages = None
+    if numpy:
+        tell(f"{scene.name}: echoes and detection against NumPy")
+        stages = bench_stages(scene, context, repeat)
+    return pipeline, skips, accumulation, stages
+
+
+def report_markdown(report: BenchReport, command: str) -> str:
+    """``bench.md``: every table of ``report`` that has rows."""
+    text = markdown(report.pipeline, report.accumulation, report.device, command)
+    return text + "\n".join(
+        (stages_markdown(report.stages) if report.stages else [])
+        + skips_markdown(report.skips)
+        + (tradeoff_markdown(report.tradeoff, report.beats_thesis) if report.tradeoff else [])
+        + (floors_markdown(report.floors) if report.floors else [])) + "\n"
+
+
 def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DEFAULT_SCENES,
-          *, repeat: int = 3, numpy: bool = True, device: str | None = None,
-          progress: Callable[[int, int, str], None] | None = None,
-          command: str = "clsonar bench --out docs/bench",
-          floors: tuple[float, ...] = (50.0,)) -> BenchReport:
+          *, repeat: int = DEFAULT_REPEAT, numpy: bool = True, device: str | None = None,
+          progress: Progress | None = None, command: str = "clsonar bench --out docs/bench",
+          floors: tuple[float, ...] = DEFAULT_FLOORS) -> BenchReport:
     """Benchmark the ``names`` scenes of ``scenes_dir`` (default: the bundled ones) and write
     ``bench.md``, ``bench.json`` and ``tradeoff.png`` into ``out``: the pipeline under both
     settings, the accumulation against NumPy, skipping on against off, and (for the thesis'
@@ -379,31 +431,22 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     from ..files import bundled_scenes
     from ..opencl import get_context
 
-    context = get_context(device)
     folder = scenes_dir or bundled_scenes()
     scenes = [load_scene(folder / f"{name}.json") for name in names]
     shapes = [s for s in scenes if s.name in THESIS_SCENES]
-    pipeline, accumulation, stage_rows, skips, trade = [], [], [], [], []
-    steps = len(scenes) * (2 * len(SETTINGS) + 1 + numpy) + len(shapes) + len(floors)
-    step = 0
-
-    def tell(what: str) -> None:
-        nonlocal step
-        step += 1
-        if progress is not None:
-            progress(step, steps, what)
-
+    if shapes:
+        require_plots("clsonar bench (tradeoff.png)")
+    context = get_context(device)
+    tell = _stepper(progress, len(scenes) * (2 * len(SETTINGS) + 1 + numpy) + len(shapes)
+                    + len(floors))
+    pipeline, skips, accumulation, stage_rows = [], [], [], []
     for scene in scenes:
-        for label, preset in SETTINGS:
-            tell(f"{scene.name}: pipeline, {label} settings")
-            pipeline.append(bench_pipeline(scene, label, preset, context, repeat))
-            tell(f"{scene.name}: skipping on and off, {label} settings")
-            skips.append(bench_skips(scene, label, preset, context, repeat))
-        tell(f"{scene.name}: accumulation")
-        accumulation.append(bench_accumulation(scene, context, repeat, numpy))
-        if numpy:
-            tell(f"{scene.name}: echoes and detection against NumPy")
-            stage_rows.append(bench_stages(scene, context, repeat))
+        rows, skipped, accumulated, stages = bench_scene(scene, context, repeat, numpy, tell)
+        pipeline += rows
+        skips += skipped
+        accumulation.append(accumulated)
+        stage_rows += [] if stages is None else [stages]
+    trade = []
     for scene in shapes:
         tell(f"{scene.name}: run time against error")
         trade += bench_tradeoff(scene, context, repeat)
@@ -415,13 +458,8 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     report = BenchReport(f"{d.name.strip()} ({d.platform.name.strip()})", pipeline,
                          accumulation, stage_rows, skips, trade, beats_thesis(trade),
                          floor_rows)
-    text = markdown(pipeline, accumulation, report.device, command)
-    text += "\n".join((stages_markdown(stage_rows) if stage_rows else [])
-                      + skips_markdown(skips)
-                      + (tradeoff_markdown(trade, report.beats_thesis) if trade else [])
-                      + (floors_markdown(floor_rows) if floor_rows else [])) + "\n"
     out.mkdir(parents=True, exist_ok=True)
-    write_atomic(out / "bench.md", text.encode())
+    write_atomic(out / "bench.md", report_markdown(report, command).encode())
     if trade:
         write_atomic(out / "tradeoff.png", tradeoff_png(trade))
     write_atomic(out / "bench.json", (json.dumps(dataclasses.asdict(report), indent=1)
@@ -430,6 +468,8 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
 
 
 __all__ = [
+    "DEFAULT_FLOORS",
+    "DEFAULT_REPEAT",
     "DEFAULT_SCENES",
     "THESIS_SCENES",
     "AccumulationRow",
@@ -439,8 +479,10 @@ __all__ = [
     "bench",
     "bench_accumulation",
     "bench_pipeline",
+    "bench_scene",
     "bench_stages",
     "best_time",
     "loci_scene",
     "markdown",
+    "report_markdown",
 ]

@@ -70,6 +70,7 @@ def run_floor(size_m: float, device: str | None = None) -> FloorRow:
     whole process's high-water mark, interpreter and OpenCL runtime included)."""
     import resource
 
+    from ..outputs import metric
     from ..pipeline import MOSAIC_BYTES_PER_CELL, run
 
     scene = floor_scene(size_m)
@@ -79,8 +80,8 @@ def run_floor(size_m: float, device: str | None = None) -> FloorRow:
     return FloorRow(scene.name, int(r.raw.size), int(r.counts.get("rooms_mapped", 1)),
                     len(r.sensors), int(r.counts["pairs"]), dict(r.seconds),
                     float(sum(r.seconds.values())), peak,
-                    r.raw.size * MOSAIC_BYTES_PER_CELL / 2**20, m["accuracy_m"]["rms"],
-                    m["completeness"]["2cm"], m.get("vertices_found"))
+                    r.raw.size * MOSAIC_BYTES_PER_CELL / 2**20, metric(m, "accuracy_m.rms"),
+                    metric(m, "completeness.2cm"), metric(m, "vertices_found"))
 
 
 def bench_floor(size_m: float, device: str | None = None, timeout_s: float = 3600) -> FloorRow:

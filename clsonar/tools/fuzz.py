@@ -1,4 +1,4 @@
-"""Fuzzing the scene loader and ``clsonar run``'s handling of bad input (DESIGN.md: "Bad
+"""Fuzzing the scene loader and ``clsonar run``'s handling of bad input (docs/design.md: "Bad
 input … one clear line on stderr naming the file and the offending key, exit status 2, no
 traceback, and nothing written to ``--out``. Never a crash or a hang.").
 
@@ -29,18 +29,18 @@ import json
 import os
 import random
 import resource
+import shutil
 import signal
-import sys
 import tempfile
 import time
 import traceback
 import warnings
 from collections import Counter
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ClsonarError
+from .progress import Progress, ProgressLine
 
 MUTATIONS = ("bytes", "truncate", "nesting", "huge-array", "wrong-type", "nonfinite",
              "huge-grid", "utf8", "edit")
@@ -49,6 +49,9 @@ WRONG_VALUES: tuple[Any, ...] = (None, True, False, "x", "", 0, -1, 1, 2**64, -(
                                  -1e308, 5e-324, 0.5, [], {}, [1], [[1, 2]], {"a": 1},
                                  [None, None], "NaN", [1e308, 1e308])
 NONFINITE = ("NaN", "Infinity", "-Infinity", "1e999", "-1e999", "nan", "inf")
+
+#: Seconds of CPU an input may take (``--limit-s``).
+LIMIT_S = 1.0
 
 
 def seed_texts() -> list[str]:
@@ -160,7 +163,7 @@ class FuzzReport:
     refused: int = 0
     accepted: int = 0
     cli_checked: int = 0
-    by_mutation: Counter = field(default_factory=Counter)
+    by_mutation: Counter[str] = field(default_factory=Counter)
     slowest_s: float = 0.0
     slowest: str = ""
     findings: list[str] = field(default_factory=list)
@@ -218,8 +221,64 @@ def run_cli(path: str, out: str) -> tuple[int, str]:
     return rc, err.getvalue()
 
 
-def fuzz(count: int, seed: int = 0, *, limit_s: float = 1.0, device=None,
-         progress: Callable[[int, int], None] | None = None) -> FuzzReport:
+def _preflight_input(path: str, device, limit_s: float, label: str,
+                     report: FuzzReport) -> bool | None:
+    """:func:`preflight` on one input, counted in ``report``: True if it was refused with a
+    :class:`~clsonar.errors.ClsonarError`, False if accepted, None if it was a finding."""
+    try:
+        with _alarm(10 * limit_s), warnings.catch_warnings():
+            warnings.simplefilter("error")  # a warning is a finding too
+            preflight(path, device)
+    except ClsonarError as e:
+        report.refused += 1
+        if "\n" in str(e):
+            report.findings.append(f"{label}: error message of several lines")
+        return True
+    except _Timeout:
+        report.findings.append(f"{label}: still running after {10 * limit_s:g} s")
+        return None
+    except Exception:  # a finding: anything but ClsonarError
+        report.findings.append(f"{label}: {traceback.format_exc(limit=-2).strip()}")
+        return None
+    report.accepted += 1
+    return False
+
+
+def _cli_input(path: str, out: str, limit_s: float, label: str, report: FuzzReport) -> bool:
+    """A refused input through ``clsonar run`` in-process: a finding unless it prints one
+    ``clsonar: error:`` line, returns 2 and leaves ``out`` absent. False if it hung or
+    raised."""
+    report.cli_checked += 1
+    try:
+        with _alarm(10 * limit_s), warnings.catch_warnings():
+            warnings.simplefilter("error")
+            rc, err = run_cli(path, out)
+    except _Timeout:
+        report.findings.append(f"{label}: clsonar run still running")
+        return False
+    except BaseException:  # a traceback is the finding
+        report.findings.append(f"{label}: clsonar run: "
+                               f"{traceback.format_exc(limit=-2).strip()}")
+        return False
+    lines = err.splitlines()
+    if rc != 2 or len(lines) != 1 or not lines[0].startswith("clsonar: error: "):
+        report.findings.append(f"{label}: clsonar run exit {rc}, stderr {err!r:.300}")
+    if os.path.exists(out):
+        report.findings.append(f"{label}: clsonar run wrote {out}")
+        shutil.rmtree(out, ignore_errors=True)
+    return True
+
+
+def _timed(report: FuzzReport, label: str, elapsed: float, limit_s: float) -> None:
+    """Keep the slowest input; more than ``limit_s`` seconds of CPU is a finding."""
+    if elapsed > report.slowest_s:
+        report.slowest_s, report.slowest = elapsed, label
+    if elapsed > limit_s:
+        report.findings.append(f"{label}: took {elapsed:.2f} s > {limit_s:g} s")
+
+
+def fuzz(count: int, seed: int = 0, *, limit_s: float = LIMIT_S, device=None,
+         progress: Progress | None = None) -> FuzzReport:
     """Feed ``count`` hostile inputs (seeded by ``seed``) through :func:`preflight` and, for
     the refused ones, through ``clsonar run``; collect findings (see the module docstring)."""
     rng = random.Random(seed)
@@ -231,7 +290,7 @@ def fuzz(count: int, seed: int = 0, *, limit_s: float = 1.0, device=None,
         out = os.path.join(tmp, "out")
         for i in range(count):
             if progress and i % 1000 == 0:
-                progress(i, count)
+                progress(i, count, "inputs")
             kind, data = hostile_input(rng, seeds)
             report.inputs += 1
             report.by_mutation[kind] += 1
@@ -239,49 +298,11 @@ def fuzz(count: int, seed: int = 0, *, limit_s: float = 1.0, device=None,
                 f.write(data)
             label = f"input {i} ({kind}, seed {seed})"
             t0 = time.process_time()  # this process' own work: other load does not count
-            refused = False
-            try:
-                with _alarm(10 * limit_s), warnings.catch_warnings():
-                    warnings.simplefilter("error")  # a warning is a finding too
-                    preflight(path, device)
-                    report.accepted += 1
-            except ClsonarError as e:
-                refused = True
-                report.refused += 1
-                if "\n" in str(e):
-                    report.findings.append(f"{label}: error message of several lines")
-            except _Timeout:
-                report.findings.append(f"{label}: still running after {10 * limit_s:g} s")
+            refused = _preflight_input(path, device, limit_s, label, report)
+            if refused is None or (refused and not _cli_input(path, out, limit_s, label,
+                                                              report)):
                 continue
-            except Exception:  # a finding: anything but ClsonarError
-                report.findings.append(f"{label}: {traceback.format_exc(limit=-2).strip()}")
-                continue
-            if refused:
-                report.cli_checked += 1
-                try:
-                    with _alarm(10 * limit_s), warnings.catch_warnings():
-                        warnings.simplefilter("error")
-                        rc, err = run_cli(path, out)
-                except _Timeout:
-                    report.findings.append(f"{label}: clsonar run still running")
-                    continue
-                except BaseException:  # a traceback is the finding
-                    report.findings.append(f"{label}: clsonar run: "
-                                           f"{traceback.format_exc(limit=-2).strip()}")
-                    continue
-                lines = err.splitlines()
-                if rc != 2 or len(lines) != 1 or not lines[0].startswith("clsonar: error: "):
-                    report.findings.append(f"{label}: clsonar run exit {rc}, stderr {err!r:.300}")
-                if os.path.exists(out):
-                    report.findings.append(f"{label}: clsonar run wrote {out}")
-                    import shutil
-
-                    shutil.rmtree(out, ignore_errors=True)
-            elapsed = time.process_time() - t0
-            if elapsed > report.slowest_s:
-                report.slowest_s, report.slowest = elapsed, label
-            if elapsed > limit_s:
-                report.findings.append(f"{label}: took {elapsed:.2f} s > {limit_s:g} s")
+            _timed(report, label, time.process_time() - t0, limit_s)
     report.seconds = time.perf_counter() - start
     report.peak_rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     return report
@@ -292,10 +313,12 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m clsonar.tools.fuzz",
                                 description="Fuzz the scene loader and clsonar run's "
                                             "handling of bad input.")
-    p.add_argument("--count", type=int, default=10_000)
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--limit-s", type=float, default=1.0,
-                   help="seconds an input may take (default 1)")
+    p.add_argument("--count", type=int, default=10_000,
+                   help="hostile inputs to try (default 10000)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the mutations: the same seed, the same inputs (default 0)")
+    p.add_argument("--limit-s", type=float, default=LIMIT_S,
+                   help=f"seconds an input may take (default {LIMIT_S:g})")
     p.add_argument("--out", metavar="FILE.md", help="also write the result as markdown")
     p.add_argument("--device", help="OpenCL device for the memory check (default: none, "
                                     "this machine's memory only)")
@@ -305,13 +328,12 @@ def main(argv: list[str] | None = None) -> int:
         from ..opencl import get_context
 
         device = get_context(args.device).devices[0]
-
-    def progress(i: int, n: int) -> None:
-        print(f"\r{i}/{n}", end="", file=sys.stderr, flush=True)
-
-    report = fuzz(args.count, args.seed, limit_s=args.limit_s, device=device,
-                  progress=progress if sys.stderr.isatty() else None)
-    print(file=sys.stderr) if sys.stderr.isatty() else None
+    line = ProgressLine()
+    try:
+        report = fuzz(args.count, args.seed, limit_s=args.limit_s, device=device,
+                      progress=line)
+    finally:
+        line.done()
     print(report.summary())
     print("by mutation: " + ", ".join(f"{k} {v}" for k, v in sorted(report.by_mutation.items())))
     for f in report.findings[:20]:
@@ -319,8 +341,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         from ..files import write_atomic
 
-        command = f"python -m clsonar.tools.fuzz --count {args.count} --seed {args.seed}" + (
-            f" --limit-s {args.limit_s:g}" if args.limit_s != 1.0 else "") + f" --out {args.out}"
+        limit = f" --limit-s {args.limit_s:g}" if args.limit_s != LIMIT_S else ""
+        command = (f"python -m clsonar.tools.fuzz --count {args.count} --seed {args.seed}"
+                   f"{limit} --out {args.out}")
         write_atomic(args.out, markdown(report, command).encode())
     return 0 if not report.findings else 1
 
@@ -328,8 +351,8 @@ def main(argv: list[str] | None = None) -> int:
 def markdown(report: FuzzReport, command: str) -> str:
     """The result of a fuzzing run as a short markdown page."""
     lines = ["# Fuzzing the scene loader", "",
-             f"Regenerate with `{command}` (clsonar/fuzz.py describes the mutations and what "
-             "counts as a finding).", "",
+             f"Regenerate with `{command}` (clsonar/tools/fuzz.py describes the mutations and "
+             "what counts as a finding).", "",
              f"**{report.summary()}.**", "",
              "| mutation | inputs |", "| --- | ---: |"]
     lines += [f"| {k} | {v} |" for k, v in sorted(report.by_mutation.items())]

@@ -26,19 +26,20 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..files import bundled_scenes, write_atomic
+from ..outputs import metric, require_plots
+from ..pipeline import PRESETS
 from ..scene import Scene, load_scene
+from .markdown import NONE, cm, percent
+from .progress import Progress
+from .sweep import Run, RunTable, make_run, run_dask, run_local
 from .variants import at_distance
-
-if TYPE_CHECKING:
-    from .sweep import Run
 
 #: The thesis' RMS errors in cm (chapter 3: Figs 3.2–3.4 and 3.16–3.18).
 THESIS_RMS_CM = {("plane", 2.0): 0.72, ("plane", 4.0): 3.14, ("plane", 8.0): 6.69,
@@ -86,7 +87,8 @@ ROOMS = (
 #: Distance of the noise curves (thesis: 5 m for both).
 NOISE_DISTANCE_M = 5.0
 
-PRESETS = ("thesis", "best")
+#: Runs per experiment (placement and noise seeds 0, 1, … added to the scene's).
+DEFAULT_SEEDS = 5
 
 
 @dataclass(frozen=True)
@@ -132,17 +134,17 @@ class RoomTrial:
 
 def run_room(scene: Scene, figure: str, context) -> tuple[RoomTrial, bytes]:
     """Run a closed room and draw its profile."""
-    from ..outputs import render
+    from ..outputs import profile_png
     from ..pipeline import run
 
     result = run(scene, context=context)
     m = result.metrics
-    trial = RoomTrial(figure, scene.name, len(result.sensors.poses), m["accuracy_m"]["rms"],
-                      m["completeness"]["2cm"], m.get("vertices_found"),
-                      m.get("vertex_error_max_m"),
-                      [c["coverage_2cm"] for c in m.get("cylinders", [])],
+    trial = RoomTrial(figure, scene.name, len(result.sensors.poses),
+                      metric(m, "accuracy_m.rms"), metric(m, "completeness.2cm"),
+                      metric(m, "vertices_found"), metric(m, "vertex_error_max_m"),
+                      [c["coverage_2cm"] for c in metric(m, "cylinders") or []],
                       float(sum(result.seconds.values())))
-    return trial, render(result)["profile.png"]
+    return trial, profile_png(result)
 
 
 def rooms_markdown(trials: list[RoomTrial]) -> str:
@@ -154,11 +156,11 @@ def rooms_markdown(trials: list[RoomTrial]) -> str:
              "≤ 2 cm | seconds | the thesis observed |",
              "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
     for t in trials:
-        comp = "–" if t.completeness_2cm is None else f"{t.completeness_2cm * 100:.1f} %"
-        cyl = ", ".join(f"{c * 100:.0f} %" for c in t.cylinder_coverage_2cm) or "–"
-        lines.append(f"| {t.figure} | {t.scene} | {t.poses} | {_cm(t.accuracy_m)} | {comp} | "
-                     f"{t.vertices_found or '–'} | {_cm(t.vertex_error_max_m)} | {cyl} | "
-                     f"{t.seconds:.1f} | {notes[t.scene]} |")
+        cyl = ", ".join(percent(c) for c in t.cylinder_coverage_2cm) or NONE
+        lines.append(f"| {t.figure} | {t.scene} | {t.poses} | {cm(t.accuracy_m)} | "
+                     f"{percent(t.completeness_2cm, 1)} | {t.vertices_found or NONE} | "
+                     f"{cm(t.vertex_error_max_m)} | {cyl} | {t.seconds:.1f} | "
+                     f"{notes[t.scene]} |")
     lines += ["", "Noise-free, thesis' world (uniform directivity, no curvature gain), mapping "
               "`tangents` with line of sight, profile `walls`. The thesis took about 2 minutes "
               "per room. Pictures: `room_<scene>.png`.", ""]
@@ -169,13 +171,11 @@ def rooms_markdown(trials: list[RoomTrial]) -> str:
 def plan(scenes_dir: Path, seeds: int) -> list[Run]:
     """Every (family, distance, noise, preset, seed) of the table and the curves, once, as
     the runs of a sweep (:mod:`clsonar.tools.sweep`) with those as its parameters."""
-    from .sweep import make_run
-
     jobs: dict[tuple, Run] = {}
     bases = {name: load_scene(scenes_dir / f"{name}.json")
              for name in {t[1] for t in TABLE} | {c[2] for c in CURVES}}
 
-    def add(family, base, d0, distance, noise):
+    def add(family: str, base: str, d0: float, distance: float, noise: float) -> None:
         moved = at_distance(bases[base], d0, distance)
         moved = dataclasses.replace(moved, signal=dataclasses.replace(moved.signal,
                                                                       noise_std=noise))
@@ -192,11 +192,14 @@ def plan(scenes_dir: Path, seeds: int) -> list[Run]:
             add(family, base, d0, d, 0.0)
     for _, family, base, d0, varies, values in CURVES:
         for v in values:
-            if varies == "distance_m":
-                add(family, base, d0, v, 0.0)
-            else:
-                add(family, base, d0, NOISE_DISTANCE_M, v)
+            add(family, base, d0, *curve_setting(varies, v))
     return list(jobs.values())
+
+
+def curve_setting(varies: str, value: float) -> tuple[float, float]:
+    """``(distance_m, noise_std)`` of a curve's point: ``value`` is the distance (no noise)
+    or the noise σ (at :data:`NOISE_DISTANCE_M`)."""
+    return (value, 0.0) if varies == "distance_m" else (NOISE_DISTANCE_M, value)
 
 
 def _mean(values: Iterable[float | None]) -> float | None:
@@ -204,12 +207,15 @@ def _mean(values: Iterable[float | None]) -> float | None:
     return float(np.mean(v)) if v else None
 
 
-def _select(trials: list[Trial], **where) -> list[Trial]:
+def _select(trials: list[Trial], **where: object) -> list[Trial]:
     return [t for t in trials if all(getattr(t, k) == v for k, v in where.items())]
 
 
-def _cm(value: float | None) -> str:
-    return "–" if value is None else f"{value * 100:.2f}"
+def _on_curve(trials: list[Trial], family: str, varies: str, value: float,
+              preset: str) -> list[Trial]:
+    """The trials of one point of a curve (:func:`curve_setting`) under ``preset``."""
+    distance, noise = curve_setting(varies, value)
+    return _select(trials, family=family, distance_m=distance, noise_std=noise, preset=preset)
 
 
 def table_markdown(trials: list[Trial], seeds: int) -> str:
@@ -226,13 +232,12 @@ def table_markdown(trials: list[Trial], seeds: int) -> str:
                                preset="thesis")
             best = _select(trials, family=family, distance_m=d, noise_std=0.0, preset="best")
             thesis = THESIS_RMS_CM.get((family, d))
-            comp = _mean(t.completeness_2cm for t in best)
             lines.append(
-                f"| {family} {d:g} m | {'–' if thesis is None else f'{thesis:.2f}'} | "
-                f"{_cm(_mean(t.rms_m for t in faithful))} | {_cm(_mean(t.rms_m for t in best))}"
-                f" | {_cm(_mean(t.accuracy_m for t in faithful))}"
-                f" | {_cm(_mean(t.accuracy_m for t in best))} | "
-                f"{'–' if comp is None else f'{comp * 100:.0f} %'} | "
+                f"| {family} {d:g} m | {NONE if thesis is None else f'{thesis:.2f}'} | "
+                f"{cm(_mean(t.rms_m for t in faithful))} | {cm(_mean(t.rms_m for t in best))}"
+                f" | {cm(_mean(t.accuracy_m for t in faithful))}"
+                f" | {cm(_mean(t.accuracy_m for t in best))} | "
+                f"{percent(_mean(t.completeness_2cm for t in best))} | "
                 f"{_mean(t.seconds for t in best) or 0:.2f} |")
     lines.append("")
     lines.append(f"Means over {seeds} seeds, noise-free. RMS is thesis eq. 2.6 along the wall "
@@ -247,25 +252,18 @@ def table_markdown(trials: list[Trial], seeds: int) -> str:
     return "\n".join(lines)
 
 
-def curve_png(figure: str, family: str, varies: str, values, trials: list[Trial]) -> bytes:
+def curve_png(figure: str, family: str, varies: str, values: tuple[float, ...],
+              trials: list[Trial]) -> bytes:
     """One of the thesis' RMS curves, thesis-faithful and best, mean ± spread over seeds."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
+    from ..plots import figure as new_figure
     from ..plots import png_bytes
     from .sweepplot import draw_spread
 
-    fig = Figure(figsize=(6, 4), dpi=120, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = new_figure((6, 4), 120)
     ax = fig.add_subplot()
-    for preset, style in (("thesis", "o-"), ("best", "s-")):
-        samples = []
-        for v in values:
-            sel = (_select(trials, family=family, distance_m=v, noise_std=0.0, preset=preset)
-                   if varies == "distance_m" else
-                   _select(trials, family=family, distance_m=NOISE_DISTANCE_M, noise_std=v,
-                           preset=preset))
-            samples.append([t.rms_m * 100 for t in sel if t.rms_m is not None])
+    for preset, style in zip(PRESETS, ("o-", "s-"), strict=True):
+        samples = [[t.rms_m * 100 for t in _on_curve(trials, family, varies, v, preset)
+                    if t.rms_m is not None] for v in values]
         draw_spread(ax, values, samples, style, f"clsonar, {preset} settings")
     marks = [(d, v) for (f, d), v in THESIS_RMS_CM.items() if f == family]
     if varies == "distance_m" and marks:
@@ -290,22 +288,67 @@ def curves_markdown(trials: list[Trial]) -> str:
                 f"| {label} | " + " | ".join(f"{v:g}" for v in values) + " |",
                 "| --- |" + " ---: |" * len(values)]
         for preset in PRESETS:
-            row = []
-            for v in values:
-                sel = (_select(trials, family=family, distance_m=v, noise_std=0.0,
-                               preset=preset) if varies == "distance_m" else
-                       _select(trials, family=family, distance_m=NOISE_DISTANCE_M,
-                               noise_std=v, preset=preset))
-                row.append(_cm(_mean(t.rms_m for t in sel)))
+            row = [cm(_mean(t.rms_m for t in _on_curve(trials, family, varies, v, preset)))
+                   for v in values]
             label_preset = "thesis-faithful" if preset == "thesis" else preset
             out.append(f"| {label_preset} | " + " | ".join(row) + " |")
         out += ["", f"![Fig {figure}](fig{figure.replace('.', '_')}.png)", ""]
     return "\n".join(out)
 
 
-def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = 5,
-              device: str | None = None,
-              progress: Callable[[int, int, str], None] | None = None,
+def run_trials(jobs: list[Run], out: Path, context, *, device: str | None = None,
+               progress: Progress | None = None, client=None) -> list[Trial]:
+    """Run the table's and the curves' trials as a sweep whose table is ``out/runs.jsonl``
+    (locally on ``context``, or on the Dask cluster of ``client``); returns them in plan
+    order."""
+    table = RunTable(out)
+    table.repair()
+
+    def tell(i: int, n: int, run: Run) -> None:
+        if progress is not None:
+            progress(i, n, f"{run.scene.name} σ={run.scene.signal.noise_std:g} {run.preset}")
+
+    if client is None:
+        run_local(jobs, table, METRICS, context=context, progress=tell)
+    else:
+        run_dask(jobs, table, METRICS, client, device=device, progress=tell)
+    done = table.rows()
+    return [trial_of(done[job.run_id]) for job in jobs]
+
+
+def run_rooms(scenes_dir: Path, context, progress: Progress | None = None
+              ) -> tuple[list[RoomTrial], dict[str, bytes]]:
+    """Run every closed room of :data:`ROOMS`; returns the trials and their profile PNGs
+    by file name."""
+    rooms, pictures = [], {}
+    for i, (figure, name, _) in enumerate(ROOMS):
+        if progress is not None:
+            progress(i + 1, len(ROOMS), f"{name} (closed room)")
+        trial, png = run_room(load_scene(scenes_dir / f"{name}.json"), figure, context)
+        rooms.append(trial)
+        pictures[f"room_{name}.png"] = png
+    return rooms, pictures
+
+
+def report_markdown(trials: list[Trial], rooms: list[RoomTrial], seeds: int,
+                    device: str) -> str:
+    """``reproduce.md``: the table, the curves and the closed rooms."""
+    return "\n".join([
+        "# The thesis' experiments, reproduced",
+        "",
+        f"Regenerate with `clsonar reproduce --out docs/reproduce --seeds {seeds}` "
+        f"(device: {device}).",
+        "",
+        table_markdown(trials, seeds),
+        "",
+        curves_markdown(trials),
+        "",
+        rooms_markdown(rooms),
+    ]) + "\n"
+
+
+def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = DEFAULT_SEEDS,
+              device: str | None = None, progress: Progress | None = None,
               client=None) -> list[Trial]:
     """Run every experiment and write ``reproduce.md``, ``reproduce.json`` and the figures'
     PNGs into ``out``; returns the trials.
@@ -316,46 +359,16 @@ def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = 5,
     ``dask.distributed.Client`` they run on its cluster.
     """
     from ..opencl import get_context
-    from .sweep import RunTable, run_dask, run_local
 
+    require_plots("clsonar reproduce (its figures)")
     context = get_context(device)
-    jobs = plan(scenes_dir or bundled_scenes(), seeds)
+    folder = scenes_dir or bundled_scenes()
     out.mkdir(parents=True, exist_ok=True)
-    table = RunTable(out)
-    table.repair()
-
-    def tell(i: int, n: int, run) -> None:
-        if progress is not None:
-            progress(i, n, f"{run.scene.name} σ={run.scene.signal.noise_std:g} {run.preset}")
-
-    if client is None:
-        run_local(jobs, table, METRICS, context=context, progress=tell)
-    else:
-        run_dask(jobs, table, METRICS, client, device=device, progress=tell)
-    done = table.rows()
-    trials = [trial_of(done[job.run_id]) for job in jobs]
-    rooms, pictures = [], {}
-    for i, (figure, name, _) in enumerate(ROOMS):
-        if progress is not None:
-            progress(i + 1, len(ROOMS), f"{name} (closed room)")
-        trial, png = run_room(load_scene((scenes_dir or bundled_scenes()) / f"{name}.json"),
-                              figure, context)
-        rooms.append(trial)
-        pictures[f"room_{name}.png"] = png
-    device_name = context.devices[0].name.strip()
-    text = "\n".join([
-        "# The thesis' experiments, reproduced",
-        "",
-        f"Regenerate with `clsonar reproduce --out docs/reproduce --seeds {seeds}` "
-        f"(device: {device_name}).",
-        "",
-        table_markdown(trials, seeds),
-        "",
-        curves_markdown(trials),
-        "",
-        rooms_markdown(rooms),
-    ])
-    write_atomic(out / "reproduce.md", (text + "\n").encode())
+    trials = run_trials(plan(folder, seeds), out, context, device=device, progress=progress,
+                        client=client)
+    rooms, pictures = run_rooms(folder, context, progress)
+    text = report_markdown(trials, rooms, seeds, context.devices[0].name.strip())
+    write_atomic(out / "reproduce.md", text.encode())
     write_atomic(out / "reproduce.json", (json.dumps(
         [dataclasses.asdict(t) for t in trials + rooms], indent=1) + "\n").encode())
     for name, png in pictures.items():
@@ -363,5 +376,5 @@ def reproduce(out: Path, scenes_dir: Path | None = None, *, seeds: int = 5,
     for figure, family, _, _, varies, values in CURVES:
         name = f"fig{figure.replace('.', '_')}.png"
         write_atomic(out / name, curve_png(figure, family, varies, values, trials))
-    table.path.unlink()  # it only serves to resume an interrupted reproduce
+    RunTable(out).path.unlink()  # it only serves to resume an interrupted reproduce
     return trials

@@ -14,11 +14,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
-from collections.abc import Callable
 from pathlib import Path
 
 from ..files import write_atomic
 from . import stability
+from .progress import Progress
 from .stability import BOUNDS, ECHO_FAMILIES, MAP_FAMILIES, SIGNAL_FAMILIES, Findings
 
 #: Cases of the ``million`` family run: one in this many map cases at most (they are slow).
@@ -29,7 +29,8 @@ def schedule(count: int) -> list[tuple[str, str, int]]:
     """``count`` cases ``(kind, family, seed)``: echo, signal and map families in turn, each
     family's seeds counting up; ``million`` maps are capped to one per :data:`MILLION_EVERY`
     map cases (at least one)."""
-    cases, seeds = [], {}
+    cases: list[tuple[str, str, int]] = []
+    seeds: dict[tuple[str, str], int] = {}
     families = ([("echo", f) for f in ECHO_FAMILIES] + [("signal", f) for f in SIGNAL_FAMILIES]
                 + [("map", f) for f in MAP_FAMILIES])
     i = 0
@@ -48,8 +49,7 @@ def schedule(count: int) -> list[tuple[str, str, int]]:
 
 def run_stress(count: int, context, *, many: int = 200, million: int | None = None,
                work_group_every: int = 25,
-               progress: Callable[[int, int, str], None] | None = None,
-               ) -> tuple[dict[str, Findings], float]:
+               progress: Progress | None = None) -> tuple[dict[str, Findings], float]:
     """Run :func:`schedule` (``count``) on ``context``; returns findings per
     ``kind family`` and the seconds taken."""
     million = stability.MILLION if million is None else million
@@ -98,7 +98,7 @@ def markdown(per_family: dict[str, Findings], device: str, seconds: float,
         "# Numerical stability: float32 kernels against float64",
         "",
         f"Regenerate with `{command}` ({t.cases} cases on {device}, {seconds:.0f} s).",
-        "The generators and the judge are `clsonar/stability.py`; the CI property suite",
+        "The generators and the judges are `clsonar/tools/stability/`; the CI property suite",
         "(`tests/test_stability.py`) runs the same generators on fewer cases.",
         "",
         f"**Result: {'all bounds hold' if passed(t) else 'BOUNDS VIOLATED'}.**",
@@ -174,7 +174,7 @@ DEFINITIONS = f"""\
   bit-identical.
 - **Families**: echo — {', '.join(ECHO_FAMILIES)}; signal — {', '.join(SIGNAL_FAMILIES)};
   map — {', '.join(MAP_FAMILIES)}
-  (clsonar/stability.py describes each).
+  (clsonar/tools/stability/ describes each).
 """
 
 
@@ -215,8 +215,7 @@ def report_json(per_family: dict[str, Findings], device: str, seconds: float,
 
 
 def stress(out: Path, count: int, *, device: str | None = None, many: int = 200,
-           progress: Callable[[int, int, str], None] | None = None,
-           command: str = "clsonar stress") -> Findings:
+           progress: Progress | None = None, command: str = "clsonar stress") -> Findings:
     """Run ``count`` cases and write ``out/stress.md`` and ``out/stress.json`` (or, when
     ``out`` ends in ``.md``, that file and the ``.json`` beside it); returns the merged
     findings."""

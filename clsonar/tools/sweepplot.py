@@ -18,7 +18,10 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import ClsonarError
 from ..files import write_atomic
+from ..outputs import require_plots
+from .sweep import read_sweep
 
 
 def draw_spread(ax, x: Sequence[float], samples: Sequence[Sequence[float]], style: str,
@@ -54,10 +57,7 @@ def metric_png(name: str, rows: list[dict[str, Any]], metric: str, param: str,
                others: Sequence[str]) -> bytes | None:
     """``metric`` against ``param``: mean ± spread over seeds, one line per scene and
     combination of ``others``; None if ``metric`` has no numeric value."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    from ..plots import png_bytes
+    from ..plots import figure, png_bytes
 
     if not any(_numeric(r.get(metric)) for r in rows):
         return None
@@ -68,8 +68,7 @@ def metric_png(name: str, rows: list[dict[str, Any]], metric: str, param: str,
         xs.sort()
     positions = [float(v) for v in xs] if numeric_x else list(range(len(xs)))
     groups = ["scene", *others]
-    fig = Figure(figsize=(6.5, 4.2), dpi=120, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = figure((6.5, 4.2), 120)
     ax = fig.add_subplot()
     lines = {tuple(_key(r.get(g)) for g in groups): r for r in rows}
     seeds = len({r["seed"] for r in rows})
@@ -105,9 +104,7 @@ def plot_file_name(metric: str, param: str) -> str:
 def plot_sweep(folder: str | os.PathLike[str]) -> list[Path]:
     """Draw every numeric metric of the sweep in ``folder`` against each swept parameter
     into ``folder/plots/``; returns the PNGs written."""
-    from ..errors import ClsonarError
-    from .sweep import read_sweep
-
+    require_plots("clsonar plot")
     folder = Path(folder)
     header, rows = read_sweep(folder)
     if not rows:

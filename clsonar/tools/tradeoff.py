@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..outputs import metric
 from ..pipeline import RunResult, Skips, run
 from ..scene import RandomLines, Scene, WallFollowing
 
@@ -98,7 +99,8 @@ def bench_tradeoff(scene: Scene, context, repeat: int,
         r = fastest_run(variant, context, repeat, preset=preset)
         m = r.metrics
         rows.append(TradeoffRow(scene.name, label, float(sum(r.seconds.values())),
-                                m["accuracy_m"]["rms"], m["rms_m"], m["completeness"]["2cm"]))
+                                metric(m, "accuracy_m.rms"), metric(m, "rms_m"),
+                                metric(m, "completeness.2cm")))
     return pareto(rows)
 
 
@@ -167,27 +169,24 @@ def bench_skips(scene: Scene, settings: str, preset: str | None, context,
 def tradeoff_png(rows: list[TradeoffRow]) -> bytes:
     """Run time against error per scene (log–log), the Pareto front joined, the thesis
     setting in red."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    from ..plots import png_bytes
+    from ..plots import figure, png_bytes
 
     scenes = list(dict.fromkeys(r.scene for r in rows))
     cols = min(3, max(1, len(scenes)))
     nrows = max(1, math.ceil(len(scenes) / cols))
-    fig = Figure(figsize=(4.2 * cols, 3.6 * nrows), dpi=120, layout="constrained")
-    FigureCanvasAgg(fig)
+    fig = figure((4.2 * cols, 3.6 * nrows), 120)
     for i, name in enumerate(scenes):
         ax = fig.add_subplot(nrows, cols, i + 1)
-        mine = [r for r in rows if r.scene == name and r.accuracy_m is not None]
-        front = sorted((r for r in mine if r.pareto), key=lambda r: r.total_s)
-        ax.plot([r.total_s for r in front], [r.accuracy_m * 100 for r in front], "-",
+        mine = [(r, r.accuracy_m * 100) for r in rows
+                if r.scene == name and r.accuracy_m is not None]
+        front = sorted(((r, cm) for r, cm in mine if r.pareto), key=lambda p: p[0].total_s)
+        ax.plot([r.total_s for r, _ in front], [cm for _, cm in front], "-",
                 color="tab:blue", alpha=0.5, label="Pareto front")
-        for r in mine:
+        for r, cm in mine:
             thesis = r.setting.startswith(THESIS)
-            ax.plot(r.total_s, r.accuracy_m * 100, "o" if r.pareto else ".",
+            ax.plot(r.total_s, cm, "o" if r.pareto else ".",
                     color="tab:red" if thesis else "tab:blue")
-            ax.annotate(r.setting.replace("ours, ", ""), (r.total_s, r.accuracy_m * 100),
+            ax.annotate(r.setting.replace("ours, ", ""), (r.total_s, cm),
                         fontsize=6, xytext=(3, 2), textcoords="offset points")
         ax.set_xscale("log")
         ax.set_yscale("log")
