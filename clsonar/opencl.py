@@ -202,6 +202,12 @@ def context_for(context=None, device: str | None = None, precision: str = "float
     return ctx
 
 
+def device_name(context) -> str:
+    """``"device (platform)"`` of the context's device, as reports name it."""
+    d = context.devices[0]
+    return f"{d.name.strip()} ({d.platform.name.strip()})"
+
+
 def has_fp64(context) -> bool:
     """Whether the context's device has ``cl_khr_fp64`` (needed for ``precision="float64"``)."""
     return "cl_khr_fp64" in context.devices[0].extensions

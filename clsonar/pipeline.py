@@ -27,7 +27,7 @@ from .echoes import EchoTable, compute_echoes
 from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
 from .mapping import Votes
-from .opencl import get_context
+from .opencl import device_name, get_context
 from .scene import DetectionSettings, MappingSettings, PostSettings, Scene, scene_to_dict
 from .sensors import SensorArray, pairs, place_sensors
 from .signals import Detections
@@ -104,11 +104,6 @@ class RunResult:
             "seconds": {**self.seconds, "total": sum(self.seconds.values())},
             "metrics": self.metrics,
         }
-
-
-def _device_name(context) -> str:
-    d = context.devices[0]
-    return f"{d.name.strip()} ({d.platform.name.strip()})"
 
 
 @dataclass(frozen=True)
@@ -209,8 +204,8 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
                progress: Progress | None) -> RunResult:
     """The front stages (sensors → echoes → detection → votes), each reused from ``cache``
     when its key is there; the result's maps and profile are still empty."""
-    device_name = _device_name(ctx)
-    keys = stage_keys(scene, device_name, skips) if cache is not None else {}
+    device = device_name(ctx)
+    keys = stage_keys(scene, device, skips) if cache is not None else {}
     clock = _Stopwatch(progress)
     counts: dict[str, int] = {}
     reused: list[str] = []
@@ -241,7 +236,7 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
     return RunResult(scene=scene, geometry=geom, sensors=sensors, echoes=echoes,
                      detections=detections, votes=votes, raw=empty, filtered=empty,
                      occupied=empty, thin=empty, profile=post.Profile(()), metrics={},
-                     seconds=clock.stop(), counts=counts, device=device_name)
+                     seconds=clock.stop(), counts=counts, device=device)
 
 
 #: Host memory the mosaic of a scene mapped room by room holds per cell: raw and filtered
@@ -281,7 +276,7 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
     pooled = regions.combine_metrics([p.metrics for p in parts])
     return RunResult(scene=scene, geometry=build_geometry(scene), **_side_by_side(parts),
                      votes=None, **maps, metrics=pooled, seconds=seconds, counts=counts,
-                     device=_device_name(ctx))
+                     device=device_name(ctx))
 
 
 def _add_to_mosaic(maps: dict[str, np.ndarray], r: RunResult, room: regions.Region) -> None:

@@ -429,7 +429,7 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     shapes among ``names``) the knobs' run time against error, and the ``floors`` (sizes in
     metres, :mod:`clsonar.tools.floors`) mapped room by room."""
     from ..files import bundled_scenes
-    from ..opencl import get_context
+    from ..opencl import device_name, get_context
 
     folder = scenes_dir or bundled_scenes()
     scenes = [load_scene(folder / f"{name}.json") for name in names]
@@ -454,8 +454,7 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     for size in floors:
         tell(f"floor {size:g} m × {size:g} m (a separate process)")
         floor_rows.append(bench_floor(size, device))
-    d = context.devices[0]
-    report = BenchReport(f"{d.name.strip()} ({d.platform.name.strip()})", pipeline,
+    report = BenchReport(device_name(context), pipeline,
                          accumulation, stage_rows, skips, trade, beats_thesis(trade),
                          floor_rows)
     out.mkdir(parents=True, exist_ok=True)
