@@ -53,6 +53,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .. import echoes as echoes_mod
+from ..echoes import host as echo_host
 from .. import mapping
 from ..mapping import Loci
 from ..scene import Circle, EchoModel, MappingSettings, Polyline, Scene, Sensors, Sinusoid
@@ -563,12 +564,12 @@ def _same_table(a, b) -> bool:
 @contextlib.contextmanager
 def echo_work_group(size: int) -> Iterator[None]:
     """Run the echo kernels with work groups of ``size`` along the elements."""
-    saved = echoes_mod.WORK_GROUP
-    echoes_mod.WORK_GROUP = size
+    saved = echo_host.WORK_GROUP
+    echo_host.WORK_GROUP = size
     try:
         yield
     finally:
-        echoes_mod.WORK_GROUP = saved
+        echo_host.WORK_GROUP = saved
 
 
 @contextlib.contextmanager
