@@ -269,6 +269,16 @@ def work_group(kernel, device, wanted: int) -> int:
     return max(1, min(wanted, 1 << (max_work_group(kernel, device).bit_length() - 1)))
 
 
+def read_only_buffer(context, array: np.ndarray, dtype, empty_size: int = 1):
+    """A read-only device copy of ``array`` as ``dtype`` (C order). OpenCL has no empty
+    buffers: an empty array becomes ``empty_size`` zeros, which the kernels never read."""
+    a = np.ascontiguousarray(array, dtype=dtype)
+    if a.size == 0:
+        a = np.zeros(empty_size, dtype=dtype)
+    cl = _cl()
+    return cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
+
+
 _PROGRAMS: dict[tuple, object] = {}
 
 

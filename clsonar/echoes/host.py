@@ -15,6 +15,7 @@ from ..opencl import (
     context_for,
     kernel,
     precision_defines,
+    read_only_buffer,
     work_group,
 )
 from ..opencl import queue as queue_of
@@ -112,12 +113,8 @@ class _Launcher:
         self.args: dict[str, list] = {}
 
     def buf(self, array: np.ndarray, dtype, columns: int | None = None):
-        """A read-only device copy of ``array`` as ``dtype``."""
-        a = np.ascontiguousarray(array, dtype=dtype)
-        if a.size == 0:  # OpenCL has no empty buffers; the kernels never read this one
-            a = np.zeros(columns or 1, dtype=dtype)
-        mf = self.cl.mem_flags
-        return self.cl.Buffer(self.ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=a)
+        """A read-only device copy of ``array`` as ``dtype`` (:func:`read_only_buffer`)."""
+        return read_only_buffer(self.ctx, array, dtype, columns or 1)
 
     def family_args(self, family: str) -> list:
         """The buffers of ``family``'s surface elements (made on first use)."""

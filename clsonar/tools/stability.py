@@ -53,8 +53,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .. import echoes as echoes_mod
-from ..echoes import host as echo_host
 from .. import mapping
+from ..echoes import host as echo_host
 from ..mapping import Loci
 from ..scene import Circle, EchoModel, MappingSettings, Polyline, Scene, Sensors, Sinusoid
 from ..scene import Transducer as SceneTransducer
