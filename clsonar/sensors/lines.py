@@ -68,7 +68,7 @@ def place_random_lines(p: RandomLines, scene: Scene, geom: Geometry) -> Placed:
         array += 1
     if not positions:
         raise placement_error(scene, f"placement placed no transducer: the first element at "
-                                      f"({start[0]:.3f}, {start[1]:.3f}) is {reason}")
+                                     f"({start[0]:.3f}, {start[1]:.3f}) is {reason}")
     return (np.asarray(positions).reshape(-1, 2), np.asarray(headings, dtype=np.float64),
             np.asarray(groups, dtype=np.int64), np.zeros((0, 2)))
 
@@ -122,8 +122,8 @@ def _random_start(p: RandomLines, scene: Scene, geom: Geometry,
                 and nearest_surface_point(geom, point[None])[0][0] >= p.clearance_m):
             return point
     raise placement_error(scene, "placement placed no transducer: no random start in free "
-                                  f"space at least clearance_m = {p.clearance_m:g} from every "
-                                  "surface was found in 1000 draws; give sensors.placement.start")
+                                 f"space at least clearance_m = {p.clearance_m:g} from every "
+                                 "surface was found in 1000 draws; give sensors.placement.start")
 
 
 # --------------------------------------------------------------------------- per wall
@@ -209,9 +209,9 @@ def place_per_wall(p: PerWall, scene: Scene, geom: Geometry) -> Placed:
         first += int(wg.max()) + 1
     if not pos:
         raise placement_error(scene, f"per-wall placed no transducer: no wall of surfaces"
-                                      f"[{p.surface}] has room for an array at distance_m = "
-                                      f"{p.distance_m:g} (distance_step_m = "
-                                      f"{p.distance_step_m:g}) inside the room")
+                                     f"[{p.surface}] has room for an array at distance_m = "
+                                     f"{p.distance_m:g} (distance_step_m = "
+                                     f"{p.distance_step_m:g}) inside the room")
     g = np.concatenate(groups)
     positions = np.concatenate(pos)
     poses = np.asarray([0.5 * (positions[g == k][0] + positions[g == k][-1])

@@ -201,14 +201,14 @@ def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry) -> Plac
     """
     if p.radius_m >= p.clearance_m:
         raise placement_error(scene, f"ring radius_m = {p.radius_m:g} must be smaller than "
-                                      f"clearance_m = {p.clearance_m:g}",
-                               "sensors.placement.radius_m")
+                                     f"clearance_m = {p.clearance_m:g}",
+                              "sensors.placement.radius_m")
     path, arc, length = wall_following_path(p, scene, geom)
     h = wall_following_substep(p)
     targets = np.arange(0.0, length - 0.5 * h, p.step_m)
     if len(targets) > p.max_poses:
         raise placement_error(scene, f"wall-following: {len(targets)} poses needed, more than "
-                                      f"max_poses = {p.max_poses}")
+                                     f"max_poses = {p.max_poses}")
     closed_path = np.concatenate([path, path[:1]])
     closed_arc = np.append(arc, length)
     centres = []
