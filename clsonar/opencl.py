@@ -1,6 +1,6 @@
 """OpenCL devices, contexts and programs.
 
-Device choice (DESIGN.md, "OpenCL conventions"): an explicit ``device`` argument (``--device``
+Device choice (docs/design.md, "OpenCL conventions"): an explicit ``device`` argument (``--device``
 on the command line), else ``PYOPENCL_CTX``, else the first GPU that can build kernels, else
 the first such CPU (PoCL). A device "can build" when a tiny test kernel compiles on it: PyPI's
 ``pocl-binary-distribution`` 3.0 lists the CPU but fails every build here ("unknown target
