@@ -55,7 +55,7 @@ class EchoTable:
                        f"{self.amplitude[i]:.9g},{names[i]},{self.order[i]}\n")
 
 
-def pair_chunks(n_pairs: int, width: int) -> Iterator[slice]:
+def _pair_chunks(n_pairs: int, width: int) -> Iterator[slice]:
     """Slices of the pairs so that each launch has at most SLOTS_PER_LAUNCH work items."""
     step = max(1, SLOTS_PER_LAUNCH // max(width, 1))
     for start in range(0, n_pairs, step):
@@ -105,7 +105,7 @@ def solve(pb: EchoProblem, run: Callable[[str, slice], tuple]) -> EchoTable:
     for family, width in pb.widths.items():
         if width == 0 or len(pb.pairs) == 0:
             continue
-        for chunk in pair_chunks(len(pb.pairs), width):
+        for chunk in _pair_chunks(len(pb.pairs), width):
             tof, amp, point = run(family, chunk)
             parts.append(_rows(pb, family, chunk.start, tof, amp, point))
     return _table(parts)

@@ -16,7 +16,7 @@ VIEW_MARGIN_M = 1e-6
 VIEW_MARGIN_RAD = 1e-6
 
 
-def view_primitives(pb: EchoProblem) -> np.ndarray:
+def _view_primitives(pb: EchoProblem) -> np.ndarray:
     """[n, 5] every surface as a thick segment (x0, y0, x1, y1, radius) that contains it:
     walls (radius 0), circles (a point of radius r), sinusoids (their base line, radius
     |A|)."""
@@ -29,7 +29,7 @@ def view_primitives(pb: EchoProblem) -> np.ndarray:
     return np.concatenate(parts).reshape(-1, 5)
 
 
-def wedge_planes(pb: EchoProblem, sensor: np.ndarray) -> np.ndarray:
+def _wedge_planes(pb: EchoProblem, sensor: np.ndarray) -> np.ndarray:
     """[N, 2, 3] the beams of ``sensor`` as two half-planes each, ``n·p + d ≥ 0``: the
     beam (inside where sin²θ ≤ cut_sin2 and cos θ > 0) is a wedge of half-angle α < 90°
     about the axis, the intersection of the half-planes of its two edges."""
@@ -45,7 +45,7 @@ def wedge_planes(pb: EchoProblem, sensor: np.ndarray) -> np.ndarray:
     return np.stack(planes, axis=1)
 
 
-def meets(planes: np.ndarray, prims: np.ndarray) -> np.ndarray:
+def _meets(planes: np.ndarray, prims: np.ndarray) -> np.ndarray:
     """[P, n] bool: whether each thick segment of ``prims`` [n, 5] meets the intersection
     of the half-planes ``planes`` [P, H, 3] (each grown by the segment's radius; Cyrus–Beck
     clipping of the segment's parameter t ∈ [0, 1])."""
@@ -73,14 +73,14 @@ def pairs_in_view(pb: EchoProblem, block: int = 4096) -> np.ndarray:
     may still have no echo; a dropped pair has none (every kernel family gives it amplitude
     0)."""
     n = len(pb.pairs)
-    prims = view_primitives(pb)
+    prims = _view_primitives(pb)
     if n == 0 or pb.cut_sin2 >= 1.0 - 1e-9:
         return np.ones(n, dtype=bool)
     if len(prims) == 0:
         return np.zeros(n, dtype=bool)
     sensors = np.arange(len(pb.positions))
-    planes = wedge_planes(pb, sensors)
-    sees = meets(planes, prims)  # [N, n]: surfaces meeting each sensor's beam
+    planes = _wedge_planes(pb, sensors)
+    sees = _meets(planes, prims)  # [N, n]: surfaces meeting each sensor's beam
     keep = np.zeros(n, dtype=bool)
     t, r = pb.pairs[:, 0], pb.pairs[:, 1]
     if np.any(pb.sequence_order >= 2) or len(pb.corners):  # multi-bounce paths exist
@@ -91,5 +91,5 @@ def pairs_in_view(pb: EchoProblem, block: int = 4096) -> np.ndarray:
         rows = np.flatnonzero(cand.any(axis=1) & ~keep[sl])
         if len(rows):
             joint = np.concatenate([planes[t[sl][rows]], planes[r[sl][rows]]], axis=1)
-            keep[i + rows] = (meets(joint, prims) & cand[rows]).any(axis=1)
+            keep[i + rows] = (_meets(joint, prims) & cand[rows]).any(axis=1)
     return keep

@@ -13,7 +13,7 @@ from .limits import MAX_MAGNITUDE
 from .model import Point
 
 #: Marks a key without a default: missing, it is an error.
-MISSING: Any = object()
+_MISSING: Any = object()
 
 #: The values of one ``Literal`` setting (clsonar.scene.settings).
 Choice = TypeVar("Choice", bound=str)
@@ -53,12 +53,12 @@ class JsonReader:
                 raise self.fail(join(key, k), "missing required key")
         return value
 
-    def number(self, d: dict[str, Any], name: str, key: str, default: Any = MISSING, *,
+    def number(self, d: dict[str, Any], name: str, key: str, default: Any = _MISSING, *,
                gt: float | None = None, ge: float | None = None, le: float | None = None,
                lt: float | None = None) -> float:
         path = join(key, name)
         if name not in d:
-            if default is MISSING:
+            if default is _MISSING:
                 raise self.fail(path, "missing required key")
             return default
         return self._bounded(self.check_number(d[name], path, gt=gt, ge=ge, le=le, lt=lt), path)
@@ -83,11 +83,11 @@ class JsonReader:
                 raise self.fail(path, f"must be {word} {bound:g}")
         return v
 
-    def integer(self, d: dict[str, Any], name: str, key: str, default: Any = MISSING, *,
+    def integer(self, d: dict[str, Any], name: str, key: str, default: Any = _MISSING, *,
                 ge: int | None = None, le: int | None = None) -> int:
         path = join(key, name)
         if name not in d:
-            if default is MISSING:
+            if default is _MISSING:
                 raise self.fail(path, "missing required key")
             return default
         v = d[name]
@@ -108,10 +108,10 @@ class JsonReader:
         return v
 
     def choice(self, d: dict[str, Any], name: str, key: str, options: tuple[str, ...],
-               default: Any = MISSING) -> str:
+               default: Any = _MISSING) -> str:
         path = join(key, name)
         if name not in d:
-            if default is MISSING:
+            if default is _MISSING:
                 raise self.fail(path, "missing required key")
             return default
         v = d[name]
@@ -136,10 +136,10 @@ class JsonReader:
         x, y = self.vector(v, path, 2)
         return (x, y)
 
-    def point(self, d: dict[str, Any], name: str, key: str, default: Any = MISSING) -> Point:
+    def point(self, d: dict[str, Any], name: str, key: str, default: Any = _MISSING) -> Point:
         path = join(key, name)
         if name not in d or (d[name] is None and default is None):
-            if default is MISSING:
+            if default is _MISSING:
                 raise self.fail(path, "missing required key")
             return default
         return self.xy(d[name], path)

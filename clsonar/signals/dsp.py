@@ -20,7 +20,7 @@ HIST_STRIDE = 4
 RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))
 
 
-def box_sum(x: np.ndarray, length: int) -> np.ndarray:
+def _box(x: np.ndarray, length: int) -> np.ndarray:
     """Causal running sum of ``length`` samples (zeros before the start)."""
     c = np.cumsum(x)
     out = c.copy()
@@ -32,7 +32,7 @@ def envelope_sq_raw(s: np.ndarray, ratio: float, box: int) -> np.ndarray:
     """|y|² of the two-box demodulated signal (uncalibrated)."""
     n = np.arange(len(s), dtype=np.float64)
     z = s * np.exp(-2j * math.pi * ((ratio * n) % 1.0))
-    y = box_sum(box_sum(z, box), box)
+    y = _box(_box(z, box), box)
     return y.real**2 + y.imag**2
 
 
