@@ -30,14 +30,14 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from .scene import Circle, Polyline, Scene, Sinusoid
 
-VERTEX_KINDS = ("flat", "corner", "edge", "end", "solid")
+#: Vertex kind codes (see the module docstring).
 FLAT, CORNER, EDGE, END, SOLID = range(5)
 
 #: Interior angles within this many radians of 180° count as ``flat``.
@@ -86,24 +86,62 @@ class Geometry:
         return np.bincount(self.interval_curve, minlength=len(self.curves))
 
 
+@dataclass
+class _PolylineParts:
+    """Walls and vertices of a scene's polylines, gathered surface by surface."""
+
+    walls: list[tuple[float, ...]] = field(default_factory=list)  # x0, y0, x1, y1
+    normals: list[np.ndarray] = field(default_factory=list)
+    two_sided: list[bool] = field(default_factory=list)
+    owner: list[int] = field(default_factory=list)
+    verts: list[np.ndarray] = field(default_factory=list)
+    vwalls: list[tuple[int, int]] = field(default_factory=list)
+    vleft: list[int] = field(default_factory=list)
+    vright: list[int] = field(default_factory=list)
+
+
 def build_geometry(scene: Scene) -> Geometry:
     """Derive the :class:`Geometry` of ``scene`` (see the module docstring)."""
-    walls, normals, two_sided, owner = [], [], [], []
-    verts, vwalls, vleft, vright = [], [], [], []
+    parts = _PolylineParts()
     for si, surface in enumerate(scene.surfaces):
         if isinstance(surface, Polyline):
-            _add_polyline(surface, si, walls, normals, two_sided, owner,
-                          verts, vwalls, vleft, vright)
-    walls_a = np.asarray(walls, dtype=np.float64).reshape(-1, 4)
-    vertex_walls = np.asarray(vwalls, dtype=np.int64).reshape(-1, 2)
-    vertices = np.asarray(verts, dtype=np.float64).reshape(-1, 2)
-    left = np.asarray(vleft, dtype=np.int8)
-    right = np.asarray(vright, dtype=np.int8)
-    room = ~np.asarray(two_sided, dtype=bool)
-
-    diff_idx = np.flatnonzero((left == EDGE) | (right == EDGE))
-    corner_pairs = np.zeros((len(walls_a), len(walls_a)), dtype=bool)
+            _add_polyline(surface, si, parts)
+    walls = np.asarray(parts.walls, dtype=np.float64).reshape(-1, 4)
+    vertex_walls = np.asarray(parts.vwalls, dtype=np.int64).reshape(-1, 2)
+    vertices = np.asarray(parts.verts, dtype=np.float64).reshape(-1, 2)
+    left = np.asarray(parts.vleft, dtype=np.int8)
+    right = np.asarray(parts.vright, dtype=np.int8)
     corner_idx = np.flatnonzero((left == CORNER) | (right == CORNER))
+    corner_pairs, corners = _corners(walls, vertices, vertex_walls, left, corner_idx)
+    diff_idx = np.flatnonzero((left == EDGE) | (right == EDGE))
+    circles = [(s.center[0], s.center[1], s.radius) for s in scene.surfaces
+               if isinstance(s, Circle)]
+    circle_surface = [i for i, s in enumerate(scene.surfaces) if isinstance(s, Circle)]
+    return Geometry(
+        walls=walls,
+        wall_normal=np.asarray(parts.normals, dtype=np.float64).reshape(-1, 2),
+        wall_two_sided=np.asarray(parts.two_sided, dtype=np.bool_),
+        wall_surface=np.asarray(parts.owner, dtype=np.int64),
+        vertices=vertices,
+        vertex_walls=vertex_walls,
+        vertex_left=left,
+        vertex_right=right,
+        diffractors=_diffractors(walls, vertices, vertex_walls, diff_idx),
+        diffractor_vertex=diff_idx.astype(np.int64),
+        corner_pairs=corner_pairs,
+        corners=corners,
+        corner_vertex=corner_idx.astype(np.int64),
+        circles=np.asarray(circles, dtype=np.float64).reshape(-1, 3),
+        circle_surface=np.asarray(circle_surface, dtype=np.int64),
+        **_sinusoid_arrays(scene, len(walls)),
+    )
+
+
+def _corners(walls: np.ndarray, vertices: np.ndarray, vertex_walls: np.ndarray,
+             left: np.ndarray, corner_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(corner_pairs [S, S], corners [Q, 6])`` of the concave vertices ``corner_idx``
+    (see :class:`Geometry`)."""
+    corner_pairs = np.zeros((len(walls), len(walls)), dtype=bool)
     corners = np.zeros((len(corner_idx), 6))
     for row, v in enumerate(corner_idx):
         a, b = vertex_walls[v]
@@ -111,109 +149,102 @@ def build_geometry(scene: Scene) -> Geometry:
         side = 1.0 if left[v] == CORNER else -1.0  # left normals point to the concave side?
         corners[row, :2] = vertices[v]
         for col, w in ((2, a), (4, b)):
-            d = _unit(walls_a[w, 2:] - walls_a[w, :2])
+            d = _unit(walls[w, 2:] - walls[w, :2])
             corners[row, col:col + 2] = side * np.array([-d[1], d[0]])
+    return corner_pairs, corners
 
+
+def _diffractors(walls: np.ndarray, vertices: np.ndarray, vertex_walls: np.ndarray,
+                 diff_idx: np.ndarray) -> np.ndarray:
+    """[D, 6] the convex vertices ``diff_idx``: the vertex, the unit vectors to the previous
+    and to the next point of its polyline."""
     diffractors = np.zeros((len(diff_idx), 6))
     for row, v in enumerate(diff_idx):
         a, b = vertex_walls[v]
         p = vertices[v]
-        prev_pt = walls_a[a, :2]
-        next_pt = walls_a[b, 2:]
         diffractors[row, :2] = p
-        diffractors[row, 2:4] = _unit(prev_pt - p)
-        diffractors[row, 4:6] = _unit(next_pt - p)
+        diffractors[row, 2:4] = _unit(walls[a, :2] - p)
+        diffractors[row, 4:6] = _unit(walls[b, 2:] - p)
+    return diffractors
 
-    circles = [(s.center[0], s.center[1], s.radius) for s in scene.surfaces
-               if isinstance(s, Circle)]
-    circle_surface = [i for i, s in enumerate(scene.surfaces) if isinstance(s, Circle)]
 
-    curves, curve_surface, interval_curve, interval_s, chord_start = [], [], [], [], []
+def _sinusoid_arrays(scene: Scene, n_walls: int) -> dict[str, np.ndarray]:
+    """The :class:`Geometry` fields of the scene's sinusoids (``curves`` … ``chord_start``);
+    their chords follow the ``n_walls`` walls among the occluders."""
+    curves: list[tuple[float, ...]] = []
+    curve_surface: list[int] = []
+    interval_curve: list[int] = []
+    interval_s: list[tuple[float, float]] = []
+    chord_start: list[int] = []
     for si, s in enumerate(scene.surfaces):
         if not isinstance(s, Sinusoid):
             continue
         params, s_edges = _sample_sinusoid(s, scene.echo.curve_step_m)
-        chord_start.append(len(walls_a) + len(interval_s))
+        chord_start.append(n_walls + len(interval_s))
         curve_surface.append(si)
         interval_curve.extend([len(curves)] * (len(s_edges) - 1))
         interval_s.extend(itertools.pairwise(s_edges))
         curves.append(params)
-
-    return Geometry(
-        walls=walls_a,
-        wall_normal=np.asarray(normals, dtype=np.float64).reshape(-1, 2),
-        wall_two_sided=~room,
-        wall_surface=np.asarray(owner, dtype=np.int64),
-        vertices=vertices,
-        vertex_walls=vertex_walls,
-        vertex_left=left,
-        vertex_right=right,
-        diffractors=diffractors,
-        diffractor_vertex=diff_idx.astype(np.int64),
-        corner_pairs=corner_pairs,
-        corners=corners,
-        corner_vertex=corner_idx.astype(np.int64),
-        circles=np.asarray(circles, dtype=np.float64).reshape(-1, 3),
-        circle_surface=np.asarray(circle_surface, dtype=np.int64),
-        curves=np.asarray(curves, dtype=np.float64).reshape(-1, 7),
-        curve_surface=np.asarray(curve_surface, dtype=np.int64),
-        interval_curve=np.asarray(interval_curve, dtype=np.int64),
-        interval_s=np.asarray(interval_s, dtype=np.float64).reshape(-1, 2),
-        chord_start=np.asarray(chord_start, dtype=np.int64),
-    )
+    return {
+        "curves": np.asarray(curves, dtype=np.float64).reshape(-1, 7),
+        "curve_surface": np.asarray(curve_surface, dtype=np.int64),
+        "interval_curve": np.asarray(interval_curve, dtype=np.int64),
+        "interval_s": np.asarray(interval_s, dtype=np.float64).reshape(-1, 2),
+        "chord_start": np.asarray(chord_start, dtype=np.int64),
+    }
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
     return v / math.hypot(v[0], v[1])
 
 
-def _cross(a, b) -> float:
-    return a[0] * b[1] - a[1] * b[0]
-
-
-def _add_polyline(p: Polyline, si, walls, normals, two_sided, owner,
-                  verts, vwalls, vleft, vright) -> None:
+def _add_polyline(p: Polyline, si: int, parts: _PolylineParts) -> None:
+    """Append the walls and vertices of polyline ``p`` (``scene.surfaces[si]``) to ``parts``."""
     pts = np.asarray(p.points, dtype=np.float64)
     n = len(pts)
     ccw = p.closed and _signed_area(pts) > 0
-    first = len(walls)
+    first = len(parts.walls)
     nseg = n if p.closed else n - 1
     for i in range(nseg):
         a, b = pts[i], pts[(i + 1) % n]
         d = _unit(b - a)
         left_normal = np.array([-d[1], d[0]])
-        walls.append((*a, *b))
+        parts.walls.append((*a, *b))
         # Rooms reflect only on the interior: the left side of a counter-clockwise outline.
-        normals.append(left_normal if (ccw or not p.closed) else -left_normal)
-        two_sided.append(not p.closed)
-        owner.append(si)
+        parts.normals.append(left_normal if (ccw or not p.closed) else -left_normal)
+        parts.two_sided.append(not p.closed)
+        parts.owner.append(si)
     for i in range(n):
         has_in = p.closed or i > 0
         has_out = p.closed or i < n - 1
-        w_in = first + (i - 1) % nseg if has_in else -1
-        w_out = first + i % nseg if has_out else -1
-        verts.append(pts[i])
-        vwalls.append((w_in, w_out))
+        parts.verts.append(pts[i])
+        parts.vwalls.append((first + (i - 1) % nseg if has_in else -1,
+                             first + i % nseg if has_out else -1))
         if not (has_in and has_out):
-            vleft.append(END)
-            vright.append(END)
-            continue
-        d_in = _unit(pts[i] - pts[(i - 1) % n])
-        d_out = _unit(pts[(i + 1) % n] - pts[i])
-        turn = _cross(d_in, d_out)
-        if abs(turn) <= FLAT_TOLERANCE and np.dot(d_in, d_out) > 0:
-            left, right = FLAT, FLAT
-        elif turn > 0:  # left turn: the left side is inside the bend
-            left, right = CORNER, EDGE
-        else:  # right turn, or a 180° fold back (an edge seen from both sides)
-            left, right = (EDGE, CORNER) if turn < 0 else (EDGE, EDGE)
-        if p.closed:  # the outside of a room is solid
-            if ccw:
-                right = SOLID
-            else:
-                left = SOLID
-        vleft.append(left)
-        vright.append(right)
+            left, right = END, END
+        else:
+            left, right = _vertex_kinds(pts[(i - 1) % n], pts[i], pts[(i + 1) % n])
+            if p.closed:  # the outside of a room is solid
+                if ccw:
+                    right = SOLID
+                else:
+                    left = SOLID
+        parts.vleft.append(left)
+        parts.vright.append(right)
+
+
+def _vertex_kinds(before: np.ndarray, at: np.ndarray, after: np.ndarray) -> tuple[int, int]:
+    """Kinds of the joint ``at`` between walls from ``before`` and to ``after``, seen from the
+    left and from the right of the polyline's direction."""
+    d_in = _unit(at - before)
+    d_out = _unit(after - at)
+    turn = cross(d_in, d_out)
+    if abs(turn) <= FLAT_TOLERANCE and np.dot(d_in, d_out) > 0:
+        return FLAT, FLAT
+    if turn > 0:  # left turn: the left side is inside the bend
+        return CORNER, EDGE
+    # right turn, or a 180° fold back (an edge seen from both sides)
+    return (EDGE, CORNER) if turn < 0 else (EDGE, EDGE)
 
 
 def _signed_area(pts: np.ndarray) -> float:
@@ -259,6 +290,32 @@ def curve_derivatives(curve: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.
 # --------------------------------------------------------------------------- queries
 
 
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Dot products of 2-D vectors ``a``, ``b`` [..., 2] (broadcast)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """z-components of the cross products of 2-D vectors ``a``, ``b`` [..., 2] (broadcast)."""
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def norm(a: np.ndarray) -> np.ndarray:
+    """Lengths of 2-D vectors ``a`` [..., 2]."""
+    return np.sqrt(dot(a, a))
+
+
+def inside_polygon(poly: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Even-odd rule: [M] bool, ``p`` [M, 2] strictly inside the closed polygon [K, 2]."""
+    a = poly[None, :, :]
+    b = np.roll(poly, -1, axis=0)[None, :, :]
+    x, y = p[:, None, 0], p[:, None, 1]
+    straddle = (a[..., 1] > y) != (b[..., 1] > y)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xc = a[..., 0] + (y - a[..., 1]) * (b[..., 0] - a[..., 0]) / (b[..., 1] - a[..., 1])
+    return (np.count_nonzero(straddle & (x < xc), axis=1) % 2) == 1
+
+
 def nearest_surface_point(geom: Geometry, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance from each of ``points`` [M, 2] to the nearest surface, and that surface point.
 
@@ -302,11 +359,11 @@ def ray_distance(geom: Geometry, origins: np.ndarray, directions: np.ndarray) ->
     occ = geom.occluders
     if len(occ):
         a, e = occ[None, :, :2], occ[None, :, 2:] - occ[None, :, :2]
-        denom = _cross2(u[:, None], e)
+        denom = cross(u[:, None], e)
         w = a - o[:, None]
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = _cross2(w, e) / denom  # along the ray
-            s = _cross2(w, u[:, None]) / denom  # along the segment
+            t = cross(w, e) / denom  # along the ray
+            s = cross(w, u[:, None]) / denom  # along the segment
         hit = (np.abs(denom) > 1e-15) & (t > 1e-12) & (s >= 0) & (s <= 1)
         best = np.minimum(best, np.where(hit, t, np.inf).min(axis=1))
     if len(geom.circles):
@@ -319,10 +376,6 @@ def ray_distance(geom: Geometry, origins: np.ndarray, directions: np.ndarray) ->
         t = np.where(t1 > 1e-12, t1, np.where(t2 > 1e-12, t2, np.inf))
         best = np.minimum(best, np.where(disc >= 0, t, np.inf).min(axis=1))
     return best
-
-
-def _cross2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
 
 
 def true_vertices(geom: Geometry) -> np.ndarray:

@@ -20,6 +20,7 @@
 from __future__ import annotations
 
 import math
+from typing import TypedDict
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -156,7 +157,17 @@ def rms_along_wall(scene: Scene, points: np.ndarray) -> float | None:
     return float(np.sqrt(np.mean((c_true - c_est) ** 2)))
 
 
-def vertex_errors(geom: Geometry, located: np.ndarray) -> list[dict[str, object]]:
+class VertexError(TypedDict):
+    """A true corner or edge at (x, y), the distance to the nearest located vertex (None if
+    none was located) and whether that is within :data:`VERTEX_FOUND_M`."""
+
+    x: float
+    y: float
+    error_m: float | None
+    found: bool
+
+
+def vertex_errors(geom: Geometry, located: np.ndarray) -> list[VertexError]:
     """For each true corner and edge (geometry.true_vertices): its position, the distance
     to the nearest ``located`` vertex [k, 2] (None if none) and whether that is within
     :data:`VERTEX_FOUND_M`."""
@@ -167,6 +178,16 @@ def vertex_errors(geom: Geometry, located: np.ndarray) -> list[dict[str, object]
     return [{"x": float(v[0]), "y": float(v[1]),
              "error_m": float(g) if np.isfinite(g) else None,
              "found": bool(g <= VERTEX_FOUND_M)} for v, g in zip(truth, gap, strict=True)]
+
+
+def vertex_summary(corners: list[VertexError]) -> dict[str, object]:
+    """``vertices`` (``corners``), ``vertices_found`` ("found/all") and
+    ``vertex_error_max_m`` (None if a vertex was not located at all)."""
+    errors = [v["error_m"] for v in corners]
+    located = [e for e in errors if e is not None]
+    return {"vertices": corners,
+            "vertices_found": f"{sum(v['found'] for v in corners)}/{len(corners)}",
+            "vertex_error_max_m": max(located) if len(located) == len(errors) else None}
 
 
 def cylinder_coverage(geom: Geometry, points: np.ndarray, spacing: float) -> list[dict]:
@@ -218,10 +239,7 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
         out["completeness"] = {f"{round(r * 100)}cm": None for r in COMPLETENESS_RADII}
     corners = vertex_errors(geom, np.zeros((0, 2)) if vertices is None else vertices)
     if corners:
-        errors = [v["error_m"] for v in corners]
-        out["vertices"] = corners
-        out["vertices_found"] = f"{sum(v['found'] for v in corners)}/{len(corners)}"
-        out["vertex_error_max_m"] = None if None in errors else max(errors)
+        out.update(vertex_summary(corners))
     if len(geom.circles):
         out["cylinders"] = cylinder_coverage(geom, points, spacing)
     return out

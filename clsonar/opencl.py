@@ -1,6 +1,6 @@
 """OpenCL devices, contexts and programs.
 
-Device choice (DESIGN.md, "OpenCL conventions"): an explicit ``device`` argument (``--device``
+Device choice (docs/design.md, "OpenCL conventions"): an explicit ``device`` argument (``--device``
 on the command line), else ``PYOPENCL_CTX``, else the first GPU that can build kernels, else
 the first such CPU (PoCL). A device "can build" when a tiny test kernel compiles on it: PyPI's
 ``pocl-binary-distribution`` 3.0 lists the CPU but fails every build here ("unknown target
@@ -273,6 +273,16 @@ def work_group(kernel, device, wanted: int) -> int:
     kernel allows below it — fixed because PoCL compiles a kernel anew for each work-group
     size it meets."""
     return max(1, min(wanted, 1 << (max_work_group(kernel, device).bit_length() - 1)))
+
+
+def read_only_buffer(context, array: np.ndarray, dtype, empty_size: int = 1):
+    """A read-only device copy of ``array`` as ``dtype`` (C order). OpenCL has no empty
+    buffers: an empty array becomes ``empty_size`` zeros, which the kernels never read."""
+    a = np.ascontiguousarray(array, dtype=dtype)
+    if a.size == 0:
+        a = np.zeros(empty_size, dtype=dtype)
+    cl = _cl()
+    return cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=a)
 
 
 _PROGRAMS: dict[tuple, object] = {}

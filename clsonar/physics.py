@@ -185,9 +185,15 @@ def pulse(
     """
     t = np.asarray(t, dtype=np.float64)
     k = amplitude * pulse_normalisation(sigma_s, frequency_hz)
-    env = np.exp(-((t - 3.0 * sigma_s) ** 2) / (2.0 * sigma_s**2))
-    p = k * env * np.sin(2.0 * math.pi * frequency_hz * t)
-    return np.where((t >= 0.0) & (t <= 6.0 * sigma_s), p, 0.0)
+    return pulse_shape(t, sigma_s, frequency_hz, k)
+
+
+def pulse_shape(t: np.ndarray, sigma: float, frequency: float, k: float) -> np.ndarray:
+    """``K·exp(−(t − 3σ)²/(2σ²))·sin(2π f t)`` for ``0 ≤ t ≤ 6σ``, else 0: eq. 2.3 with a
+    given ``K``, in any unit of time (seconds and hertz, or samples and cycles per sample)."""
+    env = np.exp(-((t - 3.0 * sigma) ** 2) / (2.0 * sigma**2))
+    p = k * env * np.sin(2.0 * math.pi * frequency * t)
+    return np.where((t >= 0.0) & (t <= 6.0 * sigma), p, 0.0)
 
 
 def pulse_normalisation(sigma_s: float, frequency_hz: float) -> float:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .geometry import inside_polygon
 from .scene import (
     Circle,
     Circular,
@@ -47,9 +48,7 @@ class Region:
 
 
 def _inside(poly: np.ndarray, p: np.ndarray) -> np.ndarray:
-    from .sensors import _inside_polygon
-
-    return _inside_polygon(poly, np.asarray(p, dtype=np.float64).reshape(-1, 2))
+    return inside_polygon(poly, np.asarray(p, dtype=np.float64).reshape(-1, 2))
 
 
 def _anchor(item) -> tuple[float, float] | None:

@@ -6,7 +6,7 @@
 // local origin (the scene extent's centre), so float32 keeps ~1e-6 m resolution in a 20 m scene.
 //
 // FP_CONTRACT is off (real.h) so the float64 build rounds exactly like the NumPy reference
-// (clsonar/echoes.py); helpers below avoid the dot()/length() builtins for the same reason.
+// (clsonar/echoes/reference.py); helpers below avoid the dot()/length() builtins for the same reason.
 
 #include "real.h"
 
@@ -26,7 +26,7 @@
 #define EPS_M 1e-4
 #endif
 
-// Indices into the per-scene constants buffer `k` (clsonar.echoes._constants writes it).
+// Indices into the per-scene constants buffer `k` (clsonar.echoes.host._constants writes it).
 #define K_AMPLITUDE 0    // A0, transmitted amplitude (5 units in the thesis, §2.1)
 #define K_BEAM_U 1       // (k·a / j1)²: u = K_BEAM_U · sin²θ, u = 1 at the first null
 #define K_CUT_SIN2 2     // sin² of the hard beam cut (min of half_beam_deg and the null)

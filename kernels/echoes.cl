@@ -1,5 +1,5 @@
 // Analytic echo paths of every transmitter→receiver pair (thesis §2.1.1; model in
-// clsonar/echoes.py and clsonar/physics.py). One work item per (surface element, pair):
+// clsonar/echoes/reference.py and clsonar/physics.py). One work item per (surface element, pair):
 // get_global_id(0) is the element (wall sequence, diffractor, circle, curve interval) and
 // get_global_id(1) the pair. Each item writes one fixed output slot, pair·width + element:
 // time of flight, amplitude (0 = no echo) and the last reflection point before the receiver.

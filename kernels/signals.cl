@@ -1,5 +1,5 @@
 // Received signals and detection (thesis eq. 2.3, §2.1.1 parts 3–4; model and host code in
-// clsonar/signals.py, whose NumPy float64 functions are the reference of every kernel here).
+// clsonar/signals/, whose NumPy float64 functions are the reference of every kernel here).
 //
 // The A-scan of a fired pair (T, R), sample n at time n/fs:
 //
@@ -23,7 +23,7 @@
 //
 // Compile-time constants from the host: BOX (length of each of the two boxes of the envelope
 // filter, samples), SPAN (half-span of the peak interpolation, samples), RING (2·SPAN + 1),
-// HIST_BINS, HIST_BASE, HIST_STRIDE (the envelope histogram, see clsonar/signals.py),
+// HIST_BINS, HIST_BASE, HIST_STRIDE (the envelope histogram, see clsonar/signals/dsp.py),
 // DEMOD_PERIOD (samples per carrier period when the carrier repeats in a whole number of
 // samples, else 0), and REAL_DOUBLE for the float64 build.
 
@@ -35,7 +35,7 @@
 // 2^-24: uniforms (2·(x >> 9) + 1)·2^-24 are exact in float32 and lie in (0, 1).
 #define U24 5.9604644775390625e-08
 
-// Per-scene signal constants, one real4 `kc` from the host (clsonar.signals._Runner).
+// Per-scene signal constants, one real4 `kc` from the host (clsonar.signals.host.Runner).
 typedef real4 signal_consts;
 #define KC_NOISE(kc) ((kc).x)       // noise standard deviation, units
 #define KC_SIGMA(kc) ((kc).y)       // σ of the pulse envelope, samples

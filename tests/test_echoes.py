@@ -1,5 +1,5 @@
 """The analytic echo engine: OpenCL kernels (kernels/echoes.cl) against the NumPy float64
-reference (clsonar/echoes.py) and both against independent geometry, on PoCL's CPU device."""
+reference (clsonar/echoes/) and both against independent geometry, on PoCL's CPU device."""
 
 from __future__ import annotations
 
@@ -270,12 +270,12 @@ def test_chunked_launches_give_the_same_table(monkeypatch):
     scene = make_scene([room(ROOM_W, ROOM_H), Circle((2.5, 1.0), 0.2),
                         Sinusoid((0.5, 2.7), (3.5, 2.7), 0.05, 0.6)], ROOM_TRANSDUCERS)
     whole = kernel(scene, "float32")
-    monkeypatch.setattr(echoes, "SLOTS_PER_LAUNCH", 50)
+    monkeypatch.setattr(echoes.table, "SLOTS_PER_LAUNCH", 50)
     chunked = kernel(scene, "float32")
     assert rows(chunked) == rows(whole)
     np.testing.assert_array_equal(chunked.tof_s, whole.tof_s)
     ref_chunked = reference_echoes(scene)
-    monkeypatch.setattr(echoes, "SLOTS_PER_LAUNCH", 1 << 21)
+    monkeypatch.setattr(echoes.table, "SLOTS_PER_LAUNCH", 1 << 21)
     assert rows(ref_chunked) == rows(reference_echoes(scene))
 
 
@@ -619,7 +619,7 @@ def open_scenes(draw) -> Scene:
 @given(st.one_of(open_scenes(), random_scenes()))
 def test_pairs_out_of_view_have_no_echo(scene):
     """pairs_in_view drops only pairs the float64 reference gives no echo at all."""
-    pb = echoes._prepare_problem(scene)
+    pb = echoes.prepare_problem(scene)
     keep = echoes.pairs_in_view(pb)
     ref = reference_echoes(scene)
     dropped = {(int(t), int(r)) for t, r in pb.pairs[~keep]}

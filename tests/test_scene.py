@@ -1,7 +1,11 @@
 """Scene format v1: validation errors name the file and key; load → save → load is identity."""
 
+import dataclasses
 import json
 import math
+import types
+import typing
+from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
@@ -10,9 +14,12 @@ from hypothesis import strategies as st
 from clsonar import SceneError, load_scene, save_scene
 from clsonar.scene import (
     Circle,
+    Circular,
     PerWall,
     Polyline,
+    RandomLines,
     Scene,
+    Sensors,
     Sinusoid,
     WallFollowing,
     parse_scene_text,
@@ -273,3 +280,71 @@ def test_atomic_writes_get_ordinary_permissions(tmp_path):
     os.umask(mask)
     assert stat.S_IMODE(target.stat().st_mode) == 0o666 & ~mask
     assert target.read_bytes() == b"{}"
+
+
+DOC = (Path(__file__).resolve().parents[1] / "docs" / "scene-format.md").read_text()
+
+
+def _documented(word: str, key: str = "") -> bool:
+    """Whether docs/scene-format.md names ``word`` as a key or value (`word` or "word"),
+    on a line that names ``key`` if given (the values of a setting on its row)."""
+    lines = [line for line in DOC.splitlines() if not key or f"`{key}`" in line]
+    return any(f"`{word}`" in line or f'"{word}"' in line for line in lines)
+
+
+def _inner(hint) -> tuple:
+    """The types inside a field's annotation: the members of unions and tuples."""
+    if typing.get_origin(hint) in (typing.Union, types.UnionType, tuple):
+        return tuple(t for arg in typing.get_args(hint) for t in (arg, *_inner(arg)))
+    return ()
+
+
+def _settings_fields(cls=Scene, seen=None):
+    """(dataclass, field name, annotation) of every dataclass a scene is made of."""
+    seen = set() if seen is None else seen
+    seen.add(cls)
+    for name, hint in typing.get_type_hints(cls).items():
+        yield cls, name, hint
+        for t in (hint, *_inner(hint)):
+            if dataclasses.is_dataclass(t) and t not in seen:
+                yield from _settings_fields(t, seen)
+
+
+def test_every_choice_is_documented():
+    """Every value of every Literal setting (clsonar.scene.settings) is in the doc."""
+    choices = [(cls, name, t) for cls, name, hint in _settings_fields()
+               for t in (hint, *_inner(hint)) if typing.get_origin(t) is typing.Literal]
+    assert len(choices) >= 15
+    missing = [f"{cls.__name__}.{name}: {value}" for cls, name, t in choices
+               for value in typing.get_args(t) if not _documented(value, name)]
+    assert not missing, missing
+
+
+def test_every_key_is_documented():
+    """Every key the reader accepts (all are written by save_scene) is in the doc."""
+    scene = scene_from_dict(DESIGN_EXAMPLE)
+    room = Polyline(((1.0, 1.0), (9.0, 1.0), (9.0, 9.0)), closed=True)
+    scene = dataclasses.replace(scene, surfaces=(room, *scene.surfaces), sensors=Sensors(
+        scene.sensors.transducers, RandomLines(),
+        (Circular((1.0, 1.0)), WallFollowing((1.0, 1.0)), PerWall())))
+
+    def keys(node):
+        if isinstance(node, dict):
+            for k, v in node.items():
+                yield k
+                yield from keys(v)
+        elif isinstance(node, list):
+            for v in node:
+                yield from keys(v)
+
+    data = scene_to_dict(scene)
+    assert scene_from_dict(data) == scene
+    missing = sorted({k for k in keys(data) if not _documented(k)})
+    assert not missing, missing
+
+
+def test_precisions_are_the_kernels():
+    from clsonar.opencl import PRECISIONS
+    from clsonar.scene import Precision
+
+    assert set(typing.get_args(Precision)) == set(PRECISIONS)

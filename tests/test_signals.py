@@ -1,5 +1,5 @@
 """Received signals and detection: OpenCL kernels (kernels/signals.cl) against the NumPy float64
-reference (clsonar/signals.py), both against eq. 2.3 and against the statistics the detectors
+reference (clsonar/signals/), both against eq. 2.3 and against the statistics the detectors
 are meant to have, on PoCL's CPU device."""
 
 from __future__ import annotations
@@ -18,6 +18,11 @@ from clsonar.echoes import EchoTable
 from clsonar.opencl import get_context, has_fp64
 from clsonar.scene import DetectionSettings, Scene, Signal
 from clsonar.sensors import SensorArray, pairs
+from clsonar.signals import detection as sig_detection
+from clsonar.signals import dsp as sig_dsp
+from clsonar.signals import host as sig_host
+from clsonar.signals import reference as sig_reference
+from clsonar.signals import synthesis as sig_synthesis
 
 FS = 1.0e6
 SIGMA = physics.DEFAULT_PULSE_SIGMA_S
@@ -91,7 +96,7 @@ def test_kernel_philox_and_normals_match_reference(precision):
     if precision == "float64" and not has_fp64(context()):
         pytest.skip("no cl_khr_fp64")
     seed, tx, rx, block0, count = 2**40 + 12345, 7, 3, 2**20 - 5, 4000
-    raw, normals = sig._kernel_philox(context(), seed, tx, rx, block0, count, precision)
+    raw, normals = sig_host.kernel_philox(context(), seed, tx, rx, block0, count, precision)
     ctr = np.zeros((count, 4), np.uint32)
     ctr[:, 0] = np.arange(block0, block0 + count)
     ctr[:, 1], ctr[:, 2] = tx, rx
@@ -120,7 +125,7 @@ def test_same_samples_for_any_chunk_and_work_group():
     ech = table([(0, 1, 1.0e-3, 4.5), (0, 1, 1.1e-3, 2.0), (2, 2, 3.0e-3, 3.0),
                  (1, 0, 2.5e-3, 1.0)])
     sc = scene("threshold", noise=1.0, seed=99)
-    runs = [sig._kernel_a_scans(sc, sen, ech, context=context(), window_s=5e-3, chunk=c,
+    runs = [sig_host.kernel_a_scans(sc, sen, ech, context=context(), window_s=5e-3, chunk=c,
                                 work_group=w) for c, w in ((4096, None), (333, 4), (1000, 16))]
     for other in runs[1:]:
         np.testing.assert_array_equal(other, runs[0])
@@ -140,9 +145,9 @@ def test_a_scan_is_eq_2_3_plus_noise():
              + 2.0 * physics.pulse(t - 1.4e-3, SIGMA, f, 1.0))
     np.testing.assert_allclose(s, clean + 0.7 * sig.noise(5, 0, 1, len(t)), atol=1e-9)
     # the reference A-scans of detect_reference are the same samples
-    model, pe = sig._inputs(sc, sen, ech, 3e-3)
+    model, pe = sig_synthesis.inputs(sc, sen, ech, 3e-3)
     slot = [tuple(p) for p in pe.pairs.tolist()].index((0, 1))
-    np.testing.assert_array_equal(sig._reference_signal(model, pe, slot, len(t)), s)
+    np.testing.assert_array_equal(sig_synthesis.reference_signal(model, pe, slot, len(t)), s)
 
 
 # --------------------------------------------------------------------------- noise-free
@@ -190,8 +195,8 @@ def test_monostatic_first_crossing_and_holdoff():
     echoes_at = [(1.0e-3, 4.5), (1.2e-3, 4.5), (2.0e-3, 4.5), (3.0e-3, 4.6)]
     ech = table([(0, 0, t, a) for t, a in echoes_at] + [(0, 1, t, a) for t, a in echoes_at])
     sc = scene("threshold")
-    model, pe = sig._inputs(sc, sensors(2), ech, None)
-    cand, _ = sig._reference_candidates(model, pe)
+    model, pe = sig_synthesis.inputs(sc, sensors(2), ech, None)
+    cand, _ = sig_reference.reference_candidates(model, pe)
     mono = cand.slot == [tuple(p) for p in pe.pairs.tolist()].index((0, 0))
     bi = cand.slot == [tuple(p) for p in pe.pairs.tolist()].index((0, 1))
     assert mono.sum() == 1 and bi.sum() > 6  # several carrier cycles cross per echo
@@ -209,11 +214,11 @@ def test_monostatic_first_crossing_and_holdoff():
 
 def test_holdoff_counts_from_the_last_counted_crossing():
     model = sig.signal_model(scene("threshold"))
-    pe = sig._pair_echoes(model, sensors(2), table([]))
+    pe = sig_synthesis.pair_echoes(model, sensors(2), table([]))
     slot = [tuple(p) for p in pe.pairs.tolist()].index((0, 1))
     n = np.array([900, 100, 300, 430, 500, 1300])
-    cand = sig._Candidates(np.full(len(n), slot), n, np.full(len(n), 4.2))
-    d = sig._finish_threshold(model, pe, cand)
+    cand = sig_detection.Candidates(np.full(len(n), slot), n, np.full(len(n), 4.2))
+    d = sig_detection.finish_threshold(model, pe, cand)
     assert model.holdoff == 324
     np.testing.assert_array_equal(np.round(d.tof_s * FS), [100, 430, 900, 1300])
 
@@ -301,10 +306,10 @@ def test_envelope_noise_estimate_is_the_rayleigh_scale():
     expected = model.calibration * math.sqrt(np.sum(tri**2) / 2.0)
     sc = scene("envelope", 1.0, seed=11, size=10.0)
     sen = sensors(4)
-    model, pe = sig._inputs(sc, sen, table([]), None)
-    run = sig._Runner(model, pe, context(), "float32", None, None)
+    model, pe = sig_synthesis.inputs(sc, sen, table([]), None)
+    run = sig_host.Runner(model, pe, context(), "float32", None, None)
     _, _, hist = run.scan(np.arange(len(pe.pairs)), 16, np.full(len(pe.pairs), 1.0), True)
-    s_hat = sig._noise_scale(hist)
+    s_hat = sig_dsp.noise_scale(hist)
     assert abs(np.mean(s_hat) / expected - 1) < 0.02
     assert np.all(np.abs(s_hat / expected - 1) < 0.10)
     assert 0.14 < expected < 0.15  # ≈ 0.145·σ_n: 6 ŝ < min_envelope = 1 up to σ_n ≈ 1.15

@@ -12,6 +12,7 @@ import numpy as np
 
 from ... import echoes as echoes_mod
 from ...echoes import EchoTable
+from ...echoes import host as echo_host
 from ...scene import Circle, Scene
 from ...scene import Transducer as SceneTransducer
 from .echo_cases import echo_scene
@@ -97,12 +98,12 @@ def _same_table(a: EchoTable, b: EchoTable) -> bool:
 @contextlib.contextmanager
 def echo_work_group(size: int) -> Iterator[None]:
     """Run the echo kernels with work groups of ``size`` along the elements."""
-    saved = echoes_mod.WORK_GROUP
-    echoes_mod.WORK_GROUP = size
+    saved = echo_host.WORK_GROUP
+    echo_host.WORK_GROUP = size
     try:
         yield
     finally:
-        echoes_mod.WORK_GROUP = saved
+        echo_host.WORK_GROUP = saved
 
 
 

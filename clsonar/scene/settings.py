@@ -1,0 +1,182 @@
+"""The settings of a scene: medium, transducer, signal, echo model and the methods of each
+pipeline stage (detection, mapping, post-processing).
+
+Each setting with a fixed set of values has its ``Literal`` alias here, written once: the
+dataclass field is annotated with it, the reader accepts exactly its values
+(``typing.get_args``), and docs/scene-format.md lists them (tests/test_scene.py checks).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+from ..physics import (
+    DEFAULT_PULSE_SIGMA_S,
+    DEFAULT_REFLECTION_COEFFICIENT,
+    beam_constants,
+    speed_of_sound,
+)
+
+#: Beam pattern of every transducer: the circular piston, or the thesis' flat sensitivity.
+Directivity = Literal["piston", "uniform"]
+
+#: How times of flight are found (:class:`DetectionSettings`).
+DetectionMode = Literal["threshold", "envelope"]
+
+#: How detections become a map (:class:`MappingSettings`).
+MappingMode = Literal["loci", "tangents", "backprojection"]
+
+#: The vote of a locus (``loci`` mapping).
+VoteWeight = Literal["unit", "amplitude", "beam"]
+
+#: The kernels' arithmetic.
+Precision = Literal["float32", "float64"]
+
+#: Whether (T, R) and (R, T) make one locus or two.
+Reciprocal = Literal["merge", "both"]
+
+#: How the votes of loci add up (``loci`` mapping).
+Combine = Literal["sum", "viewpoints"]
+
+#: The low-pass filter of the map (thesis eq. 2.4, or none).
+PostFilter = Literal["mean3", "none"]
+
+#: The thinning of the filtered map.
+Thinning = Literal["thesis", "guo-hall"]
+
+#: The profile fitted to the thin map.
+Fit = Literal["polynomial", "spline", "walls", "none"]
+
+
+@dataclass(frozen=True)
+class Medium:
+    temperature_k: float = 293.15
+    speed_of_sound: float | None = None
+
+    @property
+    def c(self) -> float:
+        """Speed of sound in m/s: the override if given, else thesis eq. 2.1."""
+        if self.speed_of_sound is not None:
+            return self.speed_of_sound
+        return speed_of_sound(self.temperature_k)
+
+
+@dataclass(frozen=True)
+class TransducerModel:
+    """The Polaroid 6500 series transducer of thesis §2.1 (50 kHz, 4 cm diameter, ±12°)."""
+
+    frequency_hz: float = 50000.0
+    radius_m: float = 0.02
+    half_beam_deg: float = 12.0
+    amplitude: float = 5.0
+    pulse_sigma_s: float = DEFAULT_PULSE_SIGMA_S
+    directivity: Directivity = "piston"
+
+    def beam(self, c: float) -> tuple[float, float]:
+        """``(cut_sin2, ka)`` for :func:`clsonar.physics.beam_pattern`."""
+        return beam_constants(self.frequency_hz, self.radius_m, self.half_beam_deg,
+                              self.directivity, c)
+
+
+@dataclass(frozen=True)
+class Signal:
+    noise_std: float = 0.0
+    threshold: float = 4.0
+    seed: int = 1
+
+
+@dataclass(frozen=True)
+class EchoModel:
+    """Settings of the echo engine; see physics.py for the amplitude model.
+
+    ``curvature_gain`` false makes curved surfaces reflect as strongly as flat ones, as in
+    the thesis' ray tracing (its scenes use it with ``transducer.directivity`` uniform).
+    """
+
+    max_order: int = 2
+    reflection_coefficient: float = DEFAULT_REFLECTION_COEFFICIENT
+    edge_coefficient: float = 1.0
+    absorption_db_per_m: float = 0.0
+    curve_step_m: float = 0.01
+    curvature_gain: bool = True
+
+
+@dataclass(frozen=True)
+class DetectionSettings:
+    """How times of flight are found in each pair's received signal (thesis §2.1.1, 3–4).
+
+    ``threshold``: as the thesis: the first sample above ``signal.threshold`` gives the time
+    of flight; for T = R only that first crossing (the line-of-sight arc), for T ≠ R every
+    crossing (after a hold-off of one pulse length, 6σ). ``envelope``: quadrature
+    demodulation and a matched low-pass give the envelope, whose peaks above a
+    noise-adaptive threshold (``false_alarm_sigmas`` times the estimated envelope noise, at
+    least ``min_envelope`` units) give the time of flight as peak − 3σ (no threshold bias).
+    """
+
+    mode: DetectionMode = "envelope"
+    sample_rate_hz: float = 1.0e6
+    false_alarm_sigmas: float = 6.0
+    min_envelope: float = 1.0
+
+
+@dataclass(frozen=True)
+class MappingSettings:
+    """How detections become a map (thesis §2.1.1, 3–4).
+
+    ``mode``:
+
+    - ``loci`` (the thesis): every pixel p gets a vote from each detection whose time of
+      flight τ puts p on its locus, ``| |p−T| + |p−R| − c·τ | ≤ band_m/2``, inside both beams
+      (a circle for T = R, an ellipse otherwise); ``band_m`` null means 2√2·cell (loci at
+      least √2 cells thick). ``weight``: ``unit`` (the thesis), ``amplitude`` (the detected
+      amplitude) or ``beam`` (b(θ_T)·b(θ_R) at the pixel). ``combine``: ``sum`` adds the
+      votes (the thesis); ``viewpoints`` counts the viewpoints (pair groups: an array, a
+      ring pose) with a locus through each cell.
+    - ``tangents`` (ours): the points where loci of neighbouring transducers of one viewpoint
+      cross, which lie on the surface to within δ²/(8r) (mapping.tangent_points), with the
+      loci's tangent segments around them, counted per cell. A locus that crosses none keeps
+      the middle of its in-beam arc within ``isolated_bias_m`` of its tangent (0: dropped),
+      which suits transducers that face the surface squarely, as a wall-following ring does.
+    - ``backprojection``: the sum over pairs of each pair's envelope at the pixel's delay
+      (delay-and-sum, "total focusing").
+
+    ``reciprocal``: ``merge`` makes the detections of (T, R) and (R, T) — one path measured
+    twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
+    ``precision``: the kernels' arithmetic. ``line_of_sight`` (``tangents`` only): drop the
+    points that the map itself shows hidden behind a surface from their transducers — the
+    ghosts of multiply reflected echoes (rooms.line_of_sight).
+    """
+
+    mode: MappingMode = "tangents"
+    weight: VoteWeight = "unit"
+    band_m: float | None = None
+    precision: Precision = "float32"
+    reciprocal: Reciprocal = "merge"
+    combine: Combine = "viewpoints"
+    isolated_bias_m: float = 0.0
+    line_of_sight: bool = True
+
+
+@dataclass(frozen=True)
+class PostSettings:
+    """Post-processing of the map (thesis §2.1.1, 5): low-pass, thinning, profile fit.
+
+    ``filter``: ``mean3`` (eq. 2.4) or ``none``; ``level``: occupied cells of the filtered
+    map, as a fraction of its maximum (null: automatic); ``thinning``: ``thesis`` (eq. 2.5
+    as written) or ``guo-hall`` (one-pixel 8-connected curves); ``fit``: ``polynomial`` of
+    ``poly_order`` along a single wall (the thesis: 5–8), ``spline`` along each linked curve
+    (rooms too), ``walls`` (rooms: straight walls where the data are straight, extended to
+    meet at corners and edges within ``join_m`` of their ends, splines elsewhere;
+    rooms.fit_walls) or ``none``; curves closer than ``max_gap_m`` are bridged; ``subcell``
+    moves each thin cell to the vote-weighted centroid of the filtered map around it.
+    """
+
+    filter: PostFilter = "mean3"
+    level: float | None = None
+    thinning: Thinning = "guo-hall"
+    fit: Fit = "spline"
+    poly_order: int = 7
+    max_gap_m: float = 0.3
+    subcell: bool = True
+    join_m: float = 0.5

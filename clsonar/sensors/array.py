@@ -1,0 +1,95 @@
+"""All transducers of a scene as one :class:`SensorArray`, and the pairs that fire."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from ..geometry import Geometry, build_geometry
+from ..scene import Circular, PerWall, RandomLines, Scene
+from .lines import place_per_wall, place_random_lines
+from .rings import place_circular, place_wall_following
+
+
+@dataclass(frozen=True, eq=False)
+class SensorArray:
+    """All transducers of a scene, as arrays (float64)."""
+
+    positions: np.ndarray  # [N, 2] metres
+    headings_deg: np.ndarray  # [N] direction of each transducer's axis, degrees from +x
+    groups: np.ndarray  # [N] int64 pair group
+    poses: np.ndarray  # [G, 2] ring centres (circular, wall-following) or array centres
+    # (per-wall); none for random-lines
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    @cached_property
+    def fired_pairs(self) -> np.ndarray:
+        """[P, 2] the pairs that fire (:func:`pairs`), computed once, read-only."""
+        out = _fired_pairs(self)
+        out.flags.writeable = False
+        return out
+
+    @property
+    def axes(self) -> np.ndarray:
+        """[N, 2] unit vectors along each transducer's axis."""
+        h = np.radians(self.headings_deg)
+        return np.stack([np.cos(h), np.sin(h)], axis=-1)
+
+
+def place_sensors(scene: Scene, geom: Geometry | None = None) -> SensorArray:
+    """The scene's transducers: explicit ones first, in file order, then placed ones."""
+    explicit = scene.sensors.transducers
+    pos = np.asarray([t.position for t in explicit], dtype=np.float64).reshape(-1, 2)
+    head = np.asarray([t.heading_deg for t in explicit], dtype=np.float64)
+    groups = np.asarray([t.group for t in explicit], dtype=np.int64)
+    poses = [np.zeros((0, 2))]
+    placements = [p for p in (scene.sensors.placement, *scene.sensors.placements)
+                  if p is not None]
+    for placement in placements:
+        if isinstance(placement, Circular):
+            p_pos, p_head, p_group, p_poses = place_circular(placement)
+        else:
+            geom = geom if geom is not None else build_geometry(scene)
+            if isinstance(placement, RandomLines):
+                p_pos, p_head, p_group, p_poses = place_random_lines(placement, scene, geom)
+            elif isinstance(placement, PerWall):
+                p_pos, p_head, p_group, p_poses = place_per_wall(placement, scene, geom)
+            else:
+                p_pos, p_head, p_group, p_poses = place_wall_following(placement, scene, geom)
+        first = int(groups.max()) + 1 if len(groups) else 0
+        pos = np.concatenate([pos, p_pos])
+        head = np.concatenate([head, p_head])
+        groups = np.concatenate([groups, p_group + first])
+        poses.append(np.asarray(p_poses, dtype=np.float64).reshape(-1, 2))
+    return SensorArray(pos, head, groups, np.concatenate(poses))
+
+
+def pairs(sensors: SensorArray) -> np.ndarray:
+    """[P, 2] int64 ordered (tx, rx) pairs that fire: all pairs within each group, T = R
+    included, sorted by tx then rx (see :mod:`clsonar.sensors`). Computed once per array
+    (read-only)."""
+    return sensors.fired_pairs
+
+
+def _fired_pairs(sensors: SensorArray) -> np.ndarray:
+    g = sensors.groups
+    if len(g) == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    order = np.argsort(g, kind="stable")
+    out = []
+    bounds = np.flatnonzero(np.diff(g[order])) + 1
+    for members in np.split(order, bounds):
+        members = np.sort(members)
+        tx, rx = np.meshgrid(members, members, indexing="ij")
+        out.append(np.stack([tx.ravel(), rx.ravel()], axis=-1))
+    result = np.concatenate(out)
+    return result[np.lexsort((result[:, 1], result[:, 0]))]
+
+
+def heading_deg(v: np.ndarray) -> np.ndarray:
+    """Heading in degrees of direction vectors [..., 2]."""
+    return np.degrees(np.arctan2(v[..., 1], v[..., 0]))

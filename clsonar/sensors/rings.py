@@ -1,0 +1,228 @@
+"""Rings of transducers (thesis §2.1.2): one ring standing still (``circular``), or moved
+along the walls (``wall-following``) on the curve at ``clearance_m`` from the surfaces."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from ..errors import SceneError
+from ..geometry import Geometry, nearest_surface_point
+from ..scene import Circular, Scene, WallFollowing
+from .space import Placed, crosses, extent_contains, in_free_space, placement_error
+
+
+def ring(center: tuple[float, float], radius_m: float, elements: int,
+         start_deg: float) -> tuple[np.ndarray, np.ndarray]:
+    """Positions [n, 2] and outward headings [n] of a ring of ``elements`` transducers at
+    equal angles from ``start_deg`` (thesis §2.1.2: 8 at 45° on a 6.5 cm radius)."""
+    headings = start_deg + 360.0 * np.arange(elements) / elements
+    h = np.radians(headings)
+    pos = np.asarray(center, dtype=np.float64) + radius_m * np.stack([np.cos(h), np.sin(h)], -1)
+    return pos, headings
+
+
+def place_circular(p: Circular) -> Placed:
+    """One ring, one group: (positions, headings_deg, group index per element, poses)."""
+    pos, head = ring(p.center, p.radius_m, p.elements, p.start_deg)
+    return pos, head, np.zeros(p.elements, dtype=np.int64), np.asarray([p.center], float)
+
+
+# --------------------------------------------------------------------------- wall following
+
+#: Angular samples of the circle searched for the next point of the wall-following trace.
+_SWEEP_SAMPLES = 72
+
+#: A traced point counts as on the offset curve within this distance (metres).
+_ON_CURVE_TOL = 1e-6
+
+
+def wall_following_substep(p: WallFollowing) -> float:
+    """Length of one trace sub-step: ``min(clearance/4, step/4, 2 cm)``."""
+    return min(p.clearance_m / 4.0, p.step_m / 4.0, 0.02)
+
+
+def _project(geom: Geometry, point: np.ndarray, c: float
+             ) -> tuple[np.ndarray, float, np.ndarray]:
+    """Move ``point`` to distance ``c`` from the nearest surface, along the line from the
+    nearest surface point; repeat while another surface becomes the nearest (concave
+    corners). Returns the point, its final distance error and its nearest surface point."""
+    err = math.inf
+    q = point
+    for _ in range(16):
+        dist, near = nearest_surface_point(geom, point[None])
+        d, q = float(dist[0]), near[0]
+        err = abs(d - c)
+        if err <= _ON_CURVE_TOL * 0.01 or not math.isfinite(d) or d <= 1e-12:
+            break
+        point = q + (point - q) * (c / d)
+    return point, err, q
+
+
+def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
+                        ) -> tuple[np.ndarray, np.ndarray, float]:
+    """Trace the curve the ring centre follows (thesis §2.1.2, generalised).
+
+    The curve is the set of free points at distance ``p.clearance_m`` from the nearest
+    surface, on the side of ``p.start``. The start is projected onto it (from the nearest
+    surface point Q, along Q→start, to distance ``clearance_m``). From each traced point P
+    the next is the first point at distance h (one sub-step, :func:`wall_following_substep`)
+    from P that is back at the clearance, found by sweeping the circle of radius h around P
+    from the direction of the nearest surface: counter-clockwise for ``ccw``, which keeps the
+    nearest surface on the right of the motion (a room outline is then run counter-clockwise
+    and an obstacle clockwise), clockwise for ``cw`` (surface on the left). The found point
+    is re-projected onto the curve. Along a straight wall this moves parallel to it, at a
+    concave corner the nearest wall changes and the path turns, around a convex edge or a
+    cylinder the nearest point is the vertex (the circle) and the path arcs around it. (The
+    thesis picks the moving direction "by comparing the vertical and horizontal distances";
+    following the nearest surface does the same in axis-aligned rooms and also works along
+    oblique walls, edges and cylinders.)
+
+    The trace stops when a sub-step passes within h/2 of the start after having been more
+    than 2h away from it.
+
+    Returns ``(path [M, 2], arc [M], length)``: the traced points (the start first), their
+    arc length from the start (sum of sub-step chords), and the length of the closed curve.
+    Raises :class:`SceneError` (key ``sensors.placement``) when the start is not in free
+    space, the curve cannot be followed (no room for the clearance, stuck), it would leave
+    the extent or cross a surface, or it does not close within ``max_poses`` poses.
+    """
+    c = p.clearance_m
+    h = wall_following_substep(p)
+
+    def fail(message: str) -> SceneError:
+        return placement_error(scene, "wall-following: " + message)
+
+    p0, wall = _trace_start(p, scene, geom, fail)
+    sign = 1.0 if p.direction == "ccw" else -1.0
+    sweep = sign * 2.0 * math.pi * np.arange(1, _SWEEP_SAMPLES + 1) / _SWEEP_SAMPLES
+    max_length = (p.max_poses + 1) * p.step_m
+    max_substeps = int(max_length / (0.25 * h)) + 100
+    path = [p0]
+    arc = [0.0]
+    left = False
+    point = p0
+    for _ in range(max_substeps):
+        nxt, next_wall, step = _substep(geom, point, wall, sweep, h, c, fail)
+        _check_substep(scene, geom, point, nxt, fail)
+        if left:
+            t = float(np.clip(np.dot(p0 - point, nxt - point) / (step * step), 0.0, 1.0))
+            if np.hypot(*(point + t * (nxt - point) - p0)) <= 0.5 * h:
+                return np.asarray(path), np.asarray(arc), arc[-1] + t * step
+        elif np.hypot(*(nxt - p0)) > 2.0 * h:
+            left = True
+        path.append(nxt)
+        arc.append(arc[-1] + step)
+        point, wall = nxt, next_wall
+        if arc[-1] > max_length:
+            break
+    raise fail(f"the trace did not return to its start within max_poses = {p.max_poses} "
+               f"poses (step_m = {p.step_m:g}); raise max_poses or check the start")
+
+
+def _check_substep(scene: Scene, geom: Geometry, point: np.ndarray, nxt: np.ndarray,
+                   fail: Callable[[str], SceneError]) -> None:
+    """Fail if the sub-step ``point`` → ``nxt`` crosses a surface or leaves the extent."""
+    if crosses(geom, point, nxt):
+        raise fail(f"the trace would cross a surface near ({point[0]:.3f}, "
+                   f"{point[1]:.3f})")
+    if not extent_contains(scene, nxt)[0]:
+        raise fail(f"the trace left the extent at ({nxt[0]:.3f}, {nxt[1]:.3f}) before "
+                   "closing: wall-following needs a closed room or an obstacle inside "
+                   "the extent")
+
+
+def _trace_start(p: WallFollowing, scene: Scene, geom: Geometry,
+                 fail: Callable[[str], SceneError]) -> tuple[np.ndarray, np.ndarray]:
+    """The first point of the wall-following trace (``p.start`` projected onto the curve at
+    ``clearance_m``) and its nearest surface point; ``fail`` makes the error of a start
+    that cannot be used."""
+    c = p.clearance_m
+    start = np.asarray(p.start, dtype=np.float64)
+    if len(geom.occluders) == 0 and len(geom.circles) == 0:
+        raise fail("the scene has no surface to follow")
+    if not (extent_contains(scene, start)[0] and in_free_space(scene, geom, start)[0]):
+        raise fail(f"start ({start[0]:g}, {start[1]:g}) is not in free space inside the extent")
+    dist, near = nearest_surface_point(geom, start[None])
+    if dist[0] <= 1e-9:
+        raise fail(f"start ({start[0]:g}, {start[1]:g}) lies on a surface")
+    p0, err, wall = _project(geom, near[0] + (start - near[0]) * (c / dist[0]), c)
+    if err > _ON_CURVE_TOL:
+        raise fail(f"no place at clearance_m = {c:g} from the surfaces near the start "
+                   f"({start[0]:g}, {start[1]:g})")
+    if crosses(geom, start, p0) or not in_free_space(scene, geom, p0)[0]:
+        raise fail(f"the start ({start[0]:g}, {start[1]:g}) cannot reach the curve at "
+                   f"clearance_m = {c:g} without crossing a surface")
+    if not extent_contains(scene, p0)[0]:
+        raise fail(f"the trace start ({p0[0]:.3f}, {p0[1]:.3f}) is outside the extent")
+    return p0, wall
+
+
+def _substep(geom: Geometry, point: np.ndarray, wall: np.ndarray, sweep: np.ndarray,
+             h: float, c: float, fail: Callable[[str], SceneError]
+             ) -> tuple[np.ndarray, np.ndarray, float]:
+    """One sub-step of the trace from ``point`` (nearest surface point ``wall``): the first
+    point back at clearance ``c`` on the circle of radius ``h`` swept by the angles
+    ``sweep`` from the direction of ``wall``, re-projected onto the curve. Returns the
+    point, its nearest surface point and the step's length."""
+    to_wall = wall - point
+    phi0 = math.atan2(to_wall[1], to_wall[0])
+    angles = phi0 + sweep
+    ring_pts = point + h * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    g = nearest_surface_point(geom, ring_pts)[0] - c
+    hit = np.flatnonzero(g >= 0.0)
+    if len(hit) == 0:
+        raise fail(f"stuck at ({point[0]:.3f}, {point[1]:.3f}): no way on at "
+                   f"clearance_m = {c:g}")
+    k = int(hit[0])
+    g_prev = g[k - 1] if k > 0 else -h
+    a_prev = angles[k - 1] if k > 0 else phi0
+    frac = g_prev / (g_prev - g[k]) if g[k] != g_prev else 1.0
+    a = a_prev + frac * (angles[k] - a_prev)
+    nxt, err, next_wall = _project(geom, point + h * np.array([math.cos(a), math.sin(a)]), c)
+    step = float(np.hypot(*(nxt - point)))
+    if err > _ON_CURVE_TOL or step < 0.25 * h:
+        raise fail(f"stuck at ({point[0]:.3f}, {point[1]:.3f}): the curve at "
+                   f"clearance_m = {c:g} cannot be followed there")
+    return nxt, next_wall, step
+
+
+def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry) -> Placed:
+    """Ring poses along the walls, thesis §2.1.2 (see :class:`~clsonar.scene.WallFollowing`).
+
+    The ring centre runs along :func:`wall_following_path`; a pose every ``step_m`` of arc
+    length, the first at the projected start, the last the last one before the trace is back
+    at the start (a pose closer than half a sub-step to the start is dropped). Each pose is
+    a :func:`ring` and its own pair group.
+
+    Returns ``(positions [G·n, 2], headings_deg, groups, poses [G, 2])``.
+    """
+    if p.radius_m >= p.clearance_m:
+        raise placement_error(scene, f"ring radius_m = {p.radius_m:g} must be smaller than "
+                                     f"clearance_m = {p.clearance_m:g}",
+                              "sensors.placement.radius_m")
+    path, arc, length = wall_following_path(p, scene, geom)
+    h = wall_following_substep(p)
+    targets = np.arange(0.0, length - 0.5 * h, p.step_m)
+    if len(targets) > p.max_poses:
+        raise placement_error(scene, f"wall-following: {len(targets)} poses needed, more than "
+                                     f"max_poses = {p.max_poses}")
+    closed_path = np.concatenate([path, path[:1]])
+    closed_arc = np.append(arc, length)
+    centres = []
+    for s in targets:
+        i = min(int(np.searchsorted(closed_arc, s, side="right")) - 1, len(path) - 1)
+        seg = closed_arc[i + 1] - closed_arc[i]
+        t = (s - closed_arc[i]) / seg if seg > 0 else 0.0
+        guess = closed_path[i] + t * (closed_path[i + 1] - closed_path[i])
+        centres.append(_project(geom, guess, p.clearance_m)[0])
+    poses = np.asarray(centres).reshape(-1, 2)
+    pos, head = [], []
+    for centre in poses:
+        rp, rh = ring(tuple(centre), p.radius_m, p.elements, p.start_deg)
+        pos.append(rp)
+        head.append(rh)
+    groups = np.repeat(np.arange(len(poses), dtype=np.int64), p.elements)
+    return (np.concatenate(pos), np.concatenate(head), groups, poses)
