@@ -19,6 +19,7 @@ import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TypeVar, cast
 
 import numpy as np
 
@@ -40,17 +41,26 @@ STAGES = ("sensors", "echoes", "detection", "accumulation", "sight", "filter", "
           "profile", "metrics")
 FRONT_STAGES = STAGES[:4]
 
+@dataclass(frozen=True)
+class Preset:
+    """The detection, mapping and post-processing settings a preset puts in a scene."""
+
+    detection: DetectionSettings
+    mapping: MappingSettings
+    post: PostSettings
+
+
 #: Settings of the thesis' method and of ours (the defaults of a scene file).
-PRESETS: dict[str, dict[str, object]] = {
-    "thesis": {
-        "detection": DetectionSettings(mode="threshold"),
-        "mapping": MappingSettings(mode="loci", weight="unit", reciprocal="both", combine="sum"),
-        "post": PostSettings(filter="mean3", level=1e-6, thinning="thesis", fit="polynomial",
-                             poly_order=7, subcell=False),
-    },
-    "best": {"detection": DetectionSettings(), "mapping": MappingSettings(),
-             "post": PostSettings()},
+PRESETS: dict[str, Preset] = {
+    "thesis": Preset(
+        detection=DetectionSettings(mode="threshold"),
+        mapping=MappingSettings(mode="loci", weight="unit", reciprocal="both", combine="sum"),
+        post=PostSettings(filter="mean3", level=1e-6, thinning="thesis", fit="polynomial",
+                          poly_order=7, subcell=False)),
+    "best": Preset(DetectionSettings(), MappingSettings(), PostSettings()),
 }
+
+T = TypeVar("T")
 
 Progress = Callable[[str, int, int], None]  # (stage, index from 1, number of stages)
 
@@ -65,7 +75,9 @@ def apply_preset(scene: Scene, preset: str | None) -> Scene:
         return scene
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
-    return dataclasses.replace(scene, **PRESETS[preset])
+    chosen = PRESETS[preset]
+    return dataclasses.replace(scene, detection=chosen.detection, mapping=chosen.mapping,
+                               post=chosen.post)
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,7 +105,7 @@ class RunResult:
     point_window: tuple[int, int, int, int] | None = None
 
     def report(self) -> dict[str, object]:
-        """The JSON-ready ``report.json`` of DESIGN.md's ``clsonar run``."""
+        """The JSON-ready ``report.json`` of docs/design.md's ``clsonar run``."""
         s = self.scene
         return {
             "clsonar": __version__,
@@ -171,7 +183,8 @@ def stage_keys(scene: Scene, device: str, skips: Skips) -> dict[str, str]:
     it read (:data:`STAGE_KEYS`), the device and the skips. No front stage reads a
     post-processing setting."""
     data = scene_to_dict(scene)
-    keys, seen = {}, [device, repr(skips)]
+    keys: dict[str, str] = {}
+    seen: list[object] = [device, repr(skips)]
     for stage, names in STAGE_KEYS.items():
         seen += [data.get(n) for n in names]
         keys[stage] = hashlib.sha256(json.dumps(seen, sort_keys=True).encode()).hexdigest()
@@ -210,7 +223,7 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
     counts: dict[str, int] = {}
     reused: list[str] = []
 
-    def stage(name: str, compute: Callable[[], tuple]) -> object:
+    def stage(name: str, compute: Callable[[], tuple[T, dict[str, int]]]) -> T:
         """Run (or reuse) one stage: ``compute()`` gives its value and its counters."""
         clock.start(name)
         found = cache.get(name, keys[name]) if cache is not None else None
@@ -220,7 +233,7 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
                 cache.put(name, keys[name], found)
         else:
             reused.append(name)
-        value, stage_counts = found  # type: ignore[misc]
+        value, stage_counts = cast(tuple[T, dict[str, int]], found)
         counts.update(stage_counts)
         return value
 
@@ -273,10 +286,12 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
         parts.append(r)
     counts.update(map_cells=int(maps["raw"].size),
                   cells_voted=int(np.count_nonzero(maps["raw"])), rooms_mapped=len(rooms))
-    pooled = regions.combine_metrics([p.metrics for p in parts])
-    return RunResult(scene=scene, geometry=build_geometry(scene), **_side_by_side(parts),
-                     votes=None, **maps, metrics=pooled, seconds=seconds, counts=counts,
-                     device=device_name(ctx))
+    sensors, echoes, detections, profile = _side_by_side(parts)
+    return RunResult(scene=scene, geometry=build_geometry(scene), sensors=sensors,
+                     echoes=echoes, detections=detections, votes=None, raw=maps["raw"],
+                     filtered=maps["filtered"], occupied=maps["occupied"], thin=maps["thin"],
+                     profile=profile, metrics=regions.combine_metrics([p.metrics for p in parts]),
+                     seconds=seconds, counts=counts, device=device_name(ctx))
 
 
 def _add_to_mosaic(maps: dict[str, np.ndarray], r: RunResult, room: regions.Region) -> None:
@@ -290,21 +305,20 @@ def _add_to_mosaic(maps: dict[str, np.ndarray], r: RunResult, room: regions.Regi
     maps["thin"][window] |= r.thin
 
 
-def _side_by_side(parts: list[RunResult]) -> dict[str, object]:
+def _side_by_side(parts: list[RunResult]
+                  ) -> tuple[SensorArray, EchoTable, Detections, post.Profile]:
     """The rooms' transducers, echoes, detections and profiles one after another (indices
     of transducers and groups moved on by the rooms before)."""
-    sensors = SensorArray(*(np.concatenate([getattr(p.sensors, f) for p in parts])
-                            for f in ("positions", "headings_deg")),
-                          np.concatenate(_offset_groups([p.sensors.groups for p in parts])),
-                          np.concatenate([p.sensors.poses for p in parts]))
+    sensors = SensorArray(
+        positions=np.concatenate([p.sensors.positions for p in parts]),
+        headings_deg=np.concatenate([p.sensors.headings_deg for p in parts]),
+        groups=np.concatenate(_offset_groups([p.sensors.groups for p in parts])),
+        poses=np.concatenate([p.sensors.poses for p in parts]))
     first = np.cumsum([0] + [len(p.sensors) for p in parts])
-    return {
-        "sensors": sensors,
-        "echoes": EchoTable(**_stack([p.echoes for p in parts], first, EchoTable)),
-        "detections": Detections(**_stack([p.detections for p in parts], first, Detections)),
-        "profile": post.Profile(tuple(c for p in parts for c in p.profile.curves),
-                                np.concatenate([p.profile.vertices for p in parts])),
-    }
+    return (sensors, EchoTable(**_stack([p.echoes for p in parts], first, EchoTable)),
+            Detections(**_stack([p.detections for p in parts], first, Detections)),
+            post.Profile(tuple(c for p in parts for c in p.profile.curves),
+                         np.concatenate([p.profile.vertices for p in parts])))
 
 
 def _offset_groups(groups: list[np.ndarray]) -> list[np.ndarray]:

@@ -8,15 +8,17 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import get_args
 
 import numpy as np
 
 from .. import physics
 from ..scene import MappingSettings, Scene
+from ..scene.settings import VoteWeight
 from ..sensors import SensorArray
 from .grid import MapGrid, band_m, map_grid
 
-WEIGHTS = ("unit", "amplitude", "beam")
+WEIGHTS: tuple[VoteWeight, ...] = get_args(VoteWeight)
 
 #: Reals per locus row in the kernels: (T, R), (axis T, axis R), (c·τ, weight, 0, 0).
 LOCUS_COLUMNS = 12

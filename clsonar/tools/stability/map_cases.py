@@ -153,8 +153,8 @@ def map_case(family: str, seed: int, *, million: int = MILLION) -> MapCase:
     area, n_sensors, n_loci = _frame(family, rng, million)
     transducers = _transducers(family, area, n_sensors)
     tx, rx, path = _loci_paths(family, area, transducers, n_loci)
-    settings = MappingSettings(mode="loci", weight=str(rng.choice(mapping.WEIGHTS)),
-                               combine="sum")
+    weight = mapping.WEIGHTS[int(rng.choice(len(mapping.WEIGHTS)))]
+    settings = MappingSettings(mode="loci", weight=weight, combine="sum")
     scene = Scene(name=f"stress-map-{family}-{seed}", extent=area.extent,
                   cell=area.cell, mapping=settings)
     c = scene.medium.c

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import get_args
 
 import numpy as np
 
@@ -11,6 +12,7 @@ from ... import echoes as echoes_mod
 from ... import signals
 from ...echoes import EchoTable
 from ...scene import Scene
+from ...scene.settings import DetectionMode
 from ...sensors import SensorArray, place_sensors
 from .echo_cases import ECHO_FAMILIES, echo_scene
 from .findings import BOUNDS, EPS32, Findings, Matches, finite
@@ -29,7 +31,8 @@ def signal_scene(family: str, seed: int) -> Scene:
     """The echo case's scene with a random detector (threshold or envelope) and noise."""
     rng = np.random.default_rng([seed, 200 + ECHO_FAMILIES.index(family)])
     scene = echo_scene(family, seed)
-    mode = str(rng.choice(["threshold", "envelope"]))
+    modes: tuple[DetectionMode, ...] = get_args(DetectionMode)  # ("threshold", "envelope")
+    mode = modes[int(rng.choice(len(modes)))]
     noise = float(rng.choice([0.0, 0.0, 0.3, 1.0]))
     return replace(scene, detection=replace(scene.detection, mode=mode),
                    signal=replace(scene.signal, noise_std=noise, seed=int(seed)))
