@@ -29,7 +29,7 @@ from clsonar.pipeline import STAGES
 from clsonar.scene import Circular, Polyline, load_scene, scene_to_dict
 
 ROOM = str(importlib.resources.files("clsonar.scenes") / "room.json")
-POST = ["filter", "thinning", "profile", "metrics"]
+POST = list(STAGES[4:])  # sight, filter, thinning, profile, metrics
 RUN_TIMEOUT_MS = 120_000
 
 
