@@ -218,7 +218,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _print_run_summary(result: pipeline.RunResult, out: str, paths: list[Path]) -> None:
-    """What ``clsonar run`` found and wrote, in three lines."""
+    """What ``clsonar run`` found and wrote, in three lines (four when settings were chosen
+    from the scene)."""
     m = result.metrics
     rms, acc, done = (outputs.metric(m, k) for k in ("rms_m", "accuracy_m.rms", "completeness.2cm"))
     print(f"{result.scene.name}: {result.counts['echoes']} echoes, "
@@ -229,7 +230,25 @@ def _print_run_summary(result: pipeline.RunResult, out: str, paths: list[Path]) 
         None if acc is None else f"accuracy RMS {acc * 100:.2f} cm",
         None if done is None else f"completeness within 2 cm {done * 100:.0f} %",
     ) if x))
+    chosen = _chosen_settings(result)
+    if chosen:
+        print(f"  {chosen}")
     print(f"  outputs in {out}/: " + ", ".join(p.name for p in paths))
+
+
+def _chosen_settings(result: pipeline.RunResult) -> str:
+    """``settings chosen for ring poses inside a closed room: post.fit walls, …`` (empty
+    when the file or a preset gave them all)."""
+    auto = {k: why.removeprefix("auto: ") for k, why in result.settings_why.items()
+            if why.startswith("auto: ")}
+    if not auto:
+        return ""
+    values = []
+    for key in auto:
+        block, name = key.split(".")
+        values.append(f"{key} {getattr(getattr(result.scene, block), name)}")
+    kinds = " / ".join(sorted(set(auto.values())))
+    return f"settings chosen for {kinds}: " + ", ".join(values)
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:

@@ -32,6 +32,7 @@ from .opencl import device_name, get_context
 from .scene import DetectionSettings, MappingSettings, PostSettings, Scene, scene_to_dict
 from .sensors import SensorArray, pairs, place_sensors
 from .signals import Detections
+from .survey import Survey, choose_settings, survey
 from .version import __version__
 
 #: The stages in the order of the data. The first four are the front (cached, no
@@ -103,15 +104,25 @@ class RunResult:
     point_sums: np.ndarray | None = None  # tangent-point sums per cell (sub-cell profile)
     #: (row0, col0, ny, nx): the cells ``point_sums`` covers (None: the whole grid)
     point_window: tuple[int, int, int, int] | None = None
+    #: what the scene is and how it is scanned (None for a scene mapped room by room)
+    survey: Survey | None = None
+    #: per setting chosen from the scene (survey.AUTO_KEYS): why its value was used
+    settings_why: dict[str, str] = dataclasses.field(default_factory=dict)
+    #: the scene as asked for (preset applied; settings to be chosen still None); ``scene``
+    #: is the one used, every setting filled in
+    asked: Scene | None = None
 
     def report(self) -> dict[str, object]:
-        """The JSON-ready ``report.json`` of docs/design.md's ``clsonar run``."""
+        """The JSON-ready ``report.json`` of docs/design.md's ``clsonar run``: the settings
+        used (``scene`` holds them all, chosen ones filled in) and why each setting that
+        can be chosen from the scene has its value."""
         s = self.scene
         return {
             "clsonar": __version__,
             "scene": s.name,
             "device": self.device,
             "settings": {k: scene_to_dict(s)[k] for k in ("detection", "mapping", "post")},
+            "settings_why": self.settings_why,
             "counts": self.counts,
             "seconds": {**self.seconds, "total": sum(self.seconds.values())},
             "metrics": self.metrics,
@@ -202,21 +213,30 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     ``cache`` (:class:`StageCache`) reuses the front stages whose inputs are unchanged.
     """
     scene = apply_preset(scene, preset)
+    given = "file" if preset is None else f"preset {preset}"
     ctx = context if context is not None else get_context(device)
     rooms = regions.split_rooms(scene) if skips.rooms else None
     if rooms is not None:
-        return _run_rooms(scene, rooms, ctx, skips, progress)
-    # Refuse a grid that cannot be held before any work is done (one clear message).
+        return _run_rooms(scene, rooms, ctx, skips, progress, given)
+    return _run_whole(scene, ctx, skips, cache, progress, given)
+
+
+def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
+               progress: Progress | None, given: str) -> RunResult:
+    """Every stage on ``scene`` as one map (a grid that cannot be held is refused before
+    any work, with one clear message)."""
     mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
                              host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
-    front = _run_front(scene, ctx, skips, cache, progress)
+    front = _run_front(scene, ctx, skips, cache, progress, given)
     return post_process(front, progress=progress, skips=skips)
 
 
 def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
-               progress: Progress | None) -> RunResult:
+               progress: Progress | None, given: str = "file") -> RunResult:
     """The front stages (sensors → echoes → detection → votes), each reused from ``cache``
-    when its key is there; the result's maps and profile are still empty."""
+    when its key is there; the result's maps and profile are still empty. After the
+    sensors, the settings the scene leaves out are chosen from what it is
+    (:mod:`clsonar.survey`; ``given`` names where the others come from)."""
     device = device_name(ctx)
     keys = stage_keys(scene, device, skips) if cache is not None else {}
     clock = _Stopwatch(progress)
@@ -238,6 +258,9 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
         return value
 
     geom, sensors = stage("sensors", lambda: (_sensors(scene), {}))
+    asked = scene
+    found = survey(scene, sensors)
+    scene, why = choose_settings(scene, found, given)
     echoes = stage("echoes", lambda: _echoes(scene, sensors, ctx, skips))
     detections = stage("detection", lambda: _detect(scene, sensors, echoes, ctx, skips))
     votes = stage("accumulation", lambda: _votes(scene, sensors, echoes, detections, ctx,
@@ -249,7 +272,8 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
     return RunResult(scene=scene, geometry=geom, sensors=sensors, echoes=echoes,
                      detections=detections, votes=votes, raw=empty, filtered=empty,
                      occupied=empty, thin=empty, profile=post.Profile(()), metrics={},
-                     seconds=clock.stop(), counts=counts, device=device)
+                     seconds=clock.stop(), counts=counts, device=device, survey=found,
+                     settings_why=why, asked=asked)
 
 
 #: Host memory the mosaic of a scene mapped room by room holds per cell: raw and filtered
@@ -258,7 +282,7 @@ MOSAIC_BYTES_PER_CELL = 10
 
 
 def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
-               progress: Progress | None) -> RunResult:
+               progress: Progress | None, given: str) -> RunResult:
     """Run each room of ``scene`` on its own (:mod:`clsonar.regions`) and put the results
     together: the maps as a mosaic on the scene's grid, the rooms' curves, vertices,
     transducers, echoes and detections side by side, metrics pooled, seconds and counts
@@ -277,7 +301,7 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
             if progress is not None:
                 progress(stage, k * n + i, len(rooms) * n)
 
-        r = run(room.scene, context=ctx, skips=inner, progress=tell)
+        r = _run_whole(room.scene, ctx, inner, None, tell, given)
         _add_to_mosaic(maps, r, room)
         for stage, t in r.seconds.items():
             seconds[stage] += t
@@ -287,11 +311,13 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
     counts.update(map_cells=int(maps["raw"].size),
                   cells_voted=int(np.count_nonzero(maps["raw"])), rooms_mapped=len(rooms))
     sensors, echoes, detections, profile = _side_by_side(parts)
-    return RunResult(scene=scene, geometry=build_geometry(scene), sensors=sensors,
+    used = dataclasses.replace(scene, mapping=parts[0].scene.mapping, post=parts[0].scene.post)
+    return RunResult(scene=used, geometry=build_geometry(scene), sensors=sensors,
                      echoes=echoes, detections=detections, votes=None, raw=maps["raw"],
                      filtered=maps["filtered"], occupied=maps["occupied"], thin=maps["thin"],
                      profile=profile, metrics=regions.combine_metrics([p.metrics for p in parts]),
-                     seconds=seconds, counts=counts, device=device_name(ctx))
+                     seconds=seconds, counts=counts, device=device_name(ctx),
+                     settings_why=parts[0].settings_why, asked=scene)
 
 
 def _add_to_mosaic(maps: dict[str, np.ndarray], r: RunResult, room: regions.Region) -> None:
@@ -381,10 +407,15 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
     if result.votes is None:
         raise ClsonarError(f"{result.scene.name}: a scene mapped room by room cannot re-run "
                            "its post-processing alone; run it again")
-    scene = result.scene if settings is None else dataclasses.replace(result.scene,
-                                                                      post=settings)
-    return post_process(dataclasses.replace(result, scene=scene), progress=progress,
-                        skips=skips)
+    scene, why, asked = result.scene, result.settings_why, result.asked
+    if settings is not None:
+        assert result.survey is not None
+        scene, chosen = choose_settings(dataclasses.replace(scene, post=settings),
+                                        result.survey)
+        why = {**why, **{k: v for k, v in chosen.items() if k.startswith("post.")}}
+        asked = None if asked is None else dataclasses.replace(asked, post=settings)
+    return post_process(dataclasses.replace(result, scene=scene, settings_why=why,
+                                            asked=asked), progress=progress, skips=skips)
 
 
 def post_process(front: RunResult, *, progress: Progress | None = None,

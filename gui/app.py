@@ -445,7 +445,7 @@ class MainWindow(QMainWindow):
         """Re-run post-processing when only its settings changed since the last run."""
         if self.result is None:
             return
-        changed = edits.changed_groups(self.result.scene, scene)
+        changed = edits.changed_groups(self.result.asked or self.result.scene, scene)
         if changed == {"post"}:
             if self.busy:
                 self._post_again = True

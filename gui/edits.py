@@ -157,10 +157,15 @@ def set_setting(scene: Scene, group: str, key: str, value: Any) -> Scene:
 
 
 def choices(cls: type, name: str) -> tuple[Any, ...] | None:
-    """The allowed values of a ``Literal`` field of dataclass ``cls`` (None if not one)."""
+    """The allowed values of a ``Literal`` field of dataclass ``cls`` (None if not one);
+    an optional one (``Fit | None``: chosen from the scene when None) also allows None."""
     hint = typing.get_type_hints(cls)[name]
     if typing.get_origin(hint) is typing.Literal:
         return typing.get_args(hint)
+    args = typing.get_args(hint)
+    literals = [a for a in args if typing.get_origin(a) is typing.Literal]
+    if literals and type(None) in args:
+        return (*typing.get_args(literals[0]), None)
     return None
 
 

@@ -27,8 +27,10 @@ SELECTED = "selected"
 
 def to_param(name: str, value: Any, options: tuple[Any, ...] | None) -> dict[str, Any]:
     """The pyqtgraph parameter spec showing one scene value."""
-    if options is not None:
-        return {"name": name, "type": "list", "limits": list(options), "value": value}
+    if options is not None:  # None among them: "auto", chosen from the scene
+        shown = [NONE_TEXT if o is None else o for o in options]
+        return {"name": name, "type": "list", "limits": shown,
+                "value": NONE_TEXT if value is None else value}
     if isinstance(value, bool):
         return {"name": name, "type": "bool", "value": value}
     if isinstance(value, int):
@@ -51,7 +53,10 @@ def from_text(text: str, old: Any) -> Any:
         return tuple(float(v) for v in t.split(","))
     if isinstance(old, str):
         return t
-    return float(t)
+    try:
+        return float(t)
+    except ValueError:
+        return t  # a choice of an optional setting (old None); the scene reader checks it
 
 
 def group_spec(name: str, obj: Any, skip: tuple[str, ...] = ("type",)) -> dict[str, Any]:
@@ -195,7 +200,10 @@ class ParamsPanel(QObject):
             if isinstance(value, str):
                 value = from_text(value, old)
             return edits.set_placement(scene, placement.type, **{key: value})
-        old = getattr(scene if group == "scene" else getattr(scene, group), key)
-        if isinstance(value, str) and not isinstance(old, str):
-            value = from_text(value, old)
+        target = scene if group == "scene" else getattr(scene, group)
+        options = None if group == "scene" else edits.choices(type(target), key)
+        if options is not None:  # a list: its "auto" is None (chosen from the scene)
+            value = None if value == NONE_TEXT and None in options else value
+        elif isinstance(value, str) and not isinstance(getattr(target, key), str):
+            value = from_text(value, getattr(target, key))
         return edits.set_setting(scene, group, key, value)

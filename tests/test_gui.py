@@ -154,7 +154,7 @@ def test_edit_run_stages_post_save(qtbot, window, tmp_path):
     result = run_and_wait(qtbot, w)
     assert w.runs == {"full": 1, "post": 0}
     assert w.last_stages == list(STAGES)
-    assert result.scene == w.doc.scene
+    assert result.asked == w.doc.scene
     shape = w.doc.scene.grid_shape
     views = w.stages.views
     for key, view in views.items():

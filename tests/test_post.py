@@ -145,11 +145,11 @@ def test_fit_spline_follows_a_circle():
 
 def test_extract_profile_from_a_thin_map():
     t = _ring()
-    prof = extract_profile(t, (0.0, 0.0, 0.6, 0.6), 0.01, PostSettings(fit="spline"))
+    prof = extract_profile(t, (0.0, 0.0, 0.6, 0.6), 0.01, PostSettings(fit="spline", max_gap_m=0.3))
     assert len(prof.curves) == 1
     r = np.hypot(*(prof.points - 0.3).T)
     assert abs(np.median(r) - 0.2) < 0.01
-    none = extract_profile(t, (0.0, 0.0, 0.6, 0.6), 0.01, PostSettings(fit="none"))
+    none = extract_profile(t, (0.0, 0.0, 0.6, 0.6), 0.01, PostSettings(fit="none", max_gap_m=0.3))
     assert len(none.points) == np.count_nonzero(t) + 1  # closed loop repeats its start
 
 

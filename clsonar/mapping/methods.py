@@ -15,6 +15,7 @@ import numpy as np
 from .. import signals
 from ..echoes import EchoTable
 from ..scene import Scene
+from ..scene.settings import chosen
 from ..sensors import SensorArray, pairs
 from ..signals import Detections
 from .launch import AccumulationStats, accumulate_with_stats, backproject
@@ -86,7 +87,8 @@ def tangent_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     (:func:`~clsonar.mapping.tangent_points`) and the pair of the locus each came from."""
     loci = _loci(scene, detections)
     points, source = tangent_points(scene, sensors, loci,
-                                    isolated_bias_m=scene.mapping.isolated_bias_m)
+                                    isolated_bias_m=chosen(scene.mapping.isolated_bias_m,
+                                                           "mapping.isolated_bias_m"))
     return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source])
 
 

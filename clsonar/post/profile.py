@@ -7,6 +7,7 @@ import numpy as np
 
 from ..geometry import cell_centres
 from ..scene import PostSettings
+from ..scene.settings import chosen
 from .curves import MIN_CURVE_CELLS, bridge_gaps, refine_cells, refine_to_points, trace_curves
 from .fits import Profile, fit_polynomial, fit_spline
 from .walls import fit_walls
@@ -23,16 +24,17 @@ def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float
     (``polynomial``, the thesis), straight walls joined at corners and edges (``walls``,
     :func:`~clsonar.post.walls.fit_walls`), a smoothing spline per curve (``spline``) or
     the points as linked (``none``)."""
+    fit = chosen(settings.fit, "post.fit")
     curves = _curves_in_metres(trace_curves(thin_map, MIN_CURVE_CELLS), extent, cell,
                                settings, weights, counts, sums)
-    if settings.fit == "polynomial":
+    if fit == "polynomial":
         if not curves:
             return Profile(())
         return Profile((fit_polynomial(np.concatenate(curves), settings.poly_order, cell),))
-    if settings.fit == "walls":
+    if fit == "walls":
         return fit_walls(curves, cell, settings)
-    curves = bridge_gaps(curves, settings.max_gap_m)
-    if settings.fit == "spline":
+    curves = bridge_gaps(curves, chosen(settings.max_gap_m, "post.max_gap_m"))
+    if fit == "spline":
         curves = [fit_spline(c, cell, cell / 2) for c in curves]
     return Profile(tuple(curves))
 

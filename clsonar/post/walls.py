@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..scene import PostSettings
+from ..scene.settings import chosen
 from .fits import Profile, fit_spline
 
 # --------------------------------------------------------------------------- walls
@@ -347,9 +348,11 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) 
     (:func:`find_circles`; gaps up to ``settings.max_gap_m`` of arc bridged), and a
     smoothing spline through each remaining piece that is not the rounding of a found
     vertex."""
+    max_gap, join = chosen(settings.max_gap_m, "post.max_gap_m"), chosen(settings.join_m,
+                                                                       "post.join_m")
     walls, bends = _pieces(curves)
-    walls = merge_collinear(walls, settings.max_gap_m)
-    vertices = join_walls(walls, settings.join_m)
+    walls = merge_collinear(walls, max_gap)
+    vertices = join_walls(walls, join)
 
     def rounding(points: np.ndarray) -> bool:
         """All within join_m of a vertex: the rounded-off or chamfered corner or edge that
@@ -357,7 +360,7 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) 
         if len(vertices) == 0:
             return False
         d = np.hypot(*(points[:, None] - vertices[None]).transpose(2, 0, 1))
-        return bool(np.all(d.min(axis=1) <= settings.join_m))
+        return bool(np.all(d.min(axis=1) <= join))
 
     long = [w for w in walls if w.joins or w.length >= MIN_JOIN_WALL_M]
     short = [w.points for w in walls if not (w.joins or w.length >= MIN_JOIN_WALL_M)]
@@ -365,7 +368,7 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) 
     long = [w for w in long if w.joins or not any(arc.holds(w.points) for arc in arcs)]
     out = [w.sample(spacing) for w in long]
     for arc in arcs:
-        out += arc.sample(spacing, settings.max_gap_m)
+        out += arc.sample(spacing, max_gap)
     out += [fit_spline(p, spacing, spacing / 2) for p in rest]
     return Profile(tuple(out), vertices)
 

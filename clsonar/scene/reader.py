@@ -136,15 +136,14 @@ def _read_detection(r: JsonReader, d: Any) -> DetectionSettings:
 def _read_mapping(r: JsonReader, d: Any) -> MappingSettings:
     k, ms = "mapping", MappingSettings
     d = r.obj(d, k, _keys(ms))
-    band = None if d.get("band_m") is None else r.number(d, "band_m", k, gt=0)
     return MappingSettings(
         mode=r.literal(d, "mode", k, MappingMode, ms.mode),
         weight=r.literal(d, "weight", k, VoteWeight, ms.weight),
-        band_m=band,
+        band_m=r.optional_number(d, "band_m", k, gt=0),
         precision=r.literal(d, "precision", k, Precision, ms.precision),
         reciprocal=r.literal(d, "reciprocal", k, Reciprocal, ms.reciprocal),
         combine=r.literal(d, "combine", k, Combine, ms.combine),
-        isolated_bias_m=r.number(d, "isolated_bias_m", k, ms.isolated_bias_m, ge=0),
+        isolated_bias_m=r.optional_number(d, "isolated_bias_m", k, ge=0),
         line_of_sight=r.boolean(d, "line_of_sight", k, ms.line_of_sight),
     )
 
@@ -152,16 +151,15 @@ def _read_mapping(r: JsonReader, d: Any) -> MappingSettings:
 def _read_post(r: JsonReader, d: Any) -> PostSettings:
     k, ps = "post", PostSettings
     d = r.obj(d, k, _keys(ps))
-    level = None if d.get("level") is None else r.number(d, "level", k, gt=0, le=1)
     return PostSettings(
         filter=r.literal(d, "filter", k, PostFilter, ps.filter),
-        level=level,
+        level=r.optional_number(d, "level", k, gt=0, le=1),
         thinning=r.literal(d, "thinning", k, Thinning, ps.thinning),
-        fit=r.literal(d, "fit", k, Fit, ps.fit),
+        fit=r.optional_literal(d, "fit", k, Fit),
         poly_order=r.integer(d, "poly_order", k, ps.poly_order, ge=1, le=12),
-        max_gap_m=r.number(d, "max_gap_m", k, ps.max_gap_m, ge=0),
+        max_gap_m=r.optional_number(d, "max_gap_m", k, ge=0),
         subcell=r.boolean(d, "subcell", k, ps.subcell),
-        join_m=r.number(d, "join_m", k, ps.join_m, ge=0),
+        join_m=r.optional_number(d, "join_m", k, ge=0),
     )
 
 

@@ -9,7 +9,7 @@ dataclass field is annotated with it, the reader accepts exactly its values
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, TypeVar
 
 from ..physics import (
     DEFAULT_PULSE_SIGMA_S,
@@ -47,6 +47,18 @@ Thinning = Literal["thesis", "guo-hall"]
 
 #: The profile fitted to the thin map.
 Fit = Literal["polynomial", "spline", "walls", "none"]
+
+
+T = TypeVar("T")
+
+
+def chosen(value: T | None, name: str) -> T:
+    """The value of a setting that is chosen from the scene when the file leaves it out
+    (null; :mod:`clsonar.survey`), once chosen. ``ValueError`` naming it before then."""
+    if value is None:
+        raise ValueError(f"{name} is chosen from the scene: run the scene through "
+                         "clsonar.pipeline.run, or clsonar.survey.choose_settings, first")
+    return value
 
 
 @dataclass(frozen=True)
@@ -137,7 +149,8 @@ class MappingSettings:
       cross, which lie on the surface to within δ²/(8r) (mapping.tangent_points), with the
       loci's tangent segments around them, counted per cell. A locus that crosses none keeps
       the middle of its in-beam arc within ``isolated_bias_m`` of its tangent (0: dropped),
-      which suits transducers that face the surface squarely, as a wall-following ring does.
+      which suits transducers that face the surface squarely, as a wall-following ring does
+      (null: chosen from the scene, :mod:`clsonar.survey`).
     - ``backprojection``: the sum over pairs of each pair's envelope at the pixel's delay
       (delay-and-sum, "total focusing").
 
@@ -145,7 +158,7 @@ class MappingSettings:
     twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
     ``precision``: the kernels' arithmetic. ``line_of_sight`` (``tangents`` only): drop the
     points that the map itself shows hidden behind a surface from their transducers — the
-    ghosts of multiply reflected echoes (rooms.line_of_sight).
+    ghosts of multiply reflected echoes (sight.line_of_sight).
     """
 
     mode: MappingMode = "tangents"
@@ -154,7 +167,7 @@ class MappingSettings:
     precision: Precision = "float32"
     reciprocal: Reciprocal = "merge"
     combine: Combine = "viewpoints"
-    isolated_bias_m: float = 0.0
+    isolated_bias_m: float | None = None
     line_of_sight: bool = True
 
 
@@ -168,15 +181,17 @@ class PostSettings:
     ``poly_order`` along a single wall (the thesis: 5–8), ``spline`` along each linked curve
     (rooms too), ``walls`` (rooms: straight walls where the data are straight, extended to
     meet at corners and edges within ``join_m`` of their ends, splines elsewhere;
-    rooms.fit_walls) or ``none``; curves closer than ``max_gap_m`` are bridged; ``subcell``
-    moves each thin cell to the vote-weighted centroid of the filtered map around it.
+    post.walls.fit_walls) or ``none``; curves closer than ``max_gap_m`` are bridged;
+    ``subcell`` moves each thin cell to the vote-weighted centroid of the filtered map around
+    it. ``fit``, ``max_gap_m`` and ``join_m`` null: chosen from the scene
+    (:mod:`clsonar.survey`).
     """
 
     filter: PostFilter = "mean3"
     level: float | None = None
     thinning: Thinning = "guo-hall"
-    fit: Fit = "spline"
+    fit: Fit | None = None
     poly_order: int = 7
-    max_gap_m: float = 0.3
+    max_gap_m: float | None = None
     subcell: bool = True
-    join_m: float = 0.5
+    join_m: float | None = None

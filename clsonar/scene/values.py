@@ -63,6 +63,15 @@ class JsonReader:
             return default
         return self._bounded(self.check_number(d[name], path, gt=gt, ge=ge, le=le, lt=lt), path)
 
+    def optional_number(self, d: dict[str, Any], name: str, key: str, *,
+                        gt: float | None = None, ge: float | None = None,
+                        le: float | None = None) -> float | None:
+        """``d[name]``, or None where it is absent or null (a setting chosen from the
+        scene)."""
+        if d.get(name) is None:
+            return None
+        return self.number(d, name, key, gt=gt, ge=ge, le=le)
+
     def _bounded(self, v: float, path: str) -> float:
         if abs(v) > MAX_MAGNITUDE:
             raise self.fail(path, f"{v:.3g} is out of range (at most ±{MAX_MAGNITUDE:.0e})")
@@ -124,6 +133,14 @@ class JsonReader:
         """The setting ``d[name]`` (``default`` if absent), one of the values of the
         ``Literal`` ``alias`` (clsonar.scene.settings), which the value then has."""
         return cast(Choice, self.choice(d, name, key, typing.get_args(alias), default))
+
+    def optional_literal(self, d: dict[str, Any], name: str, key: str, alias: Any
+                         ) -> Any:
+        """:meth:`literal`, or None where ``d[name]`` is absent or null (a setting chosen
+        from the scene)."""
+        if d.get(name) is None:
+            return None
+        return self.choice(d, name, key, typing.get_args(alias))
 
     def vector(self, v: Any, path: str, length: int) -> tuple[float, ...]:
         if not isinstance(v, list) or len(v) != length:

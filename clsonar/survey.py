@@ -1,0 +1,184 @@
+"""What a scene is and how it is scanned, and the settings a scene file leaves out chosen from
+that (issue 14: maps without tuning).
+
+:func:`survey` reads the scene's geometry and its placed transducers: whether every
+transducer is inside a closed polyline (a room), which pair groups are rings (elements on a
+circle facing outwards from its centre: one pose of a circular array, thesis §2.1.2) and
+which are linear arrays (thesis §2.1), and whether the ring poses, in file order, follow a
+path (a robot driving along walls or down a corridor). :func:`choose_settings` then fills in
+every setting the file left out (null) from :data:`CHOICES`, and says for each setting which
+value was used and why; a value the file (or a preset) gives always wins.
+
+Why these choices: a ring's elements face away from each other, so the loci of one pose
+never cross and the tangent-point method keeps nothing unless an isolated locus keeps the
+stretch around its tangent (``mapping.isolated_bias_m``); a room or a path is straight walls
+meeting at corners and edges, which the ``walls`` fit recovers (thesis §3.6), with the gaps
+between poses' patches (up to about the scan step and beyond) bridged and walls joined at
+their vertices (``post.max_gap_m``, ``post.join_m``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .geometry import inside_polygon
+from .scene import Polyline, Scene
+from .sensors import SensorArray
+
+#: A group is a ring when its elements' distances from their centre agree within this
+#: share, the ring is at most :data:`MAX_RING_RADIUS_M` across, and every element faces
+#: within :data:`RING_FACING_DEG` of the outward direction.
+RING_RADIUS_SPREAD = 0.1
+MAX_RING_RADIUS_M = 0.5
+RING_FACING_DEG = 15.0
+
+#: A group is a linear array when its elements lie within this of one line and face
+#: within :data:`ARRAY_FACING_DEG` of each other.
+ARRAY_LINE_M = 0.01
+ARRAY_FACING_DEG = 30.0
+
+#: Ring poses form a path when most steps between consecutive poses are this short.
+PATH_STEP_M = 1.5
+PATH_SHARE = 0.8
+PATH_MIN_POSES = 3
+
+#: The kinds of scan :func:`survey` tells apart, each with its description in report.json.
+ROOM_RINGS = "ring poses inside a closed room"
+ROOM = "transducers inside a closed room"
+PATH = "ring poses along a path"
+RINGS = "rings in an open scene"
+OPEN = "an open scene"
+
+#: The settings chosen for each kind of scan where the scene file leaves them out (null).
+_SCANNED_WALLS = {"mapping.isolated_bias_m": 0.005, "post.fit": "walls",
+                  "post.max_gap_m": 1.0, "post.join_m": 1.0}
+_OPEN = {"mapping.isolated_bias_m": 0.0, "post.fit": "spline", "post.max_gap_m": 0.3,
+         "post.join_m": 0.5}
+CHOICES: dict[str, dict[str, object]] = {
+    ROOM_RINGS: _SCANNED_WALLS,
+    ROOM: _SCANNED_WALLS,
+    PATH: _SCANNED_WALLS,
+    RINGS: {**_OPEN, "mapping.isolated_bias_m": 0.005},
+    OPEN: _OPEN,
+}
+
+#: The settings that are chosen from the scene when the file leaves them out.
+AUTO_KEYS = tuple(_OPEN)
+
+
+@dataclass(frozen=True)
+class Survey:
+    """What :func:`survey` found: the kind of scan (one of :data:`CHOICES`' keys) and its
+    counts."""
+
+    kind: str
+    groups: int
+    rings: int
+    arrays: int
+    in_room: bool
+    ring_path: bool
+
+
+def group_centres(sensors: SensorArray) -> tuple[np.ndarray, list[np.ndarray]]:
+    """The pair groups in file order (of their first element): [G, 2] centroids and each
+    group's element indices."""
+    groups, first = np.unique(sensors.groups, return_index=True)
+    order = np.argsort(first)
+    members = [np.flatnonzero(sensors.groups == g) for g in groups[order]]
+    centres = np.array([sensors.positions[m].mean(axis=0) for m in members]).reshape(-1, 2)
+    return centres, members
+
+
+def is_ring(positions: np.ndarray, headings_deg: np.ndarray) -> bool:
+    """Whether transducers at ``positions`` [n, 2] with ``headings_deg`` [n] form a ring:
+    at least 3 on a small circle, each facing away from its centre."""
+    if len(positions) < 3:
+        return False
+    d = positions - positions.mean(axis=0)
+    r = np.hypot(d[:, 0], d[:, 1])
+    if r.mean() <= 0 or r.mean() > MAX_RING_RADIUS_M or np.ptp(r) > RING_RADIUS_SPREAD * r.mean():
+        return False
+    out = np.degrees(np.arctan2(d[:, 1], d[:, 0]))
+    off = (headings_deg - out + 180.0) % 360.0 - 180.0
+    return bool(np.all(np.abs(off) <= RING_FACING_DEG))
+
+
+def is_linear_array(positions: np.ndarray, headings_deg: np.ndarray) -> bool:
+    """Whether transducers at ``positions`` [n, 2] form a linear array: at least 2 within
+    :data:`ARRAY_LINE_M` of one line, facing within :data:`ARRAY_FACING_DEG` of each other."""
+    if len(positions) < 2:
+        return False
+    d = positions - positions.mean(axis=0)
+    _, sv, _ = np.linalg.svd(d, full_matrices=False)
+    if sv[-1] / math.sqrt(len(d)) > ARRAY_LINE_M:
+        return False
+    h = np.radians(headings_deg)
+    mean = math.atan2(np.sin(h).mean(), np.cos(h).mean())
+    off = (np.degrees(h - mean) + 180.0) % 360.0 - 180.0
+    return bool(np.all(np.abs(off) <= ARRAY_FACING_DEG))
+
+
+def follows_a_path(poses: np.ndarray) -> bool:
+    """Whether ``poses`` [P, 2] in order are a path: at least :data:`PATH_MIN_POSES`, most
+    steps shorter than :data:`PATH_STEP_M`."""
+    if len(poses) < PATH_MIN_POSES:
+        return False
+    steps = np.hypot(*np.diff(poses, axis=0).T)
+    return bool(np.mean(steps <= PATH_STEP_M) >= PATH_SHARE)
+
+
+def in_a_room(scene: Scene, positions: np.ndarray) -> bool:
+    """Whether every transducer lies inside one of the scene's closed polylines."""
+    rooms = [np.asarray(s.points, dtype=np.float64) for s in scene.surfaces
+             if isinstance(s, Polyline) and s.closed]
+    if not rooms or len(positions) == 0:
+        return False
+    inside = np.zeros(len(positions), dtype=bool)
+    for poly in rooms:
+        inside |= inside_polygon(poly, positions)
+    return bool(inside.all())
+
+
+def survey(scene: Scene, sensors: SensorArray) -> Survey:
+    """What ``scene`` is and how ``sensors`` scan it (:class:`Survey`)."""
+    centres, members = group_centres(sensors)
+    rings = [is_ring(sensors.positions[m], sensors.headings_deg[m]) for m in members]
+    arrays = sum(is_linear_array(sensors.positions[m], sensors.headings_deg[m])
+                 for m in members)
+    room = in_a_room(scene, sensors.positions)
+    path = follows_a_path(centres[np.asarray(rings, dtype=bool)]) if any(rings) else False
+    if room:
+        kind = ROOM_RINGS if any(rings) else ROOM
+    elif path:
+        kind = PATH
+    else:
+        kind = RINGS if any(rings) else OPEN
+    return Survey(kind, len(members), sum(rings), int(arrays), room, path)
+
+
+def choose_settings(scene: Scene, found: Survey, given: str = "file"
+                    ) -> tuple[Scene, dict[str, str]]:
+    """``scene`` with every setting of :data:`AUTO_KEYS` it leaves out (None) chosen for
+    the kind of scan ``found`` (:data:`CHOICES`), and, per setting, why its value was used:
+    ``"auto: <kind>"`` or ``given`` (where the file, or a preset, set it)."""
+    why: dict[str, str] = {}
+    auto = f"auto: {found.kind}"
+
+    def filled(settings: Any, block: str) -> Any:
+        changes: dict[str, Any] = {}
+        for key in AUTO_KEYS:
+            name = key.removeprefix(f"{block}.")
+            if name != key:
+                unset = getattr(settings, name) is None
+                why[key] = auto if unset else given
+                if unset:
+                    changes[name] = CHOICES[found.kind][key]
+        return dataclasses.replace(settings, **changes)
+
+    return dataclasses.replace(scene, mapping=filled(scene.mapping, "mapping"),
+                               post=filled(scene.post, "post")), why
