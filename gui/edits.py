@@ -169,6 +169,12 @@ def choices(cls: type, name: str) -> tuple[Any, ...] | None:
     return None
 
 
+def optional(cls: type, name: str) -> bool:
+    """Whether field ``name`` of dataclass ``cls`` may be None ("auto": chosen from the
+    scene, or a default the library picks)."""
+    return type(None) in typing.get_args(typing.get_type_hints(cls)[name])
+
+
 def surface_label(s: Surface) -> str:
     """A short description of a surface for menus and undo texts."""
     if isinstance(s, Polyline):

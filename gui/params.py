@@ -25,12 +25,16 @@ NO_PLACEMENT = "none"
 SELECTED = "selected"
 
 
-def to_param(name: str, value: Any, options: tuple[Any, ...] | None) -> dict[str, Any]:
-    """The pyqtgraph parameter spec showing one scene value."""
+def to_param(name: str, value: Any, options: tuple[Any, ...] | None,
+             may_be_none: bool = False) -> dict[str, Any]:
+    """The pyqtgraph parameter spec showing one scene value (a number that may be None is
+    text, so that "auto" can be typed back)."""
     if options is not None:  # None among them: "auto", chosen from the scene
         shown = [NONE_TEXT if o is None else o for o in options]
         return {"name": name, "type": "list", "limits": shown,
                 "value": NONE_TEXT if value is None else value}
+    if may_be_none and isinstance(value, float):
+        return {"name": name, "type": "str", "value": repr(value)}
     if isinstance(value, bool):
         return {"name": name, "type": "bool", "value": value}
     if isinstance(value, int):
@@ -61,7 +65,8 @@ def from_text(text: str, old: Any) -> Any:
 
 def group_spec(name: str, obj: Any, skip: tuple[str, ...] = ("type",)) -> dict[str, Any]:
     """A parameter group for one settings dataclass (fields in ``skip`` left out)."""
-    children = [to_param(f.name, getattr(obj, f.name), edits.choices(type(obj), f.name))
+    children = [to_param(f.name, getattr(obj, f.name), edits.choices(type(obj), f.name),
+                         edits.optional(type(obj), f.name))
                 for f in dataclasses.fields(obj) if f.name not in skip]
     return {"name": name, "type": "group", "children": children}
 

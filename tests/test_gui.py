@@ -483,3 +483,20 @@ def test_placements_from_parameters(qtbot, window):
     n = shown()
     assert n > 0 and n % 4 == 0
     assert w.doc.undo.count() == 5
+
+
+def test_settings_chosen_from_the_scene_show_auto(qtbot, window):
+    """A setting chosen from the scene (null in the file) shows "auto" in the panel; a
+    value chosen there is saved in the scene, and "auto" gives the choice back (issue 14)."""
+    w = window
+    fit = w.params.params.child("post", "fit")
+    assert w.doc.scene.post.fit is None and fit.value() == "auto"
+    assert "walls" in fit.opts["limits"] and "none" in fit.opts["limits"]
+    w.params.set("post", "fit", "none")  # the fit "none", not "auto"
+    assert w.doc.scene.post.fit == "none"
+    w.params.set("post", "fit", "auto")
+    assert w.doc.scene.post.fit is None
+    w.params.set("post", "max_gap_m", "0.5")
+    assert w.doc.scene.post.max_gap_m == 0.5
+    w.params.set("post", "max_gap_m", "auto")
+    assert w.doc.scene.post.max_gap_m is None
