@@ -198,6 +198,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from .scene import load_scene
 
     scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
+    outputs.check_out(args.out)  # and so does an --out that cannot be written
     names = pipeline.SKIP_NAMES
     off = names if "all" in args.no_skip else args.no_skip
     skips = pipeline.Skips(**{name: name not in off for name in names})

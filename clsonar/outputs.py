@@ -124,18 +124,40 @@ def stage_pngs(result: RunResult) -> dict[str, bytes]:
     }
 
 
+def check_out(out: str | os.PathLike[str]) -> Path:
+    """``out`` as a folder the outputs can be written to, checked before any work: an
+    existing folder we may write in, or a new one whose nearest existing parent is such a
+    folder. :class:`ClsonarError` (one line) otherwise."""
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise ClsonarError(f"{out}: --out is a file, not a folder")
+    parent = path if path.exists() else next(p for p in path.parents if p.exists())
+    if not parent.is_dir():
+        raise ClsonarError(f"{out}: cannot create the folder: {parent} is not a folder")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise ClsonarError(f"{out}: cannot write in {parent} (permission denied)")
+    return path
+
+
 def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
                   pngs: bool = True) -> list[Path]:
     """Write every output of ``result`` into folder ``out`` (the PNGs only if ``pngs``);
     returns the paths written.
 
     A new folder is filled under a temporary name and renamed into place; in an existing
-    folder each file is replaced atomically.
+    folder each file is replaced atomically. A folder that cannot be written (or a full
+    disk) is one :class:`ClsonarError` line; nothing half-written is left.
     """
+    try:
+        return _write_files(result, check_out(out), pngs)
+    except OSError as e:
+        raise ClsonarError(f"{out}: cannot write the outputs: {e.strerror or e}") from None
+
+
+def _write_files(result: RunResult, out: Path, pngs: bool) -> list[Path]:
     files = data_files(result)
     if pngs:
         files.update(stage_pngs(result))
-    out = Path(out)
     if not out.exists():
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))

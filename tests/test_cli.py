@@ -142,3 +142,16 @@ def test_pictures_commands_without_matplotlib_refuse_in_one_line(tmp_path, capsy
     assert len(err) == 1 and err[0].startswith(f"clsonar: error: clsonar {command[0]}")
     assert err[0].endswith("needs matplotlib: pip install 'clsonar[plots]'")
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("where", ["a-file", "a-file/sub"])
+def test_an_out_that_cannot_be_a_folder_is_one_line(tmp_path, capsys, where):
+    """Issue 19: --out naming a file (or a folder inside one) was a traceback and exit 1;
+    now one line and exit 2, before any work, and nothing written."""
+    (tmp_path / "a-file").write_text("keep me")
+    scene = Path(__file__).resolve().parents[1] / "scenes" / "plane-2m.json"
+    assert main(["run", str(scene), "--out", str(tmp_path / where), "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("clsonar: error: ") and "folder" in err[0]
+    assert (tmp_path / "a-file").read_text() == "keep me"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file"]
