@@ -51,7 +51,7 @@ def save(out: Path, scenes: Path | None = None, device: str | None = None) -> li
             report = {k: v for k, v in result.report().items() if k not in UNSTABLE_KEYS}
             write_atomic(out / f"{name}.json",
                          json.dumps(report, sort_keys=True, indent=1, default=str).encode())
-            np.savez_compressed(out / f"{name}.npz", **arrays(result))
+            np.savez_compressed(out / f"{name}.npz", allow_pickle=False, **arrays(result))
             names.append(name)
     return names
 
