@@ -134,6 +134,8 @@ def _add_zoo(sub: Subparsers) -> None:
                    help="also write every scene file into DIR/scenes/")
     p.add_argument("--baseline", metavar="ZOO.json",
                    help="an earlier zoo.json: each case's seconds against its own there")
+    p.add_argument("--repeat", type=int, default=1,
+                   help="runs of each case, the fastest one's seconds kept (default 1)")
     _device_args(p)
     p.set_defaults(func=_cmd_zoo)
 
@@ -341,16 +343,19 @@ def _cmd_zoo(args: argparse.Namespace) -> int:
 
     if args.seed < 0:
         raise ClsonarError(f"--seed must be >= 0, not {args.seed}")
+    if args.repeat < 1:
+        raise ClsonarError(f"--repeat must be >= 1, not {args.repeat}")
     kinds = _zoo_kinds(args.kinds)
     baseline = read_baseline(args.baseline) if args.baseline else None
     command = f"clsonar zoo --out {shlex.quote(args.out)}" + "".join(
         f" {flag} {shlex.quote(str(value))}" for flag, value in
-        (("--seed", args.seed or None), ("--kinds", args.kinds)) if value)
+        (("--seed", args.seed or None), ("--kinds", args.kinds),
+         ("--repeat", args.repeat if args.repeat > 1 else None)) if value)
     line = ProgressLine()
     try:
         rows = zoo_report(Path(args.out), seed=args.seed, kinds=kinds, device=args.device,
                           progress=line, command=command, write_scenes=args.write_scenes,
-                          baseline=baseline)
+                          baseline=baseline, repeat=args.repeat)
     finally:
         line.done()
     passed = sum(r["passed"] for r in rows)

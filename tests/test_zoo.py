@@ -204,7 +204,7 @@ def test_clsonar_zoo_writes_the_table_the_json_and_the_scenes(tmp_path):
 
 
 @pytest.mark.parametrize("args", [["--kinds", "room,castle"], ["--seed", "-1"],
-                                  ["--baseline", "missing.json"]])
+                                  ["--repeat", "0"], ["--baseline", "missing.json"]])
 def test_clsonar_zoo_refuses_bad_arguments_and_writes_nothing(tmp_path, capsys, args):
     out = tmp_path / "zoo"
     assert main(["zoo", "--out", str(out), *args]) == 2

@@ -57,7 +57,7 @@ _ARRAYS = (("arrays", 0.80), ("random-lines", 0.80))
 #: Issue 14's thresholds per kind of zoo scene.
 THRESHOLDS: dict[str, Thresholds] = {
     "room": Thresholds(0.005, completeness=(*_RINGS, ("per-wall", 0.80)), vertex_m=0.02),
-    "corridor": Thresholds(0.005, completeness=_RINGS, vertex_m=0.02),
+    "corridor": Thresholds(0.005, completeness=(("rings", 0.95),), vertex_m=0.02),
     "wall": Thresholds(0.005, completeness=_ARRAYS),
     "corner": Thresholds(0.01, vertex_m=0.02),
     "edge": Thresholds(0.01, vertex_m=0.02),
