@@ -134,7 +134,7 @@ BUILDERS: dict[str, Callable[[np.random.Generator, int], Draft]] = {
 CHECKED = ("wall", "corner", "edge", "cylinder", "sinusoid", "post")
 
 #: Draws of a checked case before the generator gives up.
-TRIES = 50
+TRIES = 100
 
 
 def audible(scene: Scene, noise: float) -> bool:

@@ -55,17 +55,19 @@ def _posed(rng: np.random.Generator, pose: Pose, clear: Clear, length: float
     raise RuntimeError("zoo: no clear array pose")  # the poses are drawn to make this rare
 
 
-def scan(rng: np.random.Generator, index: int, kind: str, pose: Pose, clear: Clear
+def scan(rng: np.random.Generator, index: int, kind: str, pose: Pose, clear: Clear,
+         line_m: tuple[float, float] = (1.0, 4.0), spreads: tuple[float, ...] = (10, 30, 90)
          ) -> tuple[str, dict[str, Any], list[list[float]], list[str]]:
     """The sensors of target case ``index``: ``(scan, sensors, extra points, tags)`` — a
-    ``random-lines`` placement every fourth case, else 1–3 linear arrays written by hand
-    (one group each; :data:`BIG_ARRAYS` gives some cases one large array)."""
+    ``random-lines`` placement every fourth case (a line ``line_m`` long, headings spread by
+    one of ``spreads`` degrees), else 1–3 linear arrays written by hand (one group each;
+    :data:`BIG_ARRAYS` gives some cases one large array)."""
     if index % 4 == 3:
-        length = float(rng.uniform(1.0, 4.0))
+        length = float(rng.uniform(*line_m))
         centre, heading, line, tags = _posed(rng, pose, clear, length)
         start = centre - length / 2 * unit(line)
         end = start + length * unit(line)
-        spread = float(rng.choice([10.0, 30.0, 90.0]))
+        spread = float(rng.choice(spreads))
         placement = {"type": "random-lines", "seed": int(rng.integers(1, 1000)),
                      "start": [float(start[0]), float(start[1])], "direction_deg": line,
                      "length_m": round(length, 2), "elements": int(rng.integers(4, 17)),
@@ -221,9 +223,10 @@ def edge(rng: np.random.Generator, index: int) -> Draft:
 
 
 def _round(rng: np.random.Generator, index: int, kind: str, radius: float,
-           near: float, far: float) -> Draft:
+           near: float, far: float, **lines: Any) -> Draft:
     """A circle of ``radius`` touching the origin from +x, seen by arrays within ±90° of
-    −x, ``near``–``far`` m from its surface, facing its centre within ±5°."""
+    −x, ``near``–``far`` m from its surface, facing its centre within ±5° (``lines``: the
+    ``random-lines`` keywords of :func:`scan`)."""
     centre = np.array([radius, 0.0])
     big = BIG_ARRAYS.get((kind, index))
 
@@ -235,7 +238,7 @@ def _round(rng: np.random.Generator, index: int, kind: str, radius: float,
 
     def clear(e: np.ndarray) -> bool:
         return bool(np.all(np.hypot(*(e - centre).T) >= radius + CLEAR_M))
-    kind_scan, sensors, extra, tags = scan(rng, index, kind, pose, clear)
+    kind_scan, sensors, extra, tags = scan(rng, index, kind, pose, clear, **lines)
     surfaces = [{"type": "circle", "center": centre.tolist(), "radius": round(radius, 4)}]
     return Draft(kind, kind_scan, kind_scan, surfaces, sensors, extra,
                  [f"r {radius * 100:.0f} cm", *tags])
@@ -251,6 +254,9 @@ def cylinder(rng: np.random.Generator, index: int) -> Draft:
 
 
 def post(rng: np.random.Generator, index: int) -> Draft:
-    """A thin post, r 3–6 cm, 0.4 m to as far as it stays audible (under 1 m)."""
-    radius = float(rng.uniform(0.03, 0.06))
-    return _round(rng, index, "post", radius, 0.4, max(0.45, reach(radius, 0.0)))
+    """A thin post, r 4–8 cm, 0.4 m to as far as it stays audible (about 1 m); a
+    ``random-lines`` line 0.6–1.2 m long, headings within ±10° (its echo is barely above
+    the detection's floor: only an element facing it hears it)."""
+    radius = float(rng.uniform(0.04, 0.08))
+    return _round(rng, index, "post", radius, 0.4, max(0.45, reach(radius, 0.0)),
+                  line_m=(0.6, 1.2), spreads=(10.0,))
