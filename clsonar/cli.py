@@ -3,8 +3,8 @@
 - ``clsonar run SCENE.json --out DIR`` runs the whole pipeline and writes report.json,
   stages.npz, profile.csv, echoes.csv and one PNG per stage into DIR (outputs.py; without
   matplotlib, everything but the PNGs and one warning line).
-- ``clsonar reproduce``, ``bench``, ``sweep``, ``plot`` and ``stress`` run the tools of
-  :mod:`clsonar.tools`.
+- ``clsonar reproduce``, ``bench``, ``zoo``, ``sweep``, ``plot`` and ``stress`` run the tools
+  of :mod:`clsonar.tools`.
 - ``clsonar echoes SCENE.json`` prints the echo table as CSV:
   ``tx,rx,tof_s,amplitude,kind,order``.
 - ``clsonar devices`` lists the OpenCL devices, whether each can build kernels, and which one
@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, TypeAlias
 from . import outputs, pipeline
 from .errors import ClsonarError
 from .opencl import PRECISIONS
-from .tools import bench, reproduce
+from .tools import bench, reproduce, zoo
 from .tools.progress import ProgressLine
 from .version import __version__
 
@@ -112,8 +112,32 @@ def _add_bench(sub: Subparsers) -> None:
                    help="comma-separated sizes (m) of multi-room floors mapped at 1 cm, each "
                         "in its own process with its peak memory (default "
                         f"{_sizes(bench.DEFAULT_FLOORS)}; '' for none; 100 is 10^8 cells)")
+    p.add_argument("--zoo", action="store_true",
+                   help="also run the scene zoo with the default settings (a few minutes; "
+                        "zoo.md and zoo.json in DIR)")
     _device_args(p)
     p.set_defaults(func=_cmd_bench)
+
+
+def _add_zoo(sub: Subparsers) -> None:
+    p = sub.add_parser("zoo", help="run the scene zoo with the default settings and score it",
+                       description="Rooms, corridors, walls, corners, edges, cylinders, "
+                                   "sinusoids and thin posts drawn from a seed (docs/zoo.md), "
+                                   "each run with the default settings and scored against "
+                                   "issue 14's thresholds; writes zoo.md and zoo.json into "
+                                   "DIR.")
+    _out_arg(p)
+    p.add_argument("--seed", type=int, default=0, help="seed of the zoo (default 0)")
+    p.add_argument("--kinds", metavar="KINDS",
+                   help=f"comma-separated kinds to run (default all: {','.join(zoo.KINDS)})")
+    p.add_argument("--write-scenes", action="store_true",
+                   help="also write every scene file into DIR/scenes/")
+    p.add_argument("--baseline", metavar="ZOO.json",
+                   help="an earlier zoo.json: each case's seconds against its own there")
+    p.add_argument("--repeat", type=int, default=1,
+                   help="runs of each case, the fastest one's seconds kept (default 1)")
+    _device_args(p)
+    p.set_defaults(func=_cmd_zoo)
 
 
 def _add_sweep(sub: Subparsers) -> None:
@@ -183,8 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Ultrasonic sonar simulator and map builder for 2-D indoor scenes (OpenCL).")
     parser.add_argument("--version", action="version", version=f"clsonar {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_run, _add_reproduce, _add_bench, _add_sweep, _add_plot, _add_stress,
-                _add_echoes, _add_devices):
+    for add in (_add_run, _add_reproduce, _add_bench, _add_zoo, _add_sweep, _add_plot,
+                _add_stress, _add_echoes, _add_devices):
         add(sub)
     return parser
 
@@ -302,7 +326,7 @@ def _bench_command(args: argparse.Namespace) -> str:
              ("--repeat", args.repeat, bench.DEFAULT_REPEAT))
     return f"clsonar bench --out {args.out}" + "".join(
         f" {flag} {shlex.quote(str(value))}" for flag, value, default in given
-        if value != default)
+        if value != default) + (" --zoo" if getattr(args, "zoo", False) else "")
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
@@ -314,10 +338,50 @@ def _cmd_bench(args: argparse.Namespace) -> int:
     try:
         bench.bench(Path(args.out), names=names, repeat=args.repeat, numpy=not args.no_numpy,
                     device=args.device, progress=line, command=_bench_command(args),
-                    floors=floors)
+                    floors=floors, zoo=args.zoo)
     finally:
         line.done()
-    print(f"wrote {args.out}/bench.md and bench.json")
+    print(f"wrote {args.out}/bench.md and bench.json"
+          + (" and the zoo's zoo.md and zoo.json" if args.zoo else ""))
+    return 0
+
+
+def _zoo_kinds(kinds: str | None) -> tuple[str, ...]:
+    """The kinds ``--kinds`` names (default: every kind of the zoo)."""
+    if not kinds:
+        return zoo.KINDS
+    names = tuple(k.strip() for k in kinds.split(",") if k.strip())
+    unknown = [k for k in names if k not in zoo.KINDS]
+    if unknown or not names:
+        raise ClsonarError(f"--kinds: no zoo kind {', '.join(unknown) or repr(kinds)} "
+                           f"(kinds: {', '.join(zoo.KINDS)})")
+    return names
+
+
+def _cmd_zoo(args: argparse.Namespace) -> int:
+    from .tools.zoo.report import read_baseline, zoo_report
+
+    if args.seed < 0:
+        raise ClsonarError(f"--seed must be >= 0, not {args.seed}")
+    if args.repeat < 1:
+        raise ClsonarError(f"--repeat must be >= 1, not {args.repeat}")
+    kinds = _zoo_kinds(args.kinds)
+    baseline = read_baseline(args.baseline) if args.baseline else None
+    command = f"clsonar zoo --out {shlex.quote(args.out)}" + "".join(
+        f" {flag} {shlex.quote(str(value))}" for flag, value in
+        (("--seed", args.seed or None), ("--kinds", args.kinds),
+         ("--repeat", args.repeat if args.repeat > 1 else None)) if value)
+    line = ProgressLine()
+    try:
+        rows = zoo_report(Path(args.out), seed=args.seed, kinds=kinds, device=args.device,
+                          progress=line, command=command, write_scenes=args.write_scenes,
+                          baseline=baseline, repeat=args.repeat)
+    finally:
+        line.done()
+    passed = sum(r["passed"] for r in rows)
+    print(f"{passed} of {len(rows)} cases pass every threshold; wrote {args.out}/zoo.md and "
+          "zoo.json" + (f" and {len(rows)} scenes in {args.out}/scenes/"
+                        if args.write_scenes else ""))
     return 0
 
 

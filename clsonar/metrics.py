@@ -7,7 +7,7 @@
 - accuracy: RMS and 95th percentile of the distance from each estimated point to the
   nearest true surface;
 - completeness: the share of the *insonified* true geometry that has an estimated point
-  within 1, 2 and 5 cm. A point of a true surface is insonified when it lies on the locus
+  within 1, 2, 3 and 5 cm. A point of a true surface is insonified when it lies on the locus
   of an echo return inside both beams (:func:`insonified`): the parts of the scene the
   echoes speak of, so what a perfect map could recover; ``coverage`` is their share of all
   the true geometry;
@@ -31,7 +31,7 @@ from .scene import Polyline, Scene, Sinusoid
 from .sensors import SensorArray
 
 #: Distances at which completeness is reported, metres.
-COMPLETENESS_RADII = (0.01, 0.02, 0.05)
+COMPLETENESS_RADII = (0.01, 0.02, 0.03, 0.05)
 
 #: An estimated point farther than this from every surface is spurious, metres.
 SPURIOUS_M = 0.05
@@ -209,8 +209,9 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
              points: np.ndarray, vertices: np.ndarray | None = None) -> dict[str, object]:
     """All metrics of the estimated profile ``points`` [n, 2] (module docstring), as a
     JSON-ready dict: ``rms_m`` (eq. 2.6 or None), ``accuracy_m`` {rms, p95},
-    ``completeness`` {"1cm", "2cm", "5cm"}, ``spurious_share``, ``insonified_m`` (length of
-    the insonified true geometry), ``coverage`` (its share of all of it), ``points``, and
+    ``completeness`` {"1cm", "2cm", "3cm", "5cm"}, ``spurious_share``, ``insonified_m``
+    (length of the insonified true geometry), ``coverage`` (its share of all of it),
+    ``points``, and
     for scenes with corners, edges or cylinders ``vertices`` (:func:`vertex_errors` of the
     located ``vertices``, with ``vertices_found`` and ``vertex_error_max_m``) and
     ``cylinders`` (:func:`cylinder_coverage`)."""

@@ -19,6 +19,9 @@ shared; ratios taken in one run are what to compare, absolute seconds wander):
 - **run time against error**: the thesis' shapes under every knob of
   :data:`clsonar.tools.tradeoff.KNOBS`, the Pareto front and the settings that beat the
   thesis-faithful ones on both time and error on every shape (``tradeoff.png``).
+- **scene zoo** (with ``zoo``, ``clsonar bench --zoo``; a few minutes): every case of
+  :mod:`clsonar.tools.zoo` with the defaults, its summary per kind in ``bench.md`` and the
+  whole table in ``zoo.md`` and ``zoo.json``.
 
 Results go to ``bench.md``, ``bench.json`` and ``tradeoff.png``, written atomically.
 """
@@ -31,7 +34,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -51,6 +54,7 @@ from .tradeoff import (
     fastest_run,
     tradeoff_png,
 )
+from .zoo.report import summary_markdown, zoo_report
 
 #: The scenes benchmarked by default: the thesis' shapes at their first distance and rooms.
 DEFAULT_SCENES = ("plane-2m", "corner-4m", "edge-1m", "cylinder-2.1m", "sinusoid-1m", "room",
@@ -316,6 +320,7 @@ class BenchReport:
     tradeoff: list[TradeoffRow]
     beats_thesis: list[str]
     floors: list[FloorRow]
+    zoo: list[dict[str, Any]] = dataclasses.field(default_factory=list)
 
 
 #: The thesis' shapes (the trade-off table runs every knob on these).
@@ -378,6 +383,13 @@ def floors_markdown(rows: list[FloorRow]) -> list[str]:
     return lines
 
 
+def zoo_markdown(rows: list[dict[str, Any]]) -> list[str]:
+    return ["", "## Scene zoo", "",
+            "Every case of the scene zoo (docs/zoo.md) run with the default settings: cases "
+            "passing each of issue 14's thresholds, of the cases it applies to. Every case: "
+            "`zoo.md` beside this file.", "", *summary_markdown(rows)]
+
+
 def _stepper(progress: Progress | None, steps: int) -> Callable[[str], None]:
     """A callback that reports the next of ``steps`` steps, named, to ``progress``."""
     step = 0
@@ -416,18 +428,20 @@ def report_markdown(report: BenchReport, command: str) -> str:
         (stages_markdown(report.stages) if report.stages else [])
         + skips_markdown(report.skips)
         + (tradeoff_markdown(report.tradeoff, report.beats_thesis) if report.tradeoff else [])
-        + (floors_markdown(report.floors) if report.floors else [])) + "\n"
+        + (floors_markdown(report.floors) if report.floors else [])
+        + (zoo_markdown(report.zoo) if report.zoo else [])) + "\n"
 
 
 def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DEFAULT_SCENES,
           *, repeat: int = DEFAULT_REPEAT, numpy: bool = True, device: str | None = None,
           progress: Progress | None = None, command: str = "clsonar bench --out docs/bench",
-          floors: tuple[float, ...] = DEFAULT_FLOORS) -> BenchReport:
+          floors: tuple[float, ...] = DEFAULT_FLOORS, zoo: bool = False) -> BenchReport:
     """Benchmark the ``names`` scenes of ``scenes_dir`` (default: the bundled ones) and write
     ``bench.md``, ``bench.json`` and ``tradeoff.png`` into ``out``: the pipeline under both
     settings, the accumulation against NumPy, skipping on against off, and (for the thesis'
     shapes among ``names``) the knobs' run time against error, and the ``floors`` (sizes in
-    metres, :mod:`clsonar.tools.floors`) mapped room by room."""
+    metres, :mod:`clsonar.tools.floors`) mapped room by room; with ``zoo``, the scene zoo
+    (``zoo.md``, ``zoo.json``)."""
     from ..files import bundled_scenes
     from ..opencl import device_name, get_context
 
@@ -438,7 +452,7 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
         require_plots("clsonar bench (tradeoff.png)")
     context = get_context(device)
     tell = _stepper(progress, len(scenes) * (2 * len(SETTINGS) + 1 + numpy) + len(shapes)
-                    + len(floors))
+                    + len(floors) + zoo)
     pipeline, skips, accumulation, stage_rows = [], [], [], []
     for scene in scenes:
         rows, skipped, accumulated, stages = bench_scene(scene, context, repeat, numpy, tell)
@@ -454,9 +468,13 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     for size in floors:
         tell(f"floor {size:g} m × {size:g} m (a separate process)")
         floor_rows.append(bench_floor(size, device))
+    zoo_rows = []
+    if zoo:
+        tell("scene zoo")
+        zoo_rows = zoo_report(out, context=context, command=command)
     report = BenchReport(device_name(context), pipeline,
                          accumulation, stage_rows, skips, trade, beats_thesis(trade),
-                         floor_rows)
+                         floor_rows, zoo_rows)
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(out / "bench.md", report_markdown(report, command).encode())
     if trade:

@@ -19,8 +19,8 @@ from ...pipeline import PRESETS
 from ...scene import Scene, load_scene
 
 KNOWN_METRICS = ("rms_m", "accuracy_m.rms", "accuracy_m.p95", "completeness.1cm",
-                 "completeness.2cm", "completeness.5cm", "spurious_share", "insonified_m",
-                 "coverage", "points", "vertices_found", "vertex_error_max_m")
+                 "completeness.2cm", "completeness.3cm", "completeness.5cm", "spurious_share",
+                 "insonified_m", "coverage", "points", "vertices_found", "vertex_error_max_m")
 DEFAULT_METRICS = ("rms_m", "accuracy_m.rms", "completeness.2cm")
 
 #: Grid keys that are not scene-file keys (module docstring).
