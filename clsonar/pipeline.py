@@ -23,7 +23,7 @@ from typing import TypeVar, cast
 
 import numpy as np
 
-from . import mapping, metrics, post, regions, sight, signals
+from . import checks, mapping, metrics, post, regions, sight, signals
 from .echoes import EchoTable, compute_echoes
 from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
@@ -103,6 +103,8 @@ class RunResult:
     point_sums: np.ndarray | None = None  # tangent-point sums per cell (sub-cell profile)
     #: (row0, col0, ny, nx): the cells ``point_sums`` covers (None: the whole grid)
     point_window: tuple[int, int, int, int] | None = None
+    #: what the user should know about this run (clsonar.checks), one line each
+    warnings: tuple[str, ...] = ()
 
     def report(self) -> dict[str, object]:
         """The JSON-ready ``report.json`` of docs/design.md's ``clsonar run``."""
@@ -115,6 +117,7 @@ class RunResult:
             "counts": self.counts,
             "seconds": {**self.seconds, "total": sum(self.seconds.values())},
             "metrics": self.metrics,
+            "warnings": list(self.warnings),
         }
 
 
@@ -291,7 +294,8 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
                      echoes=echoes, detections=detections, votes=None, raw=maps["raw"],
                      filtered=maps["filtered"], occupied=maps["occupied"], thin=maps["thin"],
                      profile=profile, metrics=regions.combine_metrics([p.metrics for p in parts]),
-                     seconds=seconds, counts=counts, device=device_name(ctx))
+                     seconds=seconds, counts=counts, device=device_name(ctx),
+                     warnings=checks.run_warnings(scene, counts))
 
 
 def _add_to_mosaic(maps: dict[str, np.ndarray], r: RunResult, room: regions.Region) -> None:
@@ -412,7 +416,8 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
     return dataclasses.replace(front, raw=drawn.raw, filtered=maps.filtered,
                                occupied=maps.occupied, thin=maps.thin, profile=maps.profile,
                                metrics=result_metrics, seconds=seconds, counts=counts,
-                               point_sums=drawn.point_sums, point_window=drawn.window)
+                               point_sums=drawn.point_sums, point_window=drawn.window,
+                               warnings=checks.run_warnings(scene, counts))
 
 
 @dataclass(frozen=True, eq=False)
