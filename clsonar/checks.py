@@ -7,8 +7,9 @@ TEXT`` (exit status 0). Two are given:
 - the scene has a closed polyline inside another one and the file leaves its ``solid``
   unset: it is read as a solid obstacle (a box, a pillar) that reflects on its outside
   (:func:`clsonar.geometry.solid_surfaces`), which the user may not have meant;
-- the map is empty although echoes were detected: the settings lost every detection on the
-  way to the profile (the counters say at which stage).
+- the map is empty although echoes were detected: the surfaces heard lie outside the map's
+  extent, or the settings lost every detection on the way to the profile (the counters say
+  at which stage).
 """
 
 from __future__ import annotations
@@ -39,8 +40,8 @@ def result_warnings(counts: Mapping[str, int]) -> list[str]:
     return [f"the map is empty although {detected} echoes were detected "
             f"({counts.get('cells_voted', 0)} cells voted, "
             f"{counts.get('occupied_cells', 0)} occupied, {counts.get('thin_cells', 0)} thin, "
-            "0 profile points): these mapping and post-processing settings do not suit "
-            "the scene"]
+            "0 profile points): the surfaces heard lie outside the extent, or the mapping "
+            "and post-processing settings do not suit this scene"]
 
 
 def run_warnings(scene: Scene, counts: Mapping[str, int]) -> tuple[str, ...]:

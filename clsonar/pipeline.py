@@ -29,7 +29,14 @@ from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
 from .mapping import Votes
 from .opencl import device_name, get_context
-from .scene import DetectionSettings, MappingSettings, PostSettings, Scene, scene_to_dict
+from .scene import (
+    DetectionSettings,
+    Directivity,
+    MappingSettings,
+    PostSettings,
+    Scene,
+    scene_to_dict,
+)
 from .sensors import SensorArray, pairs, place_sensors
 from .signals import Detections
 from .version import __version__
@@ -43,20 +50,28 @@ FRONT_STAGES = STAGES[:4]
 
 @dataclass(frozen=True)
 class Preset:
-    """The detection, mapping and post-processing settings a preset puts in a scene."""
+    """The detection, mapping and post-processing settings a preset puts in a scene, and the
+    parts of the world it sets: the transducer's ``directivity`` and the echo's
+    ``curvature_gain`` (None: the scene's own; the scene's other transducer and echo keys
+    are always kept)."""
 
     detection: DetectionSettings
     mapping: MappingSettings
     post: PostSettings
+    directivity: Directivity | None = None
+    curvature_gain: bool | None = None
 
 
-#: Settings of the thesis' method and of ours (the defaults of a scene file).
+#: Settings of the thesis' method and of ours (the defaults of a scene file). ``thesis`` is
+#: the thesis' whole world: its uniform beam inside the ±12° cut (§2.1), no curvature gain
+#: (its ray tracing), threshold detection, loci summed, eq. 2.5 thinning and the polynomial.
 PRESETS: dict[str, Preset] = {
     "thesis": Preset(
         detection=DetectionSettings(mode="threshold"),
         mapping=MappingSettings(mode="loci", weight="unit", reciprocal="both", combine="sum"),
         post=PostSettings(filter="mean3", level=1e-6, thinning="thesis", fit="polynomial",
-                          poly_order=7, subcell=False)),
+                          poly_order=7, subcell=False),
+        directivity="uniform", curvature_gain=False),
     "best": Preset(DetectionSettings(), MappingSettings(), PostSettings()),
 }
 
@@ -70,14 +85,20 @@ PIPELINE_BYTES_PER_CELL = 48
 
 
 def apply_preset(scene: Scene, preset: str | None) -> Scene:
-    """``scene`` with the detection/mapping/post settings of ``preset`` (None: unchanged)."""
+    """``scene`` with the detection/mapping/post settings of ``preset``, and its transducer
+    directivity and echo curvature gain where the preset sets them (None: unchanged)."""
     if preset is None:
         return scene
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     chosen = PRESETS[preset]
+    transducer, echo = scene.transducer, scene.echo
+    if chosen.directivity is not None:
+        transducer = dataclasses.replace(transducer, directivity=chosen.directivity)
+    if chosen.curvature_gain is not None:
+        echo = dataclasses.replace(echo, curvature_gain=chosen.curvature_gain)
     return dataclasses.replace(scene, detection=chosen.detection, mapping=chosen.mapping,
-                               post=chosen.post)
+                               post=chosen.post, transducer=transducer, echo=echo)
 
 
 @dataclass(frozen=True, eq=False)
@@ -479,10 +500,11 @@ def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch) -> 
     thin = post.embed(part.shape, window, post.thin_map(occupied, scene.post))
     filtered = post.embed(part.shape, window, filtered)
     clock.start("profile")
-    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
-                                   part if point_sums is not None else None, point_sums)
     inner = (outer[0] + window[0].start, outer[1] + window[1].start,
              window[0].stop - window[0].start, window[1].stop - window[1].start)
+    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
+                                   part if point_sums is not None else None, point_sums,
+                                   occupied=occupied, origin=inner[:2])
     occupied = post.embed(raw.shape, _slices(inner), occupied)
     thin = post.embed(raw.shape, _slices(outer), thin)
     return _PostMaps(
@@ -492,7 +514,8 @@ def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch) -> 
                 "occupied_cells": int(np.count_nonzero(occupied)),
                 "thin_cells": int(np.count_nonzero(thin)),
                 "profile_curves": len(profile.curves),
-                "profile_points": len(profile.points)})
+                "profile_points": len(profile.points),
+                "profile_points_dropped": profile.dropped})
 
 
 def _slices(window: tuple[int, int, int, int]) -> tuple[slice, slice]:
@@ -503,7 +526,8 @@ def _slices(window: tuple[int, int, int, int]) -> tuple[slice, slice]:
 
 #: The counters :func:`post_process` sets (a re-run replaces them).
 _POST_COUNTS = ("map_cells", "cells_voted", "ghost_points", "cells_post_processed",
-                "occupied_cells", "thin_cells", "profile_curves", "profile_points")
+                "occupied_cells", "thin_cells", "profile_curves", "profile_points",
+                "profile_points_dropped")
 
 
 class _Stopwatch:

@@ -14,6 +14,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,8 @@ def save(out: Path, scenes: Path | None = None, device: str | None = None) -> li
             report = {k: v for k, v in result.report().items() if k not in UNSTABLE_KEYS}
             write_atomic(out / f"{name}.json",
                          json.dumps(report, sort_keys=True, indent=1, default=str).encode())
-            np.savez_compressed(out / f"{name}.npz", **arrays(result))
+            kept: dict[str, Any] = arrays(result)  # numpy's stubs type **kwds as its options
+            np.savez_compressed(out / f"{name}.npz", **kept)
             names.append(name)
     return names
 
