@@ -154,8 +154,9 @@ def test_fit_polynomial_stays_within_its_data():
 
 def test_bound_profile_drops_what_the_map_does_not_support():
     """Points outside the extent or more than NEAR_CELLS cells from an occupied cell are
-    dropped and their curve cut there — unless they fill a gap no longer than the supported
-    stretches on both sides (interpolation); vertices are dropped only outside the extent."""
+    dropped and their curve cut there — unless they fill a gap up to max_gap or no longer
+    than the supported stretches on both sides (interpolation), or end the curve at a
+    located vertex; vertices are dropped only outside the extent."""
     from clsonar.post import NEAR_CELLS, Profile, bound_profile
 
     near = 0.1 * NEAR_CELLS
@@ -167,10 +168,12 @@ def test_bound_profile_drops_what_the_map_does_not_support():
     x = np.arange(0.0, 9.0, 0.05)
     cut, bridged, off = (np.stack([x, np.full_like(x, y)], axis=-1)
                          for y in (3.05, 5.05, 3.05 + 0.1 * (NEAR_CELLS + 1)))
-    vertices = np.array([[1.5, 3.0], [0.5, 3.0]])
-    bounded = bound_profile(Profile((cut, bridged, off), vertices), occupied,
-                            (1.0, 2.0, 7.0, 6.0), 0.1, origin=(0, 0))
-    first, second, whole = bounded.curves  # nothing left of the line off the map
+    to_corner = cut[(cut[:, 0] >= 1.5) & (cut[:, 0] <= 4.0)]  # ends at a located vertex
+    vertices = np.array([[4.0, 3.05], [0.5, 3.0]])
+    extent = (1.0, 2.0, 7.0, 6.0)
+    bounded = bound_profile(Profile((cut, bridged, off, to_corner), vertices), occupied,
+                            extent, 0.1)
+    first, second, whole, wall = bounded.curves  # nothing left of the line off the map
     assert first[0, 0] == pytest.approx(1.5 - near, abs=0.05)
     assert first[-1, 0] == pytest.approx(3.0 + near, abs=0.05)
     assert second[0, 0] == pytest.approx(5.0 - near, abs=0.05)
@@ -178,13 +181,35 @@ def test_bound_profile_drops_what_the_map_does_not_support():
     assert whole[0, 0] == pytest.approx(1.5 - near, abs=0.05)
     assert whole[-1, 0] == pytest.approx(6.5 + near, abs=0.05)
     assert np.all(whole[:, 1] == 5.05) and np.all(np.diff(whole[:, 0]) == pytest.approx(0.05))
+    assert np.array_equal(wall, to_corner)
     assert np.array_equal(bounded.vertices, vertices[:1])
     assert bounded.dropped == 3 * len(x) - len(first) - len(second) - len(whole)
+    # the gaps the settings let a fit bridge (post.max_gap_m) are kept
+    loose = bound_profile(Profile((cut,)), occupied, extent, 0.1, max_gap=1.5)
+    (one,) = loose.curves
+    assert one[0, 0] == pytest.approx(1.5 - near, abs=0.05)
+    assert one[-1, 0] == pytest.approx(5.5 + near, abs=0.05)
+    # a loop is cut only where it leaves the map, wherever its samples start
+    a = np.linspace(0.0, 2 * np.pi, 400, endpoint=False) + 1.0
+    loop = np.stack([4.0 + 1.5 * np.cos(a), 4.0 + 1.5 * np.sin(a)], axis=-1)
+    ring = np.zeros((40, 60), dtype=bool)
+    angle = np.arctan2(*(cell_grid(40, 60) - 4.0)[::-1]) % (2 * np.pi)
+    radius = np.hypot(*(cell_grid(40, 60) - 4.0))
+    ring[(np.abs(radius - 1.5) < 0.06) & ((angle < 2.0) | (angle > 5.0))] = True
+    (arc,) = bound_profile(Profile((loop,)), ring, extent, 0.1).curves
+    kept = np.arctan2(arc[:, 1] - 4.0, arc[:, 0] - 4.0) % (2 * np.pi)
+    assert np.all((kept < 2.0 + 0.3) | (kept > 5.0 - 0.3)) and len(arc) > 150
     # the same map as a window of a larger grid: origin moves the cells, not the points
-    shifted = bound_profile(Profile((cut, bridged, off)), occupied[5:, 3:],
-                            (1.0, 2.0, 7.0, 6.0), 0.1, origin=(5, 3))
-    assert all(np.array_equal(a, b) for a, b in zip(shifted.curves, bounded.curves,
+    shifted = bound_profile(Profile((cut, bridged, off)), occupied[5:, 3:], extent, 0.1,
+                            origin=(5, 3))
+    assert all(np.array_equal(a, b) for a, b in zip(shifted.curves, bounded.curves[:3],
                                                     strict=True))
+
+
+def cell_grid(ny: int, nx: int, origin=(1.0, 2.0), cell: float = 0.1) -> np.ndarray:
+    """[2, ny, nx] the (x, y) centres of a grid's cells."""
+    iy, ix = np.mgrid[0:ny, 0:nx]
+    return np.stack([origin[0] + (ix + 0.5) * cell, origin[1] + (iy + 0.5) * cell])
 
 
 def test_thin_oriented_thins_walls_along_x_and_keeps_the_thesis_along_y():

@@ -44,29 +44,34 @@ def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float
         fitted = Profile(tuple(curves))
     if occupied is None:
         return fitted
-    return bound_profile(fitted, occupied, extent, cell, origin)
+    return bound_profile(fitted, occupied, extent, cell, origin, settings.max_gap_m)
 
 
 def bound_profile(profile: Profile, occupied: np.ndarray, extent: tuple[float, ...],
-                  cell: float, origin: tuple[int, int] = (0, 0),
+                  cell: float, origin: tuple[int, int] = (0, 0), max_gap: float = 0.0,
                   near: int = NEAR_CELLS) -> Profile:
     """``profile`` with only what the map supports, whatever the fit. A fit extends its
-    data — a polynomial beyond its points, a wall to the corner where it meets the next, a
-    circle round a cylinder's hidden side — and only the map says how far that is honest:
+    data — a polynomial beyond its points, a circle round a cylinder's hidden side, a wall
+    past the end of its patch — and only the map says how far that is honest:
 
     - a point is supported when it lies within ``near`` cells (centre to centre) of an
       occupied cell of ``occupied`` (whose cell [0, 0] is cell ``origin`` of the grid);
-    - unsupported points are dropped and each curve is cut there, except a stretch of a
-      curve between two supported ones that is no longer (in arc length) than either of
-      them: there the fit interpolates between data on both sides, as a wall fitted across
-      a gap between its patches or the thesis' polynomial between two arrays' patches;
+    - unsupported points are dropped and each curve is cut there, except in a stretch
+      between two supported ones that is at most ``max_gap`` long (arc length: the gaps
+      the settings let a fit bridge, ``post.max_gap_m``) or no longer than either of them
+      (interpolation between data on both sides, as the thesis' polynomial between two
+      arrays' patches), and at a curve's end that reaches a located vertex (a wall drawn
+      to the corner or edge where it meets the next one, found from both);
     - no point and no located vertex outside the ``extent`` is kept.
     """
     curves = []
     for c in profile.curves:
         inside = _inside(c, extent)
         keep = inside & _near_occupied(c, occupied, extent, cell, origin, near)
-        keep |= inside & _interpolated(c, keep)
+        if _closed(c) and keep.any() and not keep.all():
+            start = int(np.flatnonzero(keep & ~np.roll(keep, 1))[0])  # a loop: start at
+            c, keep, inside = (np.roll(a, -start, axis=0) for a in (c, keep, inside))  # data
+        keep |= inside & _bridged(c, keep, max_gap, profile.vertices, cell)
         cuts = np.flatnonzero(np.diff(keep.astype(np.int8)) != 0) + 1
         for piece, kept in zip(np.split(c, cuts), np.split(keep, cuts), strict=True):
             if kept[0]:
@@ -76,19 +81,36 @@ def bound_profile(profile: Profile, occupied: np.ndarray, extent: tuple[float, .
     return Profile(tuple(curves), vertices, len(profile.points) - left)
 
 
-def _interpolated(curve: np.ndarray, supported: np.ndarray) -> np.ndarray:
-    """[n] bool: the unsupported points of ``curve`` [n, 2] in a stretch between two
-    supported stretches, each at least as long (arc length) as the gap between them."""
+def _closed(curve: np.ndarray) -> bool:
+    """Whether ``curve`` is a loop: its ends no farther apart than two of its steps."""
+    if len(curve) < 4:
+        return False
+    steps = np.hypot(*np.diff(curve, axis=0).T)
+    return bool(np.hypot(*(curve[0] - curve[-1])) <= 2 * np.median(steps))
+
+
+def _bridged(curve: np.ndarray, supported: np.ndarray, max_gap: float, vertices: np.ndarray,
+             cell: float) -> np.ndarray:
+    """[n] bool: the unsupported points of ``curve`` [n, 2] that :func:`bound_profile`
+    keeps: in a stretch between two supported ones, at most ``max_gap`` long or no longer
+    than either; in an end stretch whose end lies within a cell of one of ``vertices``."""
     out = np.zeros(len(curve), dtype=bool)
+    if not supported.any():
+        return out
     arc = np.r_[0.0, np.cumsum(np.hypot(*np.diff(curve, axis=0).T))]
     cuts = np.flatnonzero(np.diff(supported.astype(np.int8)) != 0) + 1
     runs = np.split(np.arange(len(curve)), cuts)
-    for before, gap, after in zip(runs, runs[1:], runs[2:], strict=False):
-        if supported[gap[0]]:
+    for k, run in enumerate(runs):
+        if supported[run[0]]:
             continue
-        span = arc[after[0]] - arc[before[-1]]
-        if span <= min(arc[before[-1]] - arc[before[0]], arc[after[-1]] - arc[after[0]]):
-            out[gap] = True
+        if 0 < k < len(runs) - 1:
+            before, after = runs[k - 1], runs[k + 1]
+            span = arc[after[0]] - arc[before[-1]]
+            out[run] = span <= max(max_gap, min(arc[before[-1]] - arc[before[0]],
+                                                 arc[after[-1]] - arc[after[0]]))
+        elif len(vertices):
+            end = curve[run[0] if k == 0 else run[-1]]
+            out[run] = bool(np.min(np.hypot(*(vertices - end).T)) <= cell)
     return out
 
 
