@@ -2,7 +2,9 @@
 
 - ``clsonar run SCENE.json --out DIR`` runs the whole pipeline and writes report.json,
   stages.npz, profile.csv, echoes.csv and one PNG per stage into DIR (outputs.py; without
-  matplotlib, everything but the PNGs and one warning line).
+  matplotlib, everything but the PNGs and one warning line). Each of the run's warnings
+  (report.json's ``warnings``, :mod:`clsonar.checks`) is one line on stderr,
+  ``clsonar: warning: SCENE.json: TEXT``; the exit status stays 0.
 - ``clsonar reproduce``, ``bench``, ``zoo``, ``sweep``, ``plot`` and ``stress`` run the tools
   of :mod:`clsonar.tools`.
 - ``clsonar echoes SCENE.json`` prints the echo table as CSV:
@@ -237,6 +239,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if not pngs:
         print("clsonar: warning: matplotlib is not installed: no PNGs written "
               f"({outputs.PLOTS_INSTALL})", file=sys.stderr)
+    for warning in result.warnings:  # report.json's "warnings", also with --quiet
+        print(f"clsonar: warning: {args.scene}: {warning}", file=sys.stderr)
     if not args.quiet:
         _print_run_summary(result, args.out, paths)
     return 0

@@ -3,13 +3,15 @@
 From a :class:`~clsonar.scene.Scene`'s surfaces this builds flat arrays (float64):
 
 - **walls**: every segment of every polyline, with the unit normal of its *front* (free)
-  side. A closed polyline is a room: only its interior side reflects. An open polyline is a
-  thin wall: both sides reflect (``two_sided``).
+  side. A closed polyline is a room: only its interior side reflects — or a solid obstacle
+  (a box, a pillar; :func:`solid_surfaces`): only its outside reflects. An open polyline is
+  a thin wall: both sides reflect (``two_sided``).
 - **vertices**: every polyline vertex, classified as seen from the left and from the right
   of the polyline's direction: ``corner`` (concave: the two walls enclose the observer,
   interior angle < 180°), ``edge`` (convex, > 180°), ``flat`` (collinear to 1e-9) or
   ``end`` (free end of an open polyline: the wall is taken to continue beyond the map, so
-  no diffraction there); the outside of a room is ``solid``.
+  no diffraction there); the outside of a room and the inside of a solid obstacle are
+  ``solid``.
 - **diffractors**: the vertices that a free side sees as a convex ``edge``; a point sees
   one when it is not strictly inside the *solid cone*, the convex angle between the two
   walls at the vertex.
@@ -35,7 +37,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .scene import Circle, Polyline, Scene, Sinusoid
+from .scene import Circle, Polyline, Scene, Sinusoid, Surface
 
 #: Vertex kind codes (see the module docstring).
 FLAT, CORNER, EDGE, END, SOLID = range(5)
@@ -69,6 +71,7 @@ class Geometry:
     interval_curve: np.ndarray  # [I] index into curves
     interval_s: np.ndarray  # [I, 2] base-line parameters s0 < s1
     chord_start: np.ndarray  # [K] index of the curve's first chord in occluders
+    surface_solid: np.ndarray  # [len(scene.surfaces)] bool: a closed polyline read as solid
 
     @cached_property
     def occluders(self) -> np.ndarray:
@@ -103,9 +106,10 @@ class _PolylineParts:
 def build_geometry(scene: Scene) -> Geometry:
     """Derive the :class:`Geometry` of ``scene`` (see the module docstring)."""
     parts = _PolylineParts()
+    solid = solid_surfaces(scene.surfaces)
     for si, surface in enumerate(scene.surfaces):
         if isinstance(surface, Polyline):
-            _add_polyline(surface, si, parts)
+            _add_polyline(surface, si, parts, solid[si])
     walls = np.asarray(parts.walls, dtype=np.float64).reshape(-1, 4)
     vertex_walls = np.asarray(parts.vwalls, dtype=np.int64).reshape(-1, 2)
     vertices = np.asarray(parts.verts, dtype=np.float64).reshape(-1, 2)
@@ -134,6 +138,7 @@ def build_geometry(scene: Scene) -> Geometry:
         circles=np.asarray(circles, dtype=np.float64).reshape(-1, 3),
         circle_surface=np.asarray(circle_surface, dtype=np.int64),
         **_sinusoid_arrays(scene, len(walls)),
+        surface_solid=np.asarray(solid, dtype=np.bool_).reshape(-1),
     )
 
 
@@ -198,11 +203,14 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / math.hypot(v[0], v[1])
 
 
-def _add_polyline(p: Polyline, si: int, parts: _PolylineParts) -> None:
-    """Append the walls and vertices of polyline ``p`` (``scene.surfaces[si]``) to ``parts``."""
+def _add_polyline(p: Polyline, si: int, parts: _PolylineParts, solid: bool = False) -> None:
+    """Append the walls and vertices of polyline ``p`` (``scene.surfaces[si]``) to ``parts``;
+    a closed ``p`` is a room (free inside) or, ``solid``, an obstacle (free outside)."""
     pts = np.asarray(p.points, dtype=np.float64)
     n = len(pts)
-    ccw = p.closed and _signed_area(pts) > 0
+    # The left side of a counter-clockwise outline is its inside: free for a room, solid
+    # for an obstacle.
+    free_left = p.closed and (_signed_area(pts) > 0) != solid
     first = len(parts.walls)
     nseg = n if p.closed else n - 1
     for i in range(nseg):
@@ -210,8 +218,8 @@ def _add_polyline(p: Polyline, si: int, parts: _PolylineParts) -> None:
         d = _unit(b - a)
         left_normal = np.array([-d[1], d[0]])
         parts.walls.append((*a, *b))
-        # Rooms reflect only on the interior: the left side of a counter-clockwise outline.
-        parts.normals.append(left_normal if (ccw or not p.closed) else -left_normal)
+        # Closed outlines reflect only on their free side.
+        parts.normals.append(left_normal if (free_left or not p.closed) else -left_normal)
         parts.two_sided.append(not p.closed)
         parts.owner.append(si)
     for i in range(n):
@@ -224,8 +232,8 @@ def _add_polyline(p: Polyline, si: int, parts: _PolylineParts) -> None:
             left, right = END, END
         else:
             left, right = _vertex_kinds(pts[(i - 1) % n], pts[i], pts[(i + 1) % n])
-            if p.closed:  # the outside of a room is solid
-                if ccw:
+            if p.closed:  # the side that is not free is solid
+                if free_left:
                     right = SOLID
                 else:
                     left = SOLID
@@ -245,6 +253,46 @@ def _vertex_kinds(before: np.ndarray, at: np.ndarray, after: np.ndarray) -> tupl
         return CORNER, EDGE
     # right turn, or a 180° fold back (an edge seen from both sides)
     return (EDGE, CORNER) if turn < 0 else (EDGE, EDGE)
+
+
+def enclosing(surfaces: tuple[Surface, ...]) -> list[int | None]:
+    """For each surface, the index of a closed polyline that encloses it when it is itself a
+    closed polyline (every vertex inside or on that outline, the mean of its vertices
+    strictly inside), else None."""
+    outlines = {i: np.asarray(s.points, dtype=np.float64) for i, s in enumerate(surfaces)
+                if isinstance(s, Polyline) and s.closed}
+    out: list[int | None] = [None] * len(surfaces)
+    for i, pts in outlines.items():
+        mean = pts.mean(axis=0, keepdims=True)
+        for j, outer in outlines.items():
+            if j != i and bool(inside_polygon(outer, mean)[0]) \
+                    and not bool(on_outline(outer, mean)[0]) \
+                    and bool(np.all(inside_polygon(outer, pts) | on_outline(outer, pts))):
+                out[i] = j
+                break
+    return out
+
+
+def solid_surfaces(surfaces: tuple[Surface, ...]) -> tuple[bool, ...]:
+    """Which surfaces are closed polylines read as solid obstacles (free space outside,
+    walls reflecting outwards): those whose ``solid`` says so, and, where ``solid`` is null
+    (automatic), those enclosed by another closed polyline (:func:`enclosing`) — a box or a
+    pillar drawn inside a room."""
+    inside = enclosing(surfaces)
+    return tuple(isinstance(s, Polyline) and s.closed
+                 and (s.solid if s.solid is not None else inside[i] is not None)
+                 for i, s in enumerate(surfaces))
+
+
+def on_outline(poly: np.ndarray, p: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """[M] bool: ``p`` [M, 2] within ``tol`` (relative to the outline's largest coordinate,
+    at least 1 m) of the closed outline ``poly`` [K, 2]."""
+    tol *= max(1.0, float(np.abs(poly).max()))
+    a = poly[None, :, :]
+    ab = np.roll(poly, -1, axis=0)[None, :, :] - a
+    t = np.clip(np.sum((p[:, None] - a) * ab, -1) / np.sum(ab * ab, -1), 0.0, 1.0)
+    gap = p[:, None] - (a + t[..., None] * ab)
+    return np.any(np.hypot(gap[..., 0], gap[..., 1]) <= tol, axis=1)
 
 
 def _signed_area(pts: np.ndarray) -> float:

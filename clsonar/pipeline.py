@@ -23,13 +23,20 @@ from typing import TypeVar, cast
 
 import numpy as np
 
-from . import mapping, metrics, post, regions, sight, signals
+from . import checks, mapping, metrics, post, regions, sight, signals
 from .echoes import EchoTable, compute_echoes
 from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
 from .mapping import Votes
 from .opencl import device_name, get_context
-from .scene import DetectionSettings, MappingSettings, PostSettings, Scene, scene_to_dict
+from .scene import (
+    DetectionSettings,
+    Directivity,
+    MappingSettings,
+    PostSettings,
+    Scene,
+    scene_to_dict,
+)
 from .sensors import SensorArray, pairs, place_sensors
 from .signals import Detections
 from .survey import Survey, choose_settings, survey
@@ -44,20 +51,29 @@ FRONT_STAGES = STAGES[:4]
 
 @dataclass(frozen=True)
 class Preset:
-    """The detection, mapping and post-processing settings a preset puts in a scene."""
+    """The detection, mapping and post-processing settings a preset puts in a scene, and the
+    parts of the world it sets: the transducer's ``directivity`` and the echo's
+    ``curvature_gain`` (None: the scene's own; the scene's other transducer and echo keys
+    are always kept)."""
 
     detection: DetectionSettings
     mapping: MappingSettings
     post: PostSettings
+    directivity: Directivity | None = None
+    curvature_gain: bool | None = None
 
 
-#: Settings of the thesis' method and of ours (the defaults of a scene file).
+#: Settings of the thesis' method and of ours (the defaults of a scene file). ``thesis`` is
+#: the thesis' whole world: its uniform beam inside the ±12° cut (§2.1), no curvature gain
+#: (its ray tracing), threshold detection, loci summed, eq. 2.5 thinning and the polynomial.
 PRESETS: dict[str, Preset] = {
     "thesis": Preset(
         detection=DetectionSettings(mode="threshold"),
-        mapping=MappingSettings(mode="loci", weight="unit", reciprocal="both", combine="sum"),
+        mapping=MappingSettings(mode="loci", weight="unit", reciprocal="both", combine="sum",
+                                isolated_bias_m=0.0),
         post=PostSettings(filter="mean3", level=1e-6, thinning="thesis", fit="polynomial",
-                          poly_order=7, subcell=False)),
+                          poly_order=7, subcell=False, max_gap_m=0.3, join_m=0.5),
+        directivity="uniform", curvature_gain=False),
     "best": Preset(DetectionSettings(), MappingSettings(), PostSettings()),
 }
 
@@ -71,14 +87,20 @@ PIPELINE_BYTES_PER_CELL = 48
 
 
 def apply_preset(scene: Scene, preset: str | None) -> Scene:
-    """``scene`` with the detection/mapping/post settings of ``preset`` (None: unchanged)."""
+    """``scene`` with the detection/mapping/post settings of ``preset``, and its transducer
+    directivity and echo curvature gain where the preset sets them (None: unchanged)."""
     if preset is None:
         return scene
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
     chosen = PRESETS[preset]
+    transducer, echo = scene.transducer, scene.echo
+    if chosen.directivity is not None:
+        transducer = dataclasses.replace(transducer, directivity=chosen.directivity)
+    if chosen.curvature_gain is not None:
+        echo = dataclasses.replace(echo, curvature_gain=chosen.curvature_gain)
     return dataclasses.replace(scene, detection=chosen.detection, mapping=chosen.mapping,
-                               post=chosen.post)
+                               post=chosen.post, transducer=transducer, echo=echo)
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,6 +133,8 @@ class RunResult:
     #: the scene as asked for (preset applied; settings to be chosen still None); ``scene``
     #: is the one used, every setting filled in
     asked: Scene | None = None
+    #: what the user should know about this run (clsonar.checks), one line each
+    warnings: tuple[str, ...] = ()
 
     def report(self) -> dict[str, object]:
         """The JSON-ready ``report.json`` of docs/design.md's ``clsonar run``: the settings
@@ -126,6 +150,7 @@ class RunResult:
             "counts": self.counts,
             "seconds": {**self.seconds, "total": sum(self.seconds.values())},
             "metrics": self.metrics,
+            "warnings": list(self.warnings),
         }
 
 
@@ -317,7 +342,8 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
                      filtered=maps["filtered"], occupied=maps["occupied"], thin=maps["thin"],
                      profile=profile, metrics=regions.combine_metrics([p.metrics for p in parts]),
                      seconds=seconds, counts=counts, device=device_name(ctx),
-                     settings_why=parts[0].settings_why, asked=scene)
+                     settings_why=parts[0].settings_why, asked=scene,
+                     warnings=checks.run_warnings(scene, counts))
 
 
 def _add_to_mosaic(maps: dict[str, np.ndarray], r: RunResult, room: regions.Region) -> None:
@@ -443,7 +469,8 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
     return dataclasses.replace(front, raw=drawn.raw, filtered=maps.filtered,
                                occupied=maps.occupied, thin=maps.thin, profile=maps.profile,
                                metrics=result_metrics, seconds=seconds, counts=counts,
-                               point_sums=drawn.point_sums, point_window=drawn.window)
+                               point_sums=drawn.point_sums, point_window=drawn.window,
+                               warnings=checks.run_warnings(scene, counts))
 
 
 @dataclass(frozen=True, eq=False)
@@ -505,10 +532,11 @@ def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch) -> 
     thin = post.embed(part.shape, window, post.thin_map(occupied, scene.post))
     filtered = post.embed(part.shape, window, filtered)
     clock.start("profile")
-    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
-                                   part if point_sums is not None else None, point_sums)
     inner = (outer[0] + window[0].start, outer[1] + window[1].start,
              window[0].stop - window[0].start, window[1].stop - window[1].start)
+    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
+                                   part if point_sums is not None else None, point_sums,
+                                   occupied=occupied, origin=inner[:2])
     occupied = post.embed(raw.shape, _slices(inner), occupied)
     thin = post.embed(raw.shape, _slices(outer), thin)
     return _PostMaps(
@@ -518,7 +546,8 @@ def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch) -> 
                 "occupied_cells": int(np.count_nonzero(occupied)),
                 "thin_cells": int(np.count_nonzero(thin)),
                 "profile_curves": len(profile.curves),
-                "profile_points": len(profile.points)})
+                "profile_points": len(profile.points),
+                "profile_points_dropped": profile.dropped})
 
 
 def _slices(window: tuple[int, int, int, int]) -> tuple[slice, slice]:
@@ -529,7 +558,8 @@ def _slices(window: tuple[int, int, int, int]) -> tuple[slice, slice]:
 
 #: The counters :func:`post_process` sets (a re-run replaces them).
 _POST_COUNTS = ("map_cells", "cells_voted", "ghost_points", "cells_post_processed",
-                "occupied_cells", "thin_cells", "profile_curves", "profile_points")
+                "occupied_cells", "thin_cells", "profile_curves", "profile_points",
+                "profile_points_dropped")
 
 
 class _Stopwatch:

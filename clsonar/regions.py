@@ -4,7 +4,9 @@ does not need, bounded memory at scale).
 Sound does not pass a wall: a transducer inside a closed polyline (a room, thesis §3.6)
 hears only that room's walls and what stands inside it, and no pair of transducers in two
 different rooms has an echo. When every placement and explicit transducer of a scene lies
-in one of several closed rooms (none inside another), :func:`split_rooms` cuts the scene
+in one of several closed rooms (none inside another; a closed polyline read as a solid
+obstacle, :func:`clsonar.geometry.solid_surfaces`, is not a room but a surface of the room
+around it), :func:`split_rooms` cuts the scene
 into one sub-scene per room — its outline, the surfaces inside it, its transducers, and an
 extent of the room's bounding box plus :data:`MARGIN_M`, on the floor's own cell grid — and
 the pipeline runs each one on its own (:func:`clsonar.pipeline.run`): the pairs across
@@ -21,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import inside_polygon
+from .geometry import inside_polygon, solid_surfaces
 from .scene import (
     Circle,
     Circular,
@@ -61,6 +63,9 @@ def _anchor(item) -> tuple[float, float] | None:
         return item.center
     if isinstance(item, Sinusoid):
         return item.start
+    if isinstance(item, Polyline) and item.closed:  # an obstacle: its vertices' mean
+        x, y = np.mean(np.asarray(item.points, dtype=np.float64), axis=0)
+        return (float(x), float(y))
     if isinstance(item, Polyline):
         return item.points[0]
     return None
@@ -70,7 +75,9 @@ def split_rooms(scene: Scene) -> list[Region] | None:
     """The rooms of ``scene`` as :class:`Region`s, or None when the scene is not several
     separate closed rooms, each holding all of the transducers it maps (then it is mapped
     whole)."""
-    rooms = [s for s in scene.surfaces if isinstance(s, Polyline) and s.closed]
+    solid = solid_surfaces(scene.surfaces)  # obstacles, not rooms: they go with their room
+    rooms = [s for i, s in enumerate(scene.surfaces)
+             if isinstance(s, Polyline) and s.closed and not solid[i]]
     placements = [p for p in (scene.sensors.placement, *scene.sensors.placements)
                   if p is not None]
     if len(rooms) < 2 or any(isinstance(p, PerWall) for p in placements):
@@ -85,8 +92,8 @@ def split_rooms(scene: Scene) -> list[Region] | None:
         return hits[0] if len(hits) == 1 else None
 
     surfaces: list[list] = [[r] for r in rooms]
-    for s in scene.surfaces:
-        if isinstance(s, Polyline) and s.closed:
+    for i, s in enumerate(scene.surfaces):
+        if isinstance(s, Polyline) and s.closed and not solid[i]:
             continue
         home = room_of(_anchor(s))
         if home is None:

@@ -425,7 +425,8 @@ class MainWindow(QMainWindow):
         self.plots.set_result(result)
         total = sum(result.seconds.values())
         self.show_message(f"{job.name} run of {result.scene.name} in {total:.2f} s: "
-                          f"{summary(result)}")
+                          f"{summary(result)}"
+                          + "".join(f" — warning: {w}" for w in result.warnings))
         self.runFinished.emit(result)
         if self._post_again:
             self._post_again = False

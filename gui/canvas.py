@@ -10,6 +10,8 @@ a grid. Every edit goes through :meth:`Document.apply`, one undo step per click 
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pyqtgraph as pg
 from PySide6.QtCore import QPointF, Qt, QTimer, Signal
@@ -202,7 +204,7 @@ class SceneCanvas(pg.PlotWidget):
         surface: Surface
         if isinstance(s, Polyline):
             pts = tuple(edits.snap_point(p, g) for p in self.roi_points(roi))
-            surface = Polyline(pts, s.closed)
+            surface = dataclasses.replace(s, points=pts)
         elif isinstance(s, Circle):
             pos, size = roi.pos(), roi.size()
             r = 0.5 * float(size.x())

@@ -53,6 +53,8 @@ def from_text(text: str, old: Any) -> Any:
     t = text.strip()
     if t.lower() in (NONE_TEXT, "none", "null", "random", ""):
         return None
+    if t.lower() in ("true", "false"):  # an optional switch (a polyline's ``solid``)
+        return t.lower() == "true"
     if "," in t:
         return tuple(float(v) for v in t.split(","))
     if isinstance(old, str):

@@ -3,6 +3,7 @@ reference (clsonar/echoes/) and both against independent geometry, on PoCL's CPU
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import io
 import itertools
@@ -58,7 +59,7 @@ def make_scene(surfaces, transducers, *, extent=(0.0, 0.0, 4.0, 3.0), offset=(0.
     moved = []
     for s in surfaces:
         if isinstance(s, Polyline):
-            moved.append(Polyline(tuple(move(p) for p in s.points), s.closed))
+            moved.append(Polyline(tuple(move(p) for p in s.points), s.closed, s.solid))
         elif isinstance(s, Circle):
             moved.append(Circle(move(s.center), s.radius))
         else:
@@ -244,6 +245,43 @@ def test_rectangular_room_matches_image_sources(offset):
         on_wall = (np.minimum(np.abs(x), np.abs(x - ROOM_W)) < 1e-3) | (
             np.minimum(np.abs(y), np.abs(y - ROOM_H)) < 1e-3)
         assert on_wall.all()
+
+
+BOX = ((2.0, 2.0), (4.0, 2.0), (4.0, 3.0), (2.0, 3.0))
+BOX_TRANSDUCERS = [
+    (1.0, 2.5, 0.0, 0), (1.0, 2.6, 2.0, 0), (0.9, 2.45, -3.0, 0),  # the box's left face
+    (3.0, 4.2, -90.0, 1), (3.1, 4.2, -88.0, 1),  # its top face
+    (5.0, 1.0, 135.0, 2), (5.05, 0.95, 135.0, 2),  # its convex vertex (4, 2)
+]
+
+
+@pytest.mark.parametrize("box", [BOX, BOX[::-1]], ids=["ccw", "cw"])
+def test_a_box_inside_a_room_reflects_on_its_outside(box):
+    """A closed polyline inside the room is a solid box (geometry.solid_surfaces): its
+    faces echo towards the outside, its vertices diffract as edges, it hides the wall
+    behind it; kernels equal the float64 reference. As a room ("solid": false) its outside
+    is silent."""
+    room = Polyline(((0.0, 0.0), (6.0, 0.0), (6.0, 5.0), (0.0, 5.0)), closed=True)
+    scene = make_scene([room, Polyline(box, closed=True)], BOX_TRANSDUCERS,
+                       extent=(0.0, 0.0, 6.0, 5.0))
+    c = scene.medium.c
+    ref = reference_echoes(scene)
+    for precision, tol in (("float64", 1e-12), ("float32", 1e-6)):
+        problems = match_tables(ref, kernel(scene, precision), n_circles=0, tof_tol=tol,
+                                amp_rtol=1e-4 if precision == "float64" else 1e-3)
+        assert not problems, (precision, problems)
+    kinds = ref.kind_names()
+    for tx, point, distance in ((0, (2.0, 2.5), 1.0), (3, (3.0, 3.0), 1.2)):
+        i = np.flatnonzero((ref.tx == tx) & (ref.rx == tx))
+        assert len(i) == 1 and kinds[i[0]] == "specular"  # the box's face, nothing behind
+        assert np.allclose(ref.point[i[0]], point, atol=1e-9)
+        assert ref.tof_s[i[0]] == pytest.approx(2 * distance / c, rel=1e-9)
+        assert ref.amplitude[i[0]] == pytest.approx(5.0 * 0.9, rel=1e-9)  # on axis: b = 1
+    edge = np.flatnonzero((ref.tx == 5) & (ref.rx == 5))
+    assert [kinds[i] for i in edge] == ["edge"] and np.allclose(ref.point[edge[0]], (4, 2))
+    assert not np.any(ref.point[:, 0] > 5.9)  # the right wall is behind the box
+    hollow = dataclasses.replace(scene, surfaces=(room, Polyline(box, True, solid=False)))
+    assert not np.any(np.abs(reference_echoes(hollow).point[:, 0] - 2.0) < 1e-9)
 
 
 def test_table_is_sorted_and_writes_csv():
@@ -527,6 +565,11 @@ def random_scenes(draw) -> Scene:
             pts.append((w / 2 + radius * w / 2 * math.cos(angle),
                         h / 2 + radius * h / 2 * math.sin(angle)))
         surfaces.append(Polyline(tuple(pts), closed=True))
+    if shape != "none" and draw(st.integers(0, 3)) == 0:  # a solid box inside the room
+        (x0, y0), (x1, y1) = sorted([point(middle), point(middle)])
+        if x1 - x0 > 0.05 and abs(y1 - y0) > 0.05:
+            corners = ((x0, y0), (x1, y0), (x1, y1), (x0, y1))
+            surfaces.append(Polyline(corners if draw(st.booleans()) else corners[::-1], True))
     for _ in range(draw(st.integers(0, 2))):
         pts = [point(inner) for _ in range(draw(st.integers(2, 4)))]
         if all(math.dist(a, b) > 0.05 for a, b in itertools.pairwise(pts)):

@@ -1,5 +1,6 @@
 """Derived geometry: walls' front sides, vertex classification, curve sampling, queries."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -43,6 +44,38 @@ def test_room_interior_is_the_front_and_the_reflex_vertex_is_an_edge(points):
     assert set(outside.tolist()) == {SOLID}
     assert g.diffractors.shape == (1, 6) and tuple(g.diffractors[0, :2]) == (3.0, 3.0)
     assert g.corner_pairs.sum() == 2 * 5
+
+
+BOX = ((2.0, 2.0), (4.0, 2.0), (4.0, 3.0), (2.0, 3.0))
+
+
+@pytest.mark.parametrize("box", [BOX, BOX[::-1]], ids=["ccw", "cw"])
+def test_a_closed_polyline_inside_a_room_is_a_solid_box(box):
+    """Nested outlines are obstacles: their walls face outwards, their vertices are edges
+    seen from outside (diffractors) and true vertices; ``solid`` overrides either way."""
+    from clsonar.geometry import solid_surfaces, true_vertices
+
+    room = Polyline(((0, 0), (6, 0), (6, 5), (0, 5)), closed=True)
+    g = _geom(room, Polyline(box, closed=True))
+    assert g.surface_solid.tolist() == [False, True]
+    mine = g.wall_surface == 1
+    mid = (g.walls[mine, :2] + g.walls[mine, 2:]) / 2
+    out = mid + 0.01 * g.wall_normal[mine]
+    assert not np.any((out[:, 0] > 2) & (out[:, 0] < 4) & (out[:, 1] > 2) & (out[:, 1] < 3))
+    box_vertices = slice(4, 8)
+    kinds = {(int(a), int(b)) for a, b in zip(g.vertex_left[box_vertices],
+                                              g.vertex_right[box_vertices], strict=True)}
+    assert kinds == ({(SOLID, EDGE)} if box == BOX else {(EDGE, SOLID)})
+    assert sorted(map(tuple, g.diffractors[:, :2].tolist())) == sorted(BOX)
+    assert len(g.corners) == 4  # the room's four corners only
+    assert len(true_vertices(g)) == 8
+    alone = Polyline(box, closed=True)
+    assert solid_surfaces((alone,)) == (False,)  # not nested: a room
+    assert solid_surfaces((dataclasses.replace(alone, solid=True),)) == (True,)
+    assert solid_surfaces((room, dataclasses.replace(alone, solid=False))) == (False, False)
+    touching = Polyline(((0, 0), (1, 0), (1, 1), (0, 1)), closed=True)  # in the room's corner
+    assert solid_surfaces((room, touching, Polyline(((1, 1), (2, 1), (2, 2))))) == (
+        False, True, False)
 
 
 def test_open_polyline_vertices_from_both_sides():

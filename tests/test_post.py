@@ -130,10 +130,105 @@ def test_fit_polynomial_along_principal_axis():
     rng = np.random.default_rng(1)
     y = np.linspace(0, 10, 500)
     x = 9.0 + 0.002 * rng.standard_normal(500)  # a wall along y
-    fitted = fit_polynomial(np.stack([x, y], axis=-1), 7, 0.01)
+    (fitted,) = fit_polynomial(np.stack([x, y], axis=-1), 7, 0.01)
     assert np.max(np.abs(fitted[:, 0] - 9.0)) < 0.003
     assert fitted[:, 1].min() == pytest.approx(0, abs=0.01)
     assert len(fitted) == pytest.approx(1001, abs=2)
+
+
+def test_fit_polynomial_stays_within_its_data():
+    """A room's outline is no function along its principal axis: the polynomial through it
+    runs metres away from it. Only the samples within the data's span of u and of v are
+    kept (the thesis' polynomial on a room: 10 m off in docs/bench before)."""
+    a = np.linspace(0, 2 * np.pi, 800, endpoint=False)
+    outline = np.stack([5 + 4 * np.cos(a), 5 + 0.5 * np.sin(a)], axis=-1)
+    outline[::7, 1] += 0.3  # not symmetric: the fit must run somewhere
+    curves = fit_polynomial(outline, 8, 0.01)
+    pts = np.concatenate(curves)
+    assert len(pts) > 100
+    assert pts[:, 0].min() >= 1.0 - 0.01 and pts[:, 0].max() <= 9.0 + 0.01
+    assert pts[:, 1].min() >= 4.5 - 0.011 and pts[:, 1].max() <= 5.8 + 0.011
+    few = np.array([[0.0, 0.0], [1.0, 3.0], [2.0, -1.0], [3.0, 0.5]])
+    assert np.array_equal(fit_polynomial(few, 7, 0.01)[0], few)  # fewer points than the order
+
+
+def test_bound_profile_drops_what_the_map_does_not_support():
+    """Points outside the extent or more than NEAR_CELLS cells from an occupied cell are
+    dropped and their curve cut there — unless they fill a gap up to max_gap or no longer
+    than the supported stretches on both sides (interpolation), or end the curve at a
+    located vertex; vertices are dropped only outside the extent."""
+    from clsonar.post import NEAR_CELLS, Profile, bound_profile
+
+    near = 0.1 * NEAR_CELLS
+    occupied = np.zeros((40, 60), dtype=bool)  # cells of 0.1 m from (1, 2): x 1..7, y 2..6
+    occupied[10, 5:20] = True  # y = 3.05, x = 1.5..3.0
+    occupied[10, 40:45] = True  # x = 5.0..5.5: a gap longer than this stretch
+    occupied[30, 5:25] = True  # y = 5.05, x = 1.5..3.5
+    occupied[30, 35:55] = True  # x = 4.5..6.5: a gap shorter than both stretches
+    x = np.arange(0.0, 9.0, 0.05)
+    cut, bridged, off = (np.stack([x, np.full_like(x, y)], axis=-1)
+                         for y in (3.05, 5.05, 3.05 + 0.1 * (NEAR_CELLS + 1)))
+    to_corner = cut[(cut[:, 0] >= 1.5) & (cut[:, 0] <= 4.0)]  # ends at a located vertex
+    vertices = np.array([[4.0, 3.05], [0.5, 3.0]])
+    extent = (1.0, 2.0, 7.0, 6.0)
+    bounded = bound_profile(Profile((cut, bridged, off, to_corner), vertices), occupied,
+                            extent, 0.1)
+    first, second, whole, wall = bounded.curves  # nothing left of the line off the map
+    assert first[0, 0] == pytest.approx(1.5 - near, abs=0.05)
+    assert first[-1, 0] == pytest.approx(3.0 + near, abs=0.05)
+    assert second[0, 0] == pytest.approx(5.0 - near, abs=0.05)
+    assert second[-1, 0] == pytest.approx(5.5 + near, abs=0.05)
+    assert whole[0, 0] == pytest.approx(1.5 - near, abs=0.05)
+    assert whole[-1, 0] == pytest.approx(6.5 + near, abs=0.05)
+    assert np.all(whole[:, 1] == 5.05) and np.all(np.diff(whole[:, 0]) == pytest.approx(0.05))
+    assert np.array_equal(wall, to_corner)
+    assert np.array_equal(bounded.vertices, vertices[:1])
+    assert bounded.dropped == 3 * len(x) - len(first) - len(second) - len(whole)
+    # the gaps the settings let a fit bridge (post.max_gap_m) are kept
+    loose = bound_profile(Profile((cut,)), occupied, extent, 0.1, max_gap=1.5)
+    (one,) = loose.curves
+    assert one[0, 0] == pytest.approx(1.5 - near, abs=0.05)
+    assert one[-1, 0] == pytest.approx(5.5 + near, abs=0.05)
+    # a loop is cut only where it leaves the map, wherever its samples start
+    a = np.linspace(0.0, 2 * np.pi, 400, endpoint=False) + 1.0
+    loop = np.stack([4.0 + 1.5 * np.cos(a), 4.0 + 1.5 * np.sin(a)], axis=-1)
+    ring = np.zeros((40, 60), dtype=bool)
+    angle = np.arctan2(*(cell_grid(40, 60) - 4.0)[::-1]) % (2 * np.pi)
+    radius = np.hypot(*(cell_grid(40, 60) - 4.0))
+    ring[(np.abs(radius - 1.5) < 0.06) & ((angle < 2.0) | (angle > 5.0))] = True
+    (arc,) = bound_profile(Profile((loop,)), ring, extent, 0.1).curves
+    kept = np.arctan2(arc[:, 1] - 4.0, arc[:, 0] - 4.0) % (2 * np.pi)
+    assert np.all((kept < 2.0 + 0.3) | (kept > 5.0 - 0.3)) and len(arc) > 150
+    # the same map as a window of a larger grid: origin moves the cells, not the points
+    shifted = bound_profile(Profile((cut, bridged, off)), occupied[5:, 3:], extent, 0.1,
+                            origin=(5, 3))
+    assert all(np.array_equal(a, b) for a, b in zip(shifted.curves, bounded.curves[:3],
+                                                    strict=True))
+
+
+def cell_grid(ny: int, nx: int, origin=(1.0, 2.0), cell: float = 0.1) -> np.ndarray:
+    """[2, ny, nx] the (x, y) centres of a grid's cells."""
+    iy, ix = np.mgrid[0:ny, 0:nx]
+    return np.stack([origin[0] + (ix + 0.5) * cell, origin[1] + (iy + 0.5) * cell])
+
+
+def test_thin_oriented_thins_walls_along_x_and_keeps_the_thesis_along_y():
+    """Eq. 2.5 as written keeps nothing of a band along x; oriented, it keeps its edge at
+    smaller y. A band along y thins exactly as written."""
+    from clsonar.post import along_x, thin_oriented
+
+    b = np.zeros((40, 80), dtype=bool)
+    b[20:24, 5:75] = True  # a wall along x, 4 cells thick
+    assert np.array_equal(np.unique(np.nonzero(thin_thesis(b))[1]), [5])  # its end only
+    kept = thin_oriented(b)
+    rows, cols = np.nonzero(kept)
+    assert np.array_equal(np.unique(rows), [20]) and len(cols) >= 60
+    assert along_x(b)[21, 40] and not along_x(b.T)[40, 21]
+    assert np.array_equal(thin_oriented(b.T), thin_thesis(b.T))
+    both = b.copy()
+    both[:, 60:64] = True  # and a wall along y crossing it: each thinned its own way
+    kept = thin_oriented(both)
+    assert kept[20, 10:50].all() and kept[2:15, 60].all()
 
 
 def test_fit_spline_follows_a_circle():

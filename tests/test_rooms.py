@@ -549,12 +549,16 @@ def test_room_at_a_075_m_step_still_finds_every_vertex(room_step75):
 def test_room_with_a_cylinder(room_cylinder):
     m = room_cylinder.metrics
     assert m["accuracy_m"]["rms"] <= 0.01
-    assert m["completeness"]["2cm"] >= 0.95
+    # The fitted circle is drawn only where the map supports it (post.bound_profile, issue
+    # 14): not across the stretches where the map holds straight tangent stubs 4–10 cm off
+    # it (the circle absorbs them), so 93 % of the walls and cylinder and 53 % of the
+    # cylinder's perimeter (96 % and 77 % when the circle was drawn whole).
+    assert m["completeness"]["2cm"] >= 0.92
     assert m["vertices_found"] == "8/8"
     assert max(_vertex_errors(room_cylinder)) <= 0.03
     (cyl,) = m["cylinders"]
     assert (cyl["x"], cyl["y"], cyl["radius_m"]) == (5.0, 5.0, 2.0)
-    assert cyl["coverage_2cm"] >= 0.70
+    assert cyl["coverage_2cm"] >= 0.50
 
 
 def test_l_room_locates_its_convex_edge(room_l):

@@ -125,6 +125,10 @@ BAD = [
     ("bad placement", _with("sensors.placement.type", "grid"), "sensors.placement.type"),
     ("missing radius", _with("surfaces[1].radius", _DELETE), "surfaces[1].radius: missing"),
     ("deep nesting", "[" * 100000 + "]" * 100000, "nested deeper"),
+    ("solid open polyline", _with("surfaces[0].solid", True),
+     'surfaces[0].solid: true needs "closed": true'),
+    ("solid not a bool", _with("surfaces[0].solid", "yes"),
+     "surfaces[0].solid: must be true, false or null, not a string"),
 ]
 
 
@@ -150,6 +154,19 @@ def test_not_utf8(tmp_path):
     f.write_bytes(b"\xff\xfe\x00garbage")
     with pytest.raises(SceneError, match="not UTF-8"):
         load_scene(f)
+
+
+def test_solid_is_read_written_and_null_by_default(tmp_path):
+    room = {"type": "polyline", "points": [[0, 0], [9, 0], [9, 9], [0, 9]], "closed": True}
+    box = {**room, "points": [[3, 3], [4, 3], [4, 4], [3, 4]]}
+    for value in (None, True, False):
+        data = {**DESIGN_EXAMPLE, "surfaces": [room, {**box, "solid": value}]}
+        scene = scene_from_dict(data)
+        assert scene.surfaces[1].solid is value
+        save_scene(scene, tmp_path / "s.json")
+        assert json.loads((tmp_path / "s.json").read_text())["surfaces"][1]["solid"] is value
+        assert load_scene(tmp_path / "s.json") == scene
+    assert scene_from_dict({**DESIGN_EXAMPLE, "surfaces": [box]}).surfaces[0].solid is None
 
 
 def test_wall_following_keys():
@@ -249,7 +266,9 @@ def scenes(draw):
         kind = draw(st.sampled_from(["polyline", "circle", "sinusoid"]))
         if kind == "polyline":
             pts = draw(st.lists(points, min_size=3, max_size=6, unique=True).filter(_apart))
-            surfaces.append(Polyline(tuple(pts), draw(st.booleans()) and len(pts) >= 3))
+            closed = draw(st.booleans()) and len(pts) >= 3
+            solid = draw(st.sampled_from([None, False, True] if closed else [None, False]))
+            surfaces.append(Polyline(tuple(pts), closed, solid))
         elif kind == "circle":
             surfaces.append(Circle(draw(points), draw(st.floats(1e-3, 1e3))))
         else:

@@ -330,7 +330,30 @@ def test_wall_following_around_a_free_cylinder():
     np.testing.assert_allclose(np.hypot(*(result[3] - [5.0, 3.5]).T), 1.3, atol=1e-6)
 
 
+BOX = [(4.0, 3.0), (6.0, 3.0), (6.0, 4.0), (4.0, 4.0)]
+
+
+@pytest.mark.parametrize("box", [BOX, BOX[::-1]], ids=["ccw", "cw"])
+def test_wall_following_around_a_box_inside_a_room(box):
+    """A closed polyline inside the room is a solid box: the ring goes round its outside
+    (the offset square with quarter circles at its four edges), never inside it."""
+    scene, geom, p, result = _wall_following([room(RECT), room(box)], start=[5.0, 4.5],
+                                             step_m=0.4, clearance_m=0.3)
+    path, length = _check_wall_following(scene, geom, p, result)
+    assert length == pytest.approx(2 * (2.0 + 1.0) + 2 * math.pi * 0.3, rel=1e-3)
+    x, y = path[:, 0], path[:, 1]
+    assert not np.any((x > 4.0) & (x < 6.0) & (y > 3.0) & (y < 4.0))
+    assert np.all(nearest_surface_point(geom, path)[0] == pytest.approx(0.3, abs=1e-6))
+    assert not np.any(in_free_space(scene, geom, np.array([[5.0, 3.5], [4.1, 3.9]])))
+    # "solid": false: the same outline is a room inside the room, followed on its inside
+    inner = {**room(box), "solid": False}
+    scene, geom, p, result = _wall_following([room(RECT), inner], start=[5.0, 3.5],
+                                             step_m=0.2, clearance_m=0.3)
+    assert np.all(np.abs(result[3] - [5.0, 3.5]) <= [0.7 + 1e-6, 0.2 + 1e-6])
+
+
 @pytest.mark.parametrize("surfaces, kw, message", [
+    ([room(RECT), room(BOX)], {"start": [5.0, 3.5]}, "not in free space"),
     ([wall((9.0, 0.0), (9.0, 10.0))], {"start": [8.0, 5.0]}, "left the extent"),
     ([room(RECT)], {"start": [3.0, 3.0], "clearance_m": 3.0}, "no place at clearance"),
     ([room(RECT)], {"start": [3.0, 3.0], "max_poses": 10}, "max_poses"),

@@ -6,7 +6,8 @@ pipeline runs it:
    :func:`filter_box` does both on the :func:`voted_box` only and :func:`embed` puts the
    result back on the whole map (the same numbers).
 2. **Thinning** (:mod:`~clsonar.post.thinning`): :func:`thin_thesis`, the template of
-   eq. 2.5 exactly as the thesis writes it, or :func:`thin`, a proper thinning (Guo and
+   eq. 2.5 exactly as the thesis writes it (:func:`thin_oriented`: in the direction that
+   fits each part of the map), or :func:`thin`, a proper thinning (Guo and
    Hall's parallel algorithm) that leaves one-pixel wide, 8-connected curves and keeps
    every curve's connectivity; :func:`thin_map` picks one as the settings say, and
    :func:`filter_and_thin` runs steps 1 and 2.
@@ -19,7 +20,9 @@ pipeline runs it:
    circles for cylinders (:func:`fit_walls`, thesis §3.6).
 
 :func:`extract_profile` (:mod:`~clsonar.post.profile`) runs steps 3 and 4 and returns the
-:class:`Profile`. Maps are indexed ``[iy, ix]`` with ``iy`` growing with y
+:class:`Profile`, bounded by :func:`bound_profile`: whatever the fit, no point outside the
+extent, nor farther than :data:`NEAR_CELLS` cells from an occupied cell but to bridge a
+gap between supported stretches. Maps are indexed ``[iy, ix]`` with ``iy`` growing with y
 (docs/design.md).
 """
 
@@ -37,14 +40,15 @@ from .filters import (
     voted_box,
 )
 from .fits import Profile, fit_polynomial, fit_spline
-from .profile import extract_profile
-from .thinning import thin, thin_map, thin_thesis
+from .profile import NEAR_CELLS, bound_profile, extract_profile
+from .thinning import along_x, thin, thin_map, thin_oriented, thin_thesis
 from .walls import Arc, Wall, find_circles, fit_walls, join_walls, merge_collinear, split_straight
 
 __all__ = [
-    "AUTO_LEVEL_POINTS", "AUTO_LEVEL_VOTES", "BOX_MARGIN", "MIN_CURVE_CELLS", "Arc", "Profile",
-    "Wall", "binarize", "bridge_gaps", "embed", "extract_profile", "filter_and_thin",
-    "filter_box", "find_circles", "fit_polynomial", "fit_spline", "fit_walls", "join_walls",
-    "low_pass", "merge_collinear", "occupancy_level", "refine_cells", "refine_to_points",
-    "split_straight", "thin", "thin_map", "thin_thesis", "trace_curves", "voted_box",
+    "AUTO_LEVEL_POINTS", "AUTO_LEVEL_VOTES", "BOX_MARGIN", "MIN_CURVE_CELLS", "NEAR_CELLS", "Arc",
+    "Profile", "Wall", "along_x", "binarize", "bound_profile", "bridge_gaps", "embed",
+    "extract_profile", "filter_and_thin", "filter_box", "find_circles", "fit_polynomial",
+    "fit_spline", "fit_walls", "join_walls", "low_pass", "merge_collinear", "occupancy_level",
+    "refine_cells", "refine_to_points", "split_straight", "thin", "thin_map", "thin_oriented",
+    "thin_thesis", "trace_curves", "voted_box",
 ]

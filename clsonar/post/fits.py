@@ -16,6 +16,8 @@ class Profile:
 
     curves: tuple[np.ndarray, ...]
     vertices: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    #: fitted points dropped as unsupported by the map (:func:`~clsonar.post.bound_profile`)
+    dropped: int = 0
 
     @property
     def points(self) -> np.ndarray:
@@ -25,13 +27,17 @@ class Profile:
         return np.concatenate(self.curves)
 
 
-def fit_polynomial(points: np.ndarray, order: int, spacing: float) -> np.ndarray:
+def fit_polynomial(points: np.ndarray, order: int, spacing: float) -> list[np.ndarray]:
     """The thesis' polynomial fit (§2.1.1, part 5; order 5–8 in chapter 3): in the frame of
     the points' principal axis u, fit v = P(u) by least squares and sample it every
-    ``spacing`` over the points' span of u. Returns [n, 2] points."""
+    ``spacing`` over the points' span of u — keeping only the samples within the points'
+    span of v too (give or take ``spacing``): a polynomial says nothing where it has no
+    data, and where its data are few or not a function of u (a room's outline) it runs far
+    away. Returns the [n, 2] curves of the samples kept (one, unless P leaves the span and
+    comes back)."""
     p = np.asarray(points, dtype=np.float64)
     if len(p) <= order:
-        return p
+        return [p]
     centre = p.mean(axis=0)
     _, _, vt = np.linalg.svd(p - centre, full_matrices=False)
     u_axis, v_axis = vt[0], vt[1]
@@ -39,7 +45,12 @@ def fit_polynomial(points: np.ndarray, order: int, spacing: float) -> np.ndarray
     v = (p - centre) @ v_axis
     poly = np.polynomial.Polynomial.fit(u, v, order)
     us = np.arange(u.min(), u.max() + 0.5 * spacing, spacing)
-    return centre + us[:, None] * u_axis + poly(us)[:, None] * v_axis
+    vs = poly(us)
+    keep = (vs >= v.min() - spacing) & (vs <= v.max() + spacing)
+    cuts = np.flatnonzero(np.diff(keep.astype(np.int8)) != 0) + 1
+    samples = centre + us[:, None] * u_axis + vs[:, None] * v_axis
+    return [c for c, k in zip(np.split(samples, cuts), np.split(keep, cuts), strict=True)
+            if k[0]]
 
 
 def fit_spline(curve: np.ndarray, spacing: float, noise: float) -> np.ndarray:

@@ -12,31 +12,138 @@ from .curves import MIN_CURVE_CELLS, bridge_gaps, refine_cells, refine_to_points
 from .fits import Profile, fit_polynomial, fit_spline
 from .walls import fit_walls
 
+#: A profile point may lie at most this many cells from an occupied cell of the map
+#: (:func:`bound_profile`).
+NEAR_CELLS = 3
+
 
 def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float,
                     settings: PostSettings, weights: np.ndarray | None = None,
                     counts: np.ndarray | None = None,
-                    sums: np.ndarray | None = None) -> Profile:
+                    sums: np.ndarray | None = None, occupied: np.ndarray | None = None,
+                    origin: tuple[int, int] = (0, 0)) -> Profile:
     """Link the thin cells into curves, refine them to sub-cell positions (``subcell``: the
     mean of the mapped points around each cell when the map counts points, ``counts`` and
     ``sums``, else the centroid of the filtered map ``weights``), bridge gaps up to
-    ``settings.max_gap_m`` and fit: one polynomial along the principal axis
-    (``polynomial``, the thesis), straight walls joined at corners and edges (``walls``,
-    :func:`~clsonar.post.walls.fit_walls`), a smoothing spline per curve (``spline``) or
-    the points as linked (``none``)."""
+    ``settings.max_gap_m`` and fit: one polynomial along the principal axis over the data's
+    span (``polynomial``, the thesis), straight walls joined at corners and edges
+    (``walls``, :func:`~clsonar.post.walls.fit_walls`), a smoothing spline per curve
+    (``spline``) or the points as linked (``none``). With the ``occupied`` map (the maps'
+    cell [0, 0] is cell ``origin`` of the scene's grid) the fitted profile is then bounded
+    by :func:`bound_profile`."""
     fit = chosen(settings.fit, "post.fit")
+    max_gap = chosen(settings.max_gap_m, "post.max_gap_m")
     curves = _curves_in_metres(trace_curves(thin_map, MIN_CURVE_CELLS), extent, cell,
                                settings, weights, counts, sums)
     if fit == "polynomial":
-        if not curves:
-            return Profile(())
-        return Profile((fit_polynomial(np.concatenate(curves), settings.poly_order, cell),))
-    if fit == "walls":
-        return fit_walls(curves, cell, settings)
-    curves = bridge_gaps(curves, chosen(settings.max_gap_m, "post.max_gap_m"))
-    if fit == "spline":
-        curves = [fit_spline(c, cell, cell / 2) for c in curves]
-    return Profile(tuple(curves))
+        fitted = Profile(tuple(fit_polynomial(np.concatenate(curves), settings.poly_order,
+                                              cell)) if curves else ())
+    elif fit == "walls":
+        fitted = fit_walls(curves, cell, settings)
+    else:
+        curves = bridge_gaps(curves, max_gap)
+        if fit == "spline":
+            curves = [fit_spline(c, cell, cell / 2) for c in curves]
+        fitted = Profile(tuple(curves))
+    if occupied is None:
+        return fitted
+    return bound_profile(fitted, occupied, extent, cell, origin, max_gap)
+
+
+def bound_profile(profile: Profile, occupied: np.ndarray, extent: tuple[float, ...],
+                  cell: float, origin: tuple[int, int] = (0, 0), max_gap: float = 0.0,
+                  near: int = NEAR_CELLS) -> Profile:
+    """``profile`` with only what the map supports, whatever the fit. A fit extends its
+    data — a polynomial beyond its points, a circle round a cylinder's hidden side, a wall
+    past the end of its patch — and only the map says how far that is honest:
+
+    - a point is supported when it lies within ``near`` cells (centre to centre) of an
+      occupied cell of ``occupied`` (whose cell [0, 0] is cell ``origin`` of the grid);
+    - unsupported points are dropped and each curve is cut there, except in a stretch
+      between two supported ones that is at most ``max_gap`` long (arc length: the gaps
+      the settings let a fit bridge, ``post.max_gap_m``) or no longer than either of them
+      (interpolation between data on both sides, as the thesis' polynomial between two
+      arrays' patches), and at a curve's end that reaches a located vertex (a wall drawn
+      to the corner or edge where it meets the next one, found from both);
+    - no point and no located vertex outside the ``extent`` is kept.
+    """
+    curves = []
+    for c in profile.curves:
+        inside = _inside(c, extent)
+        keep = inside & _near_occupied(c, occupied, extent, cell, origin, near)
+        if _closed(c) and keep.any() and not keep.all():
+            start = int(np.flatnonzero(keep & ~np.roll(keep, 1))[0])  # a loop: start at
+            c, keep, inside = (np.roll(a, -start, axis=0) for a in (c, keep, inside))  # data
+        keep |= inside & _bridged(c, keep, max_gap, profile.vertices, cell)
+        cuts = np.flatnonzero(np.diff(keep.astype(np.int8)) != 0) + 1
+        for piece, kept in zip(np.split(c, cuts), np.split(keep, cuts), strict=True):
+            if kept[0]:
+                curves.append(piece)
+    vertices = profile.vertices[_inside(profile.vertices, extent)]
+    left = sum(len(c) for c in curves)
+    return Profile(tuple(curves), vertices, len(profile.points) - left)
+
+
+def _closed(curve: np.ndarray) -> bool:
+    """Whether ``curve`` is a loop: its ends no farther apart than two of its steps."""
+    if len(curve) < 4:
+        return False
+    steps = np.hypot(*np.diff(curve, axis=0).T)
+    return bool(np.hypot(*(curve[0] - curve[-1])) <= 2 * np.median(steps))
+
+
+def _bridged(curve: np.ndarray, supported: np.ndarray, max_gap: float, vertices: np.ndarray,
+             cell: float) -> np.ndarray:
+    """[n] bool: the unsupported points of ``curve`` [n, 2] that :func:`bound_profile`
+    keeps: in a stretch between two supported ones, at most ``max_gap`` long or no longer
+    than either; in an end stretch whose end lies within a cell of one of ``vertices``."""
+    out = np.zeros(len(curve), dtype=bool)
+    if not supported.any():
+        return out
+    arc = np.r_[0.0, np.cumsum(np.hypot(*np.diff(curve, axis=0).T))]
+    cuts = np.flatnonzero(np.diff(supported.astype(np.int8)) != 0) + 1
+    runs = np.split(np.arange(len(curve)), cuts)
+    for k, run in enumerate(runs):
+        if supported[run[0]]:
+            continue
+        if 0 < k < len(runs) - 1:
+            before, after = runs[k - 1], runs[k + 1]
+            span = arc[after[0]] - arc[before[-1]]
+            out[run] = span <= max(max_gap, min(arc[before[-1]] - arc[before[0]],
+                                                 arc[after[-1]] - arc[after[0]]))
+        elif len(vertices):
+            end = curve[run[0] if k == 0 else run[-1]]
+            out[run] = bool(np.min(np.hypot(*(vertices - end).T)) <= cell)
+    return out
+
+
+def _inside(points: np.ndarray, extent: tuple[float, ...]) -> np.ndarray:
+    """[n] bool: ``points`` [n, 2] inside ``extent`` (its border included)."""
+    xmin, ymin, xmax, ymax = extent
+    x, y = points[:, 0], points[:, 1]
+    return (x >= xmin) & (x <= xmax) & (y >= ymin) & (y <= ymax)
+
+
+def _near_occupied(points: np.ndarray, occupied: np.ndarray, extent: tuple[float, ...],
+                   cell: float, origin: tuple[int, int], near: int) -> np.ndarray:
+    """[n] bool: the cell of each of ``points`` is within ``near`` cells (centre to centre)
+    of an occupied cell of ``occupied`` (cell [0, 0] at ``origin`` of the grid)."""
+    ny, nx = occupied.shape
+    with np.errstate(invalid="ignore"):
+        iy = np.floor((points[:, 1] - extent[1]) / cell) - origin[0]
+        ix = np.floor((points[:, 0] - extent[0]) / cell) - origin[1]
+    ok = np.isfinite(iy) & np.isfinite(ix)
+    iy = np.where(ok, iy, -near - 1).astype(np.int64)
+    ix = np.where(ok, ix, -near - 1).astype(np.int64)
+    found = np.zeros(len(points), dtype=bool)
+    for dy in range(-near, near + 1):
+        for dx in range(-near, near + 1):
+            if dy * dy + dx * dx > near * near:
+                continue
+            y, x = iy + dy, ix + dx
+            valid = (y >= 0) & (y < ny) & (x >= 0) & (x < nx)
+            found[valid] |= occupied[y[valid], x[valid]]
+    return found
 
 
 def _curves_in_metres(linked: list[np.ndarray], extent: tuple[float, ...], cell: float,
@@ -59,4 +166,4 @@ def _curves_in_metres(linked: list[np.ndarray], extent: tuple[float, ...], cell:
     return curves
 
 
-__all__ = ["extract_profile"]
+__all__ = ["NEAR_CELLS", "bound_profile", "extract_profile"]

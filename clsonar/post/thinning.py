@@ -1,6 +1,7 @@
 """Thinning of the occupied cells (thesis §2.1.1, part 5).
 
-- :func:`thin_thesis`: the template of eq. 2.5 exactly as the thesis writes it;
+- :func:`thin_thesis`: the template of eq. 2.5 exactly as the thesis writes it, and
+  :func:`thin_oriented`, the same in the direction that fits each part of the map;
 - :func:`thin`: a proper thinning (Guo and Hall's parallel algorithm) that leaves one-pixel
   wide, 8-connected curves and keeps every curve's connectivity;
 - :func:`thin_map`: the stage, one or the other as the settings say.
@@ -156,9 +157,60 @@ def thin(binary: np.ndarray, max_iterations: int = 10_000) -> np.ndarray:
     return skeleton
 
 
+#: A part of the map runs along x where its occupied cells spread along x more than this
+#: many times (in second moment) as along y: within about 35° of x.
+ALONG_RATIO = 2.0
+
+#: Half-width in cells of the window whose occupied cells give a cell's local direction
+#: (:func:`along_x`).
+WINDOW_HALF_WIDTH = 10
+
+
+def along_x(occupied: np.ndarray) -> np.ndarray:
+    """[ny, nx] bool: the occupied cells where the map runs along x, from the map alone (the
+    principal direction of its cells, by their second moments Σ dx² and Σ dy²):
+
+    - none, when the map as a whole runs along y (Σ dy² ≥ Σ dx² over all its cells), as the
+      maps of the thesis' scenes do — their walls, and the loci around them, run along y;
+    - otherwise each cell whose neighbourhood, the (2·:data:`WINDOW_HALF_WIDTH` + 1)² window
+      around it, runs along x (Σ dx² > :data:`ALONG_RATIO` · Σ dy² of the occupied cells
+      in it): the walls along x of a corridor or a room, each part of a room's outline in
+      its own direction.
+    """
+    b = np.asarray(occupied, dtype=bool)
+    iy, ix = np.nonzero(b)
+    if len(iy) == 0 or np.var(iy) >= np.var(ix):
+        return np.zeros_like(b)
+    o = b.astype(np.float64)
+    size = 2 * WINDOW_HALF_WIDTH + 1
+    offsets2 = np.arange(-WINDOW_HALF_WIDTH, WINDOW_HALF_WIDTH + 1, dtype=np.float64) ** 2
+    spread_x = ndimage.correlate1d(ndimage.uniform_filter1d(o, size, axis=0, mode="constant"),
+                                   offsets2, axis=1, mode="constant")
+    spread_y = ndimage.correlate1d(ndimage.uniform_filter1d(o, size, axis=1, mode="constant"),
+                                   offsets2, axis=0, mode="constant")
+    return b & (spread_x > ALONG_RATIO * spread_y + 1e-9)
+
+
+def thin_oriented(binary: np.ndarray) -> np.ndarray:
+    """Eq. 2.5 in the direction that fits the surface: the thesis writes its template for
+    walls along y (rows along x, :func:`thin_thesis`'s default), where it keeps the edge of
+    a band at smaller x; where the map runs along x (:func:`along_x`) the same template
+    runs along y and keeps the edge at smaller y. A wall along x would otherwise vanish:
+    its band has no cell with three empty cells at smaller x and three full ones at
+    larger x. Maps that run along y (the thesis' scenes) thin exactly as
+    :func:`thin_thesis`."""
+    b = np.asarray(binary, dtype=bool)
+    rows = thin_thesis(b)
+    turn = along_x(b)
+    if not turn.any():
+        return rows
+    return np.where(turn, thin_thesis(b, up=(-1, 0)), rows)
+
+
 def thin_map(occupied: np.ndarray, settings: PostSettings) -> np.ndarray:
-    """The thinning stage: eq. 2.5 as written (``thesis``) or :func:`thin` (``guo-hall``)."""
-    return thin_thesis(occupied) if settings.thinning == "thesis" else thin(occupied)
+    """The thinning stage: eq. 2.5 in the direction that fits the surface (``thesis``,
+    :func:`thin_oriented`) or :func:`thin` (``guo-hall``)."""
+    return thin_oriented(occupied) if settings.thinning == "thesis" else thin(occupied)
 
 
-__all__ = ["thin", "thin_map", "thin_thesis"]
+__all__ = ["along_x", "thin", "thin_map", "thin_oriented", "thin_thesis"]

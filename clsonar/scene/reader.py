@@ -167,10 +167,16 @@ def _read_post(r: JsonReader, d: Any) -> PostSettings:
 
 
 def _read_polyline(r: JsonReader, d: dict[str, Any], key: str) -> Polyline:
-    d = r.obj(d, key, ("type", "points", "closed"), ("points",))
+    d = r.obj(d, key, ("type", "points", "closed", "solid"), ("points",))
     raw = d["points"]
     path = join(key, "points")
     closed = r.boolean(d, "closed", key, False)
+    solid = d.get("solid")
+    if solid is not None and not isinstance(solid, bool):
+        raise r.fail(join(key, "solid"), f"must be true, false or null, not {type_name(solid)}")
+    if solid and not closed:
+        raise r.fail(join(key, "solid"), "true needs \"closed\": true (only a closed polyline "
+                                         "encloses a solid)")
     if not isinstance(raw, list):
         raise r.fail(path, f"must be a list of [x, y] points, not {type_name(raw)}")
     points = tuple(r.xy(p, f"{path}[{i}]") for i, p in enumerate(raw))
@@ -185,7 +191,7 @@ def _read_polyline(r: JsonReader, d: dict[str, Any], key: str) -> Polyline:
         if math.dist(points[i], points[j]) < MIN_LENGTH_M:
             raise r.fail(f"{path}[{j}]", f"segment from points[{i}] shorter than "
                                          f"{MIN_LENGTH_M:g} m")
-    return Polyline(points, closed)
+    return Polyline(points, closed, solid)
 
 
 def _read_circle(r: JsonReader, d: dict[str, Any], key: str) -> Circle:

@@ -18,7 +18,8 @@ def _point(p: Point) -> list[float]:
 
 def _surface_dict(s: Surface) -> dict[str, Any]:
     if isinstance(s, Polyline):
-        return {"type": "polyline", "points": [_point(p) for p in s.points], "closed": s.closed}
+        return {"type": "polyline", "points": [_point(p) for p in s.points], "closed": s.closed,
+                "solid": s.solid}
     if isinstance(s, Circle):
         return {"type": "circle", "center": _point(s.center), "radius": s.radius}
     return {"type": "sinusoid", "from": _point(s.start), "to": _point(s.end),

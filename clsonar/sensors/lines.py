@@ -103,7 +103,7 @@ def _random_lines_stops(p: RandomLines, scene: Scene, geom: Geometry, points: np
         elif not inside[i]:
             reasons.append("outside the extent")
         elif not free[i]:
-            reasons.append("inside a solid (outside the room or inside a cylinder)")
+            reasons.append("inside a solid (outside the room, inside a box or a cylinder)")
         elif dist[i] < p.clearance_m:
             reasons.append(f"within clearance_m = {p.clearance_m:g} of a surface")
         elif behind[i]:
@@ -211,7 +211,7 @@ def place_per_wall(p: PerWall, scene: Scene, geom: Geometry) -> Placed:
         raise placement_error(scene, f"per-wall placed no transducer: no wall of surfaces"
                                      f"[{p.surface}] has room for an array at distance_m = "
                                      f"{p.distance_m:g} (distance_step_m = "
-                                     f"{p.distance_step_m:g}) inside the room")
+                                     f"{p.distance_step_m:g}) on its free side")
     g = np.concatenate(groups)
     positions = np.concatenate(pos)
     poses = np.asarray([0.5 * (positions[g == k][0] + positions[g == k][-1])

@@ -24,18 +24,23 @@ def extent_contains(scene: Scene, pts: np.ndarray) -> np.ndarray:
 
 
 def in_free_space(scene: Scene, geom: Geometry, points: np.ndarray) -> np.ndarray:
-    """[M] bool: which ``points`` lie in free space (not inside a cylinder, and inside a
-    closed polyline when the scene has any: a room's outside is solid). Points exactly on a
-    surface count as free; callers keep a clearance anyway."""
+    """[M] bool: which ``points`` lie in free space: not inside a cylinder or a solid
+    obstacle (a closed polyline read as solid, ``geom.surface_solid``), and inside a room
+    (a closed polyline that is not solid) when the scene has any: a room's outside is
+    solid. Points exactly on a surface count as free; callers keep a clearance anyway."""
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     free = np.ones(len(p), dtype=bool)
     if len(geom.circles):
         v = p[:, None] - geom.circles[None, :, :2]
         free &= ~np.any(np.hypot(v[..., 0], v[..., 1]) < geom.circles[None, :, 2], axis=1)
-    rooms = [np.asarray(s.points, dtype=np.float64) for s in scene.surfaces
-             if isinstance(s, Polyline) and s.closed]
+    closed = [(np.asarray(s.points, dtype=np.float64), bool(geom.surface_solid[i]))
+              for i, s in enumerate(scene.surfaces) if isinstance(s, Polyline) and s.closed]
+    rooms = [outline for outline, solid in closed if not solid]
     if rooms:
         free &= np.any([inside_polygon(r, p) for r in rooms], axis=0)
+    for outline, solid in closed:
+        if solid:
+            free &= ~inside_polygon(outline, p)
     return free
 
 

@@ -162,8 +162,9 @@ def rooms_markdown(trials: list[RoomTrial]) -> str:
                      f"{cm(t.vertex_error_max_m)} | {cyl} | {t.seconds:.1f} | "
                      f"{notes[t.scene]} |")
     lines += ["", "Noise-free, thesis' world (uniform directivity, no curvature gain), mapping "
-              "`tangents` with line of sight, profile `walls`. The thesis took about 2 minutes "
-              "per room. Pictures: `room_<scene>.png`.", ""]
+              "`tangents` with line of sight, profile `walls`, bounded by the map (a circle "
+              "is not drawn where the map has nothing within 3 cells of it). The thesis took "
+              "about 2 minutes per room. Pictures: `room_<scene>.png`.", ""]
     lines += [f"![{t.scene}](room_{t.scene}.png)" for t in trials]
     return "\n".join(lines)
 
@@ -245,7 +246,10 @@ def table_markdown(trials: list[Trial], seeds: int) -> str:
                  "points to the true surface, for every scene (mean over the seeds that gave "
                  "a profile; – where none did). The thesis' single polynomial (thesis-faithful) "
                  "is only meant for one wall: across a corner or an edge its accuracy is "
-                 "poor, and the thesis gives no number there either. At the edge's 5 m the "
+                 "poor, and the thesis gives no number there either. Every profile keeps "
+                 "only what the map supports (docs/scene-format.md, `post`): the polynomial "
+                 "within its data's span, no point beyond 3 cells of the occupied map but "
+                 "to bridge a gap between supported stretches. At the edge's 5 m the "
                  "array sees neither wall specularly and the diffracted echo (≈0.02 units "
                  "for a 5-unit pulse) stays below any threshold, so nothing is mapped; the "
                  "thesis found one wall there.")

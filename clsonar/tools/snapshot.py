@@ -52,7 +52,7 @@ def save(out: Path, scenes: Path | None = None, device: str | None = None) -> li
             report = {k: v for k, v in result.report().items() if k not in UNSTABLE_KEYS}
             write_atomic(out / f"{name}.json",
                          json.dumps(report, sort_keys=True, indent=1, default=str).encode())
-            kept: dict[str, Any] = arrays(result)
+            kept: dict[str, Any] = arrays(result)  # numpy's stubs type **kwds as its options
             np.savez_compressed(out / f"{name}.npz", **kept)
             names.append(name)
     return names

@@ -111,7 +111,7 @@ class _Builder:
         surfaces: list[Surface] = []
         for s in self.surfaces:
             if isinstance(s, Polyline):
-                surfaces.append(Polyline(tuple(move(p) for p in s.points), s.closed))
+                surfaces.append(Polyline(tuple(move(p) for p in s.points), s.closed, s.solid))
             elif isinstance(s, Circle):
                 surfaces.append(Circle(move(s.center), s.radius * k))
             else:

@@ -1,0 +1,52 @@
+"""Warnings of a run: what a user should know about a result that is not an error.
+
+A run that completes is never refused for these; each is one line of ``report.json``'s
+``warnings`` list, and ``clsonar run`` prints it on stderr as ``clsonar: warning: FILE:
+TEXT`` (exit status 0). Two are given:
+
+- the scene has a closed polyline inside another one and the file leaves its ``solid``
+  unset: it is read as a solid obstacle (a box, a pillar) that reflects on its outside
+  (:func:`clsonar.geometry.solid_surfaces`), which the user may not have meant;
+- the map is empty although echoes were detected: the surfaces heard lie outside the map's
+  extent, or the settings lost every detection on the way to the profile (the counters say
+  at which stage).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from .geometry import enclosing
+from .scene import Polyline, Scene
+
+
+def scene_warnings(scene: Scene) -> list[str]:
+    """One line per closed polyline of ``scene`` that is read as solid only because it lies
+    inside another closed polyline (its ``solid`` is null)."""
+    inside = enclosing(scene.surfaces)
+    return [f"surfaces[{i}], a closed polyline inside surfaces[{j}], is read as a solid "
+            "obstacle that reflects on its outside (set its \"solid\" to false for a room, "
+            "true to say so)"
+            for i, (s, j) in enumerate(zip(scene.surfaces, inside, strict=True))
+            if isinstance(s, Polyline) and s.closed and s.solid is None and j is not None]
+
+
+def result_warnings(counts: Mapping[str, int]) -> list[str]:
+    """One line when a run's profile is empty although echoes were detected (``counts``:
+    the run's counters)."""
+    detected = counts.get("detections", 0)
+    if detected == 0 or counts.get("profile_points", 0) > 0:
+        return []
+    return [f"the map is empty although {detected} echoes were detected "
+            f"({counts.get('cells_voted', 0)} cells voted, "
+            f"{counts.get('occupied_cells', 0)} occupied, {counts.get('thin_cells', 0)} thin, "
+            "0 profile points): the surfaces heard lie outside the extent, or the mapping "
+            "and post-processing settings do not suit this scene"]
+
+
+def run_warnings(scene: Scene, counts: Mapping[str, int]) -> tuple[str, ...]:
+    """Every warning of a run of ``scene`` with counters ``counts``."""
+    return (*scene_warnings(scene), *result_warnings(counts))
+
+
+__all__ = ["result_warnings", "run_warnings", "scene_warnings"]
