@@ -38,8 +38,9 @@ def _box_scene(solid=None) -> dict:
 
 def _bounded(result) -> None:
     """No profile point outside the extent; every curve starts and ends within NEAR_CELLS
-    cells of an occupied cell, and at most half of it lies farther (gaps the fit bridges
-    between supported stretches at least as long): no extrapolation."""
+    cells of an occupied cell (or at a located corner, where walls are carried on to meet),
+    and at most half of it lies farther (gaps the fit bridges between supported stretches at
+    least as long): no extrapolation."""
     scene, points = result.scene, result.profile.points
     xmin, ymin, xmax, ymax = scene.extent
     assert np.all((points[:, 0] >= xmin) & (points[:, 0] <= xmax)
@@ -50,7 +51,10 @@ def _bounded(result) -> None:
     reach = (NEAR_CELLS + 1) * np.sqrt(2) * scene.cell
     for curve in result.profile.curves:
         near = occupied.query(curve)[0] <= reach
-        assert near[0] and near[-1]
+        vertices = result.profile.vertices
+        at_vertex = (np.min(np.hypot(*(curve[[0, -1], None] - vertices[None]).transpose(2, 0, 1)),
+                            axis=1) < scene.cell if len(vertices) else np.zeros(2, bool))
+        assert (near[0] or at_vertex[0]) and (near[-1] or at_vertex[1])  # walls to corners
         assert np.count_nonzero(~near) <= len(curve) / 2
 
 
