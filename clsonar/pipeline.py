@@ -399,20 +399,52 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
     drawn = _raw_map(scene, front.sensors, front.votes, skips)
     clock.start("filter")
     maps = _post_maps(scene, drawn, skips, clock)
+    profile = _with_vertices(_with_patches(maps.profile, front.votes, drawn.seen, scene.cell),
+                             front.votes.vertices)
     clock.start("metrics")
     result_metrics = metrics.evaluate(scene, front.geometry, front.sensors, front.echoes,
-                                      maps.profile.points, maps.profile.vertices)
+                                      profile.points, profile.vertices)
     seconds = {k: v for k, v in front.seconds.items() if k in FRONT_STAGES}
     seconds.update(clock.stop())
     counts = {**{k: v for k, v in front.counts.items() if k not in _POST_COUNTS},
               "map_cells": int(drawn.raw.size),
               "cells_voted": int(np.count_nonzero(drawn.raw)),
               "ghost_points": drawn.ghosts,
-              **maps.counts}
+              **maps.counts, "profile_curves": len(profile.curves),
+              "profile_points": len(profile.points)}
     return dataclasses.replace(front, raw=drawn.raw, filtered=maps.filtered,
-                               occupied=maps.occupied, thin=maps.thin, profile=maps.profile,
+                               occupied=maps.occupied, thin=maps.thin, profile=profile,
                                metrics=result_metrics, seconds=seconds, counts=counts,
                                point_sums=drawn.point_sums, point_window=drawn.window)
+
+
+def _with_patches(profile: post.Profile, votes: Votes, seen: np.ndarray | None,
+                  cell: float) -> post.Profile:
+    """``profile`` with the fitted patches of the votes (:attr:`clsonar.mapping.Votes.
+    patch_ends`) as its curves where they are: each patch's points in sight, in runs, in
+    place of the map's curves within :data:`PATCH_RADIUS_CELLS` cells of them."""
+    ends = votes.patch_ends
+    if ends is None or len(ends) == 0 or votes.points is None:
+        return profile
+    keep = np.ones(len(votes.points), dtype=bool) if seen is None else seen
+    starts = np.r_[0, ends[:-1]]
+    runs = [run for a, b in zip(starts, ends, strict=True)
+            for run in post.runs(votes.points[a:b], keep[a:b])]
+    return post.overlay(profile, runs, PATCH_RADIUS_CELLS * cell)
+
+
+#: The map's profile gives way to the fitted patches within this many cells of them.
+PATCH_RADIUS_CELLS = 2.0
+
+
+def _with_vertices(profile: post.Profile, vertices: np.ndarray | None) -> post.Profile:
+    """``profile`` with the point reflectors the mapping located (corners, edges, thin
+    posts: :attr:`clsonar.mapping.Votes.vertices`) as one-point curves and vertices."""
+    if vertices is None or len(vertices) == 0:
+        return profile
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
+    return post.Profile(profile.curves + tuple(v[k:k + 1] for k in range(len(v))),
+                        np.concatenate([profile.vertices, v]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -424,6 +456,7 @@ class _Drawn:
     point_sums: np.ndarray | None = None
     window: tuple[int, int, int, int] | None = None
     ghosts: int = 0
+    seen: np.ndarray | None = None  # which of the votes' points were kept (line of sight)
 
 
 def _raw_map(scene: Scene, sensors: SensorArray, votes: Votes, skips: Skips) -> _Drawn:
@@ -434,6 +467,7 @@ def _raw_map(scene: Scene, sensors: SensorArray, votes: Votes, skips: Skips) -> 
         assert votes.raw is not None
         return _Drawn(votes.raw)
     points, ghosts = votes.points, 0
+    seen = np.ones(len(points), dtype=bool)
     if scene.mapping.line_of_sight:
         assert votes.tx is not None and votes.rx is not None
         seen = sight.in_sight_of_map(scene, sensors.positions, points, votes.tx, votes.rx,
@@ -442,11 +476,11 @@ def _raw_map(scene: Scene, sensors: SensorArray, votes: Votes, skips: Skips) -> 
         points = points[seen]
     if not skips.empty_cells:
         raw, point_sums = mapping.point_map(scene, points)
-        return _Drawn(raw, point_sums, None, ghosts)
+        return _Drawn(raw, point_sums, None, ghosts, seen)
     window = mapping.points_window(scene, points)  # the sums only where points are
     counts, point_sums = mapping.point_map(scene, points, window)
     return _Drawn(post.embed(scene.grid_shape, _slices(window), counts), point_sums, window,
-                  ghosts)
+                  ghosts, seen)
 
 
 @dataclass(frozen=True, eq=False)

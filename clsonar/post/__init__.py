@@ -37,7 +37,7 @@ from .filters import (
     voted_box,
 )
 from .fits import Profile, fit_polynomial, fit_spline
-from .profile import extract_profile
+from .profile import extract_profile, overlay, runs
 from .thinning import thin, thin_map, thin_thesis
 from .walls import Arc, Wall, find_circles, fit_walls, join_walls, merge_collinear, split_straight
 
@@ -45,6 +45,7 @@ __all__ = [
     "AUTO_LEVEL_POINTS", "AUTO_LEVEL_VOTES", "BOX_MARGIN", "MIN_CURVE_CELLS", "Arc", "Profile",
     "Wall", "binarize", "bridge_gaps", "embed", "extract_profile", "filter_and_thin",
     "filter_box", "find_circles", "fit_polynomial", "fit_spline", "fit_walls", "join_walls",
-    "low_pass", "merge_collinear", "occupancy_level", "refine_cells", "refine_to_points",
-    "split_straight", "thin", "thin_map", "thin_thesis", "trace_curves", "voted_box",
+    "low_pass", "merge_collinear", "occupancy_level", "overlay", "refine_cells",
+    "refine_to_points", "runs", "split_straight", "thin", "thin_map", "thin_thesis",
+    "trace_curves", "voted_box",
 ]
