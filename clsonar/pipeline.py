@@ -398,7 +398,10 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
     clock.start("sight")
     drawn = _raw_map(scene, front.sensors, front.votes, skips)
     clock.start("filter")
-    maps = _post_maps(scene, drawn, skips, clock)
+    ends = front.votes.patch_ends
+    only_patches = (ends is not None and len(ends) > 0 and front.votes.points is not None
+                    and int(ends[-1]) == len(front.votes.points))
+    maps = _post_maps(scene, drawn, skips, clock, trace=not only_patches)
     profile = _with_vertices(_with_patches(maps.profile, front.votes, drawn.seen, scene.cell),
                              front.votes.vertices)
     clock.start("metrics")
@@ -492,10 +495,13 @@ class _PostMaps:
     counts: dict[str, int]
 
 
-def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch) -> _PostMaps:
+def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch,
+               trace: bool = True) -> _PostMaps:
     """Filter (eq. 2.4), threshold, thinning and profile of ``drawn``, within the cells
     that can hold anything (the points' window, then the voted box when
-    ``skips.empty_cells``); the maps come back on the whole grid."""
+    ``skips.empty_cells``); the maps come back on the whole grid. Without ``trace`` the
+    thin cells are not traced into a profile (every point is a fitted patch's, which is
+    the profile as it is)."""
     raw, point_sums, outer = drawn.raw, drawn.point_sums, drawn.window
     if point_sums is not None and outer is not None and not scene.post.subcell:
         # cell-centre profiles need the whole grid's indices: the sums on the whole grid
@@ -508,8 +514,9 @@ def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch) -> 
     thin = post.embed(part.shape, window, post.thin_map(occupied, scene.post))
     filtered = post.embed(part.shape, window, filtered)
     clock.start("profile")
-    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
-                                   part if point_sums is not None else None, point_sums)
+    profile = (post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
+                                    part if point_sums is not None else None, point_sums)
+               if trace else post.Profile(()))
     inner = (outer[0] + window[0].start, outer[1] + window[1].start,
              window[0].stop - window[0].start, window[1].stop - window[1].start)
     occupied = post.embed(raw.shape, _slices(inner), occupied)

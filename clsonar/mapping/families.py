@@ -54,10 +54,6 @@ NOISE_SIGMAS = 3.5
 #: T₁ = R₁, T₂ = R₂, T₁ → R₂ triple of Kleeman & Kuc).
 MIN_FAMILY = 3
 
-#: A window's search for candidate families stops after this many seeds in a row grew
-#: none.
-MAX_FAILED_SEEDS = 24
-
 #: Rounds of taking the explained rows and fitting again.
 GROW_ROUNDS = 6
 
@@ -77,6 +73,10 @@ MAX_PATH_SLOPE = 1.0
 #: The simplest model is kept when its RMS is within this factor of the best fit's, plus
 #: the detections' expected noise and :data:`DETECTION_FLOOR_M`.
 SIMPLER_RMS_FACTOR = 1.5
+
+#: Another model is not fitted to a family whose rows its start misses by this RMS (m):
+#: a point or a corner where a plane fits (or the reverse) across a wide array.
+HOPELESS_START_M = 0.05
 
 #: Path precision of a noise-free detection (measured: a few µm), metres.
 DETECTION_FLOOR_M = 2e-5
@@ -108,6 +108,7 @@ class Window:
     cut_sin2: float
     neighbour_m: float  # pairs whose transducers moved this far (or less) are neighbours
     curve_tolerance: float = 0.0  # least path residual a free curve's rows may have
+    max_failed: int = 24  # seeds in a row that grow nothing before the search stops
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,14 +206,17 @@ def _least(kind: str) -> int:
 def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
           free: np.ndarray) -> tuple[np.ndarray, Fit] | None:
     """Fit ``kind`` to the seed's rows that its ``start`` explains to within
-    :data:`START_TOLERANCE_M` (all of them if too few), then alternately take the rows of
-    ``free`` it explains and fit again, until they no longer change (at most
-    :data:`GROW_ROUNDS` rounds); the members are those the last fit explains (None if
-    fewer than the kind needs, :func:`_least`)."""
+    :data:`START_TOLERANCE_M` (a free curve, started from a plane or a point, to all of
+    them if those are too few), then alternately take the rows of ``free`` it explains and
+    fit again, until they no longer change (at most :data:`GROW_ROUNDS` rounds); the
+    members are those the last fit explains. None if the start of a plane, point or corner
+    explains fewer rows than it needs (:func:`_least`), or the last fit does."""
     least = _least(kind)
     path, _ = _predict(w, kind, start, seed_rows)
     close = seed_rows[np.abs(path - w.paths[seed_rows])
                       <= START_TOLERANCE_M + w.tolerance[seed_rows]]
+    if len(close) < least and kind != "curve":
+        return None  # the start explains too few: another model's seed
     members = close if len(close) >= least else seed_rows
     fit = _fit(w, kind, members, start)
     for _ in range(GROW_ROUNDS):
@@ -293,7 +297,8 @@ def _starts(w: Window, seed: int, rows: np.ndarray) -> list[tuple[str, np.ndarra
     """First parameters for the seed's rows, each robust to rows of other reflectors among
     them: the plane whose tangents to the loci agree best (median), the corner (or point:
     for T = R echoes the same) at the crossing of loci most rows agree with, and the free
-    curve (planes and points are its members, named by :func:`_simplest`) from both."""
+    curve (planes and points are its members, named by :func:`_simplest`) from whichever
+    of the two explains more rows."""
     axis = math.atan2(w.axT[seed, 1], w.axT[seed, 0])
     phis = axis + np.arange(-START_SPREAD_RAD, START_SPREAD_RAD, math.radians(0.25))
     plane = plane_start(w.x0, w.T[rows], w.R[rows], w.paths[rows], phis)
@@ -309,8 +314,15 @@ def _starts(w: Window, seed: int, rows: np.ndarray) -> list[tuple[str, np.ndarra
                                     @ w.x0), 1.0 / (reach + POINT_START_RADIUS_M)])
     starts = [("plane", plane), ("corner", point), ("point", point)]
     if len(rows) >= MIN_CURVE:
-        starts += [("curve", plane), ("curve", as_point)]
+        starts.append(("curve", max((plane, as_point), key=lambda p: _explained(w, p, rows))))
     return starts
+
+
+def _explained(w: Window, params: np.ndarray, rows: np.ndarray) -> int:
+    """How many ``rows`` the curve model ``params`` predicts to within
+    :data:`START_TOLERANCE_M`."""
+    path, _ = _predict(w, "curve", params, rows)
+    return int(np.count_nonzero(np.abs(path - w.paths[rows]) <= START_TOLERANCE_M))
 
 
 def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
@@ -323,6 +335,8 @@ def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
     w = replace(w, x0=0.5 * (w.T[rows] + w.R[rows]).mean(axis=0))
     best: tuple[np.ndarray, Fit, str] | None = None
     for kind, start in _starts(w, seed, rows):
+        if w.curve_tolerance > 0 and kind != "curve":
+            continue  # the loose pass is the free curve's alone
         grown = _grow(w, kind, start, rows, free)
         if grown is None:
             continue
@@ -344,7 +358,10 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
     fits: dict[str, Fit] = {kind: fit}
     starts = _family_starts(w, kind, fit.params, members)
     for other, start in starts.items():
-        if other not in fits and len(members) >= _least(other):
+        if other in fits or len(members) < _least(other):
+            continue
+        path, _ = _predict(w, other, start, members)
+        if np.sqrt(np.mean((path - w.paths[members]) ** 2)) <= HOPELESS_START_M:
             fits[other] = _fit(w, other, members, start)
     floor = min(f.rms for f in fits.values())
     noise = float(np.median(w.tolerance[members] - BASE_TOLERANCE_M)) / NOISE_SIGMAS
@@ -412,7 +429,7 @@ def shadowed(w: Window, families: list[Family], rows: np.ndarray,
 
 def _candidates(w: Window, rows: np.ndarray) -> list[Family]:
     """A family of ``rows`` grown from each seed among them that no earlier candidate
-    explains, strongest echo first, until :data:`MAX_FAILED_SEEDS` seeds in a row grew
+    explains, strongest echo first, until the window's ``max_failed`` seeds in a row grew
     none."""
     covered = np.ones(len(w.paths), dtype=bool)
     covered[rows] = False
@@ -421,7 +438,7 @@ def _candidates(w: Window, rows: np.ndarray) -> list[Family]:
     for seed in np.argsort(-w.amplitude, kind="stable"):
         if covered[seed]:
             continue
-        if failed >= MAX_FAILED_SEEDS:
+        if failed >= w.max_failed:
             break
         covered[seed] = True
         family = _best_family(w, int(seed), rows)

@@ -36,7 +36,7 @@ PSI_PLANE = 1e-6
 
 #: Newton steps refining the specular point on a circle (from the bisector's point, whose
 #: path is already right to second order).
-SPECULAR_STEPS = 3
+SPECULAR_STEPS = 2
 
 
 def _normal(phi: float) -> np.ndarray:
@@ -64,27 +64,25 @@ def circle_points(centre: np.ndarray, rho: float, sign: float, T: np.ndarray,
     the directions to T and R (``sign`` = sign of ψ: which side of the centre faces the
     transducers) by :data:`SPECULAR_STEPS` Newton steps on its angle."""
     cx, cy = float(centre[0]), float(centre[1])
-    tx, ty, rx, ry = T[:, 0], T[:, 1], R[:, 0], R[:, 1]
-    ax, ay = sign * (cx - tx), sign * (cy - ty)
-    bx, by = sign * (cx - rx), sign * (cy - ry)
+    n = len(T)
+    px = np.concatenate([T[:, 0], R[:, 0]])  # T's and R's rows side by side
+    py = np.concatenate([T[:, 1], R[:, 1]])
+    ax, ay = sign * (cx - px), sign * (cy - py)
     la = np.maximum(np.hypot(ax, ay), 1e-300)
-    lb = np.maximum(np.hypot(bx, by), 1e-300)
-    alpha = np.arctan2(ay / la + by / lb, ax / la + bx / lb)
+    ux, uy = ax / la, ay / la
+    alpha = np.arctan2(uy[:n] + uy[n:], ux[:n] + ux[n:])
     for _ in range(SPECULAR_STEPS):
         c, s = np.cos(alpha), np.sin(alpha)
-        qx, qy = cx - rho * c, cy - rho * s
-        dqx, dqy = rho * s, -rho * c  # dq/dα
-        grad = np.zeros(len(alpha))
-        curv = np.zeros(len(alpha))
-        for px, py in ((tx, ty), (rx, ry)):
-            ux, uy = qx - px, qy - py
-            lu = np.maximum(np.hypot(ux, uy), 1e-300)
-            proj = (ux * dqx + uy * dqy) / lu
-            grad += proj
-            curv += (rho * rho - proj * proj) / lu + rho * (ux * c + uy * s) / lu
-        alpha = alpha - np.where(curv != 0, grad / np.where(curv != 0, curv, 1.0), 0.0)
-    q = np.stack([cx - rho * np.cos(alpha), cy - rho * np.sin(alpha)], axis=-1)
-    return np.hypot(tx - q[:, 0], ty - q[:, 1]) + np.hypot(rx - q[:, 0], ry - q[:, 1]), q
+        c2, s2 = np.concatenate([c, c]), np.concatenate([s, s])
+        dx, dy = cx - rho * c2 - px, cy - rho * s2 - py  # q − T, q − R
+        lu = np.maximum(np.hypot(dx, dy), 1e-300)
+        proj = rho * (dx * s2 - dy * c2) / lu  # (q − X)·dq/dα / |q − X|
+        curv = (rho * rho - proj * proj + rho * (dx * c2 + dy * s2)) / lu
+        grad, total = proj[:n] + proj[n:], curv[:n] + curv[n:]
+        alpha = alpha - np.where(total != 0, grad / np.where(total != 0, total, 1.0), 0.0)
+    qx, qy = cx - rho * np.cos(alpha), cy - rho * np.sin(alpha)
+    path = np.hypot(T[:, 0] - qx, T[:, 1] - qy) + np.hypot(R[:, 0] - qx, R[:, 1] - qy)
+    return path, np.stack([qx, qy], axis=-1)
 
 
 def project_paths(params: np.ndarray, x0: np.ndarray, T: np.ndarray, R: np.ndarray,
@@ -174,9 +172,11 @@ def _jacobian(model: PathModel, p: np.ndarray, steps: np.ndarray,
 
 
 #: Levenberg–Marquardt stops when a step changes no parameter by more than this (metres,
-#: radians, 1/m: far below what a map can show) or the cost by less than this share.
+#: radians, 1/m: far below what a map can show) or the cost by less than this share, or
+#: when the RMS path residual is under :data:`STOP_RMS` (what a detection is good to).
 STOP_STEP = 1e-8
 STOP_COST_SHARE = 1e-6
+STOP_RMS = 5e-6
 
 #: ``(params, reflection points at params) → paths``: a cheaper model for the Jacobian.
 LinearModel = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -197,17 +197,23 @@ def least_squares(model: PathModel, paths: np.ndarray, start: np.ndarray,
     cost = float(r @ r)
     lam = 1e-3
     converged = False
+    fresh = True
     for _ in range(iterations):
-        J = _jacobian(model, p, steps, linear, q, exact)[:, free]
-        g = J.T @ r
-        H = J.T @ J
+        if fresh:  # the Jacobian changes only when p does
+            J = _jacobian(model, p, steps, linear, q, exact)[:, free]
+            g, H = J.T @ r, J.T @ J
+            gain = float(g @ _damped_step(H, g, 0.0))  # what a Gauss–Newton step would gain
+            if gain <= STOP_COST_SHARE * cost or cost <= len(paths) * STOP_RMS**2:
+                converged = True
+                break
         step = _damped_step(H, g, lam)
         trial = p.copy()
         trial[free] -= step
         pred_new, q_new = model(trial)
         r_new = pred_new - paths
         new_cost = float(r_new @ r_new)
-        if np.isfinite(new_cost) and new_cost <= cost:
+        fresh = bool(np.isfinite(new_cost) and new_cost <= cost)
+        if fresh:
             small = cost - new_cost <= STOP_COST_SHARE * cost and lam <= 1e-3
             p, r, q, cost, lam = trial, r_new, q_new, new_cost, max(lam / 10, 1e-12)
             if small or (np.all(np.abs(step) <= STOP_STEP) and lam <= 1e-3):
@@ -215,13 +221,14 @@ def least_squares(model: PathModel, paths: np.ndarray, start: np.ndarray,
                 break
         else:
             lam *= 10
-            if lam > 1e10:
+            if lam > 1e6:
                 converged = True
                 break
     return Fit(p, math.sqrt(cost / max(len(paths), 1)), converged)
 
 
 def _damped_step(H: np.ndarray, g: np.ndarray, lam: float) -> np.ndarray:
+    """The Levenberg–Marquardt step (H + λ·diag H)⁻¹·g (Gauss–Newton for λ = 0)."""
     A = H + lam * np.diag(np.maximum(np.diag(H), 1e-12))
     try:
         return np.linalg.solve(A, g)

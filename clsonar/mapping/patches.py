@@ -37,7 +37,7 @@ from .models import curve_geometry, curve_paths
 STEP_CELLS = 0.5
 
 #: Bisection steps finding the ends of a detection's region of constant depth.
-BISECTIONS = 40
+BISECTIONS = 24
 
 
 @dataclass(frozen=True, eq=False)

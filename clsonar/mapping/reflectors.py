@@ -19,6 +19,7 @@ scene whose transducers stand inside a closed room are mapped as ``tangents`` ma
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -68,6 +69,10 @@ def in_a_room(scene: Scene, sensors: SensorArray) -> bool:
                 return True
     return False
 
+
+#: The search over all arrays together gives up after this many seeds in a row grew no
+#: family (its seeds are single detections far apart; a few tell whether any wall is there).
+GLOBAL_MAX_FAILED = 12
 
 #: Neighbouring pairs of an array: transducers moved by at most this many element pitches.
 NEIGHBOUR_PITCHES = 1.5
@@ -138,8 +143,9 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
     rest = np.unique(np.concatenate(left)) if left else np.zeros(0, np.int64)
     if len(rest) >= MIN_FAMILY:
         x0 = sensors.positions[loci.tx[rest]].mean(axis=0)
-        found, free = find_families(_window(scene, sensors, loci, rest, x0, math.inf),
-                                    resolution)
+        w = replace(_window(scene, sensors, loci, rest, x0, math.inf),
+                    max_failed=GLOBAL_MAX_FAILED)
+        found, free = find_families(w, resolution)
         families += found
         rest = rest[free]
     return families, rest
