@@ -263,3 +263,36 @@ def test_two_arrays_on_one_wall_join():
     m = _metrics(scene)
     assert m["accuracy_m"]["rms"] < 0.001
     assert m["completeness"]["2cm"] >= 0.95
+
+
+def test_overlay_puts_patches_in_place_of_the_maps_curves():
+    """post.overlay: the fitted patches replace the map's curve where they lie, the rest of
+    the map's curves stays (in runs of at least MIN_CURVE_CELLS points)."""
+    from clsonar.post import MIN_CURVE_CELLS, Profile, overlay, runs
+
+    x = np.arange(0.0, 1.0, 0.01)
+    mapped = np.stack([x, 0.003 * np.ones_like(x)], axis=-1)  # the map's curve, 3 mm off
+    patch = np.stack([x[:60], np.zeros(60)], axis=-1)  # a fitted patch over its first 60 cm
+    out = overlay(Profile((mapped,), np.array([[1.0, 1.0]])), [patch], 0.02)
+    assert np.array_equal(out.curves[0], patch)
+    assert len(out.curves) == 2 and out.curves[1][0, 0] > 0.6 - 1e-9
+    assert np.array_equal(out.vertices, [[1.0, 1.0]])
+    keep = np.array([True] * 3 + [False] + [True] * MIN_CURVE_CELLS)
+    assert [len(r) for r in runs(mapped[:len(keep)], keep, MIN_CURVE_CELLS)] == [5]
+
+
+def test_the_profile_is_the_patches_and_vertices():
+    """A wall and a corner: the profile holds the fitted patch as it is (its points on the
+    wall to the µm) and the corner's located vertex."""
+    v = np.array([10.0, 10.0])
+    centre = v + 5.0 * np.array([-1.0, -1.0]) / math.sqrt(2)
+    scene = _scene("corner45", [4, 4, 11, 11],
+                   [{"type": "polyline", "points": [[10, 6], [10, 10], [6, 10]]}],
+                   _transducers(_array(10, 0.1, centre, 45.0), 45.0))
+    r = run(scene, context=context())
+    assert r.counts["vertices_located"] == 1
+    assert np.allclose(r.profile.vertices, [v], atol=0.005)
+    wall = run(_scene("wall", [4, -1, 10, 8], _wall(0.0),
+                      _transducers(_array(10, 0.1, (5.0, 3.45)), 0.0)), context=context())
+    assert wall.counts["patches"] == 1
+    assert np.allclose(wall.profile.points[:, 0], 8.0, atol=1e-5)

@@ -8,8 +8,8 @@ pulse's resolution (c·σ of the pulse, eq. 2.3) inside both beams; a patch ther
 over the union of its detections' regions, not only over their reflection points
 (:func:`extents`). Where a pair of the same array would have had its reflection point on
 that extension, inside beams as wide as the family's own detections show, and heard no
-echo there, the surface ends: the patch stops halfway between that point and the nearest
-reflection point (:func:`_clamp_to_silence`).
+echo there, the surface ends somewhere between: the patch stops at its last reflection
+point on that side (:func:`_clamp_to_silence`).
 
 Plane patches of the same line (from overlapping stretches of an array, or other arrays)
 join into one, fitted again to all their detections, across gaps up to :data:`JOIN_GAP_M`;
@@ -171,9 +171,9 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
     first, last = float(p.u.min()), float(p.u.max())
     below, above = u[u < first], u[u > last]
     if len(below):
-        lo = max(lo, 0.5 * (below.max() + first))
+        lo = max(lo, first)
     if len(above):
-        hi = min(hi, 0.5 * (above.min() + last))
+        hi = min(hi, last)
     return lo, hi
 
 
