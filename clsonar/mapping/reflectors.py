@@ -24,6 +24,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..geometry import inside_polygon
+from ..physics import MAX_FOCUS_GAIN
 from ..scene import Polyline, Scene
 from ..sensors import SensorArray
 from .families import MIN_FAMILY, Family, Window, find_families, window_tolerance
@@ -116,19 +117,32 @@ def _windows(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
     return out
 
 
+def strongest_echo(scene: Scene) -> float:
+    """The largest amplitude one echo can have (the transmitted amplitude times the
+    reflection coefficient, on both axes, from a flat wall or, with ``echo.curvature_gain``,
+    a focusing one, physics.MAX_FOCUS_GAIN), with 5 % and three noise σ to spare: a
+    detection above it is two or more echoes overlapping."""
+    focus = MAX_FOCUS_GAIN if scene.echo.curvature_gain else 1.0
+    return (1.05 * scene.transducer.amplitude * scene.echo.reflection_coefficient * focus
+            + 3.0 * scene.signal.noise_std)
+
+
 def _families(scene: Scene, sensors: SensorArray, loci: Loci,
               arrays: dict[int, tuple[np.ndarray, np.ndarray]]
               ) -> tuple[list[Family], np.ndarray]:
     """The families of every linear array's stretches, then of the detections none
     explained, all arrays together (a wall seen by one element of each of several arrays);
     and the rows still unexplained (less the echoes a family's shadowed:
-    :func:`~.families.shadowed`)."""
+    :func:`~.families.shadowed`). Detections stronger than one echo can be
+    (:func:`strongest_echo`) are left out: overlapping echoes, whose time of flight is
+    neither's."""
     group_of = sensors.groups[loci.tx]
     resolution = scene.medium.c * scene.transducer.pulse_sigma_s
+    single = loci.amplitude <= strongest_echo(scene)
     families: list[Family] = []
     left: list[np.ndarray] = []
     for g, (origin, direction) in arrays.items():
-        rows = np.flatnonzero(group_of == g)
+        rows = np.flatnonzero((group_of == g) & single)
         if len(rows) == 0:
             continue
         windows = _windows(scene, sensors, loci, rows, origin, direction)
@@ -167,4 +181,5 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
     return drawn.plus(points, rest[source])
 
 
-__all__ = ["LINEAR_TOL_M", "WINDOW_M", "in_a_room", "linear_groups", "reflector_points"]
+__all__ = ["LINEAR_TOL_M", "WINDOW_M", "in_a_room", "linear_groups", "reflector_points",
+           "strongest_echo"]
