@@ -455,22 +455,57 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
     clock.start("sight")
     drawn = _raw_map(scene, front.sensors, front.votes, skips)
     clock.start("filter")
-    maps = _post_maps(scene, drawn, skips, clock)
+    ends = front.votes.patch_ends
+    only_patches = (ends is not None and len(ends) > 0 and front.votes.points is not None
+                    and int(ends[-1]) == len(front.votes.points))
+    maps = _post_maps(scene, drawn, skips, clock, trace=not only_patches)
+    profile = _with_vertices(_with_patches(maps.profile, front.votes, drawn.seen, scene.cell),
+                             front.votes.vertices)
     clock.start("metrics")
     result_metrics = metrics.evaluate(scene, front.geometry, front.sensors, front.echoes,
-                                      maps.profile.points, maps.profile.vertices)
+                                      profile.points, profile.vertices)
     seconds = {k: v for k, v in front.seconds.items() if k in FRONT_STAGES}
     seconds.update(clock.stop())
     counts = {**{k: v for k, v in front.counts.items() if k not in _POST_COUNTS},
               "map_cells": int(drawn.raw.size),
               "cells_voted": int(np.count_nonzero(drawn.raw)),
               "ghost_points": drawn.ghosts,
-              **maps.counts}
+              **maps.counts, "profile_curves": len(profile.curves),
+              "profile_points": len(profile.points)}
     return dataclasses.replace(front, raw=drawn.raw, filtered=maps.filtered,
-                               occupied=maps.occupied, thin=maps.thin, profile=maps.profile,
+                               occupied=maps.occupied, thin=maps.thin, profile=profile,
                                metrics=result_metrics, seconds=seconds, counts=counts,
                                point_sums=drawn.point_sums, point_window=drawn.window,
                                warnings=checks.run_warnings(scene, counts))
+
+
+def _with_patches(profile: post.Profile, votes: Votes, seen: np.ndarray | None,
+                  cell: float) -> post.Profile:
+    """``profile`` with the fitted patches of the votes (:attr:`clsonar.mapping.Votes.
+    patch_ends`) as its curves where they are: each patch's points in sight, in runs, in
+    place of the map's curves within :data:`PATCH_RADIUS_CELLS` cells of them."""
+    ends = votes.patch_ends
+    if ends is None or len(ends) == 0 or votes.points is None:
+        return profile
+    keep = np.ones(len(votes.points), dtype=bool) if seen is None else seen
+    starts = np.r_[0, ends[:-1]]
+    runs = [run for a, b in zip(starts, ends, strict=True)
+            for run in post.runs(votes.points[a:b], keep[a:b])]
+    return post.overlay(profile, runs, PATCH_RADIUS_CELLS * cell)
+
+
+#: The map's profile gives way to the fitted patches within this many cells of them.
+PATCH_RADIUS_CELLS = 2.0
+
+
+def _with_vertices(profile: post.Profile, vertices: np.ndarray | None) -> post.Profile:
+    """``profile`` with the point reflectors the mapping located (corners, edges, thin
+    posts: :attr:`clsonar.mapping.Votes.vertices`) as one-point curves and vertices."""
+    if vertices is None or len(vertices) == 0:
+        return profile
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
+    return post.Profile(profile.curves + tuple(v[k:k + 1] for k in range(len(v))),
+                        np.concatenate([profile.vertices, v]))
 
 
 @dataclass(frozen=True, eq=False)
@@ -482,6 +517,7 @@ class _Drawn:
     point_sums: np.ndarray | None = None
     window: tuple[int, int, int, int] | None = None
     ghosts: int = 0
+    seen: np.ndarray | None = None  # which of the votes' points were kept (line of sight)
 
 
 def _raw_map(scene: Scene, sensors: SensorArray, votes: Votes, skips: Skips) -> _Drawn:
@@ -492,6 +528,7 @@ def _raw_map(scene: Scene, sensors: SensorArray, votes: Votes, skips: Skips) -> 
         assert votes.raw is not None
         return _Drawn(votes.raw)
     points, ghosts = votes.points, 0
+    seen = np.ones(len(points), dtype=bool)
     if scene.mapping.line_of_sight:
         assert votes.tx is not None and votes.rx is not None
         seen = sight.in_sight_of_map(scene, sensors.positions, points, votes.tx, votes.rx,
@@ -500,11 +537,11 @@ def _raw_map(scene: Scene, sensors: SensorArray, votes: Votes, skips: Skips) -> 
         points = points[seen]
     if not skips.empty_cells:
         raw, point_sums = mapping.point_map(scene, points)
-        return _Drawn(raw, point_sums, None, ghosts)
+        return _Drawn(raw, point_sums, None, ghosts, seen)
     window = mapping.points_window(scene, points)  # the sums only where points are
     counts, point_sums = mapping.point_map(scene, points, window)
     return _Drawn(post.embed(scene.grid_shape, _slices(window), counts), point_sums, window,
-                  ghosts)
+                  ghosts, seen)
 
 
 @dataclass(frozen=True, eq=False)
@@ -516,10 +553,13 @@ class _PostMaps:
     counts: dict[str, int]
 
 
-def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch) -> _PostMaps:
+def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch,
+               trace: bool = True) -> _PostMaps:
     """Filter (eq. 2.4), threshold, thinning and profile of ``drawn``, within the cells
     that can hold anything (the points' window, then the voted box when
-    ``skips.empty_cells``); the maps come back on the whole grid."""
+    ``skips.empty_cells``); the maps come back on the whole grid. Without ``trace`` the
+    thin cells are not traced into a profile (every point is a fitted patch's, which is
+    the profile as it is)."""
     raw, point_sums, outer = drawn.raw, drawn.point_sums, drawn.window
     if point_sums is not None and outer is not None and not scene.post.subcell:
         # cell-centre profiles need the whole grid's indices: the sums on the whole grid
@@ -534,9 +574,10 @@ def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch) -> 
     clock.start("profile")
     inner = (outer[0] + window[0].start, outer[1] + window[1].start,
              window[0].stop - window[0].start, window[1].stop - window[1].start)
-    profile = post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
-                                   part if point_sums is not None else None, point_sums,
-                                   occupied=occupied, origin=inner[:2])
+    profile = (post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
+                                    part if point_sums is not None else None, point_sums,
+                                    occupied=occupied, origin=inner[:2])
+               if trace else post.Profile(()))
     occupied = post.embed(raw.shape, _slices(inner), occupied)
     thin = post.embed(raw.shape, _slices(outer), thin)
     return _PostMaps(

@@ -28,6 +28,15 @@ viewpoints with a locus through it instead (:func:`count_viewpoints`).
 (:func:`tangent_points`), and for a moving ring the scan's envelope (:func:`scan_envelope`);
 their map (:func:`point_map`) is drawn by the caller after the line-of-sight check.
 
+**Reflectors** (``"reflectors"``, the default; :mod:`.models`, :mod:`.families`,
+:mod:`.patches`, :mod:`.joins`, :mod:`.reflectors`): each linear array's detections split
+into reflector families — planes, points (edges, posts), right-angled corners, circles —
+by the paths each model predicts for the array's T ≠ R pairs (Kleeman & Kuc 1995); planes
+and circles drawn over their regions of constant depth (Leonard & Durrant-Whyte 1991),
+joined and met at corners, points and corners located as vertices
+(:func:`reflector_points`); rings, and scenes whose transducers stand in a closed room, as
+``tangents``.
+
 **Back-projection** (``"backprojection"``): every pixel in a pair's joint beam adds that
 pair's envelope at the pixel's delay ``(|p − T| + |p − R|)/c``, linearly interpolated between
 samples taken every ``dt`` from 0 (0 past the last sample); with ``weight = "beam"`` times
@@ -59,7 +68,8 @@ against every locus.
 
 The modules: :mod:`.grid` (the map's grid, band, memory check), :mod:`.loci` (the inputs),
 :mod:`.reference`, :mod:`.tiles`, :mod:`.launch`, :mod:`.tangents`, :mod:`.envelope`,
-:mod:`.points` and :mod:`.methods` (the registry). The scalar launch limits
+:mod:`.points`, :mod:`.models`, :mod:`.families`, :mod:`.patches`, :mod:`.joins`,
+:mod:`.reflectors` and :mod:`.methods` (the registry). The scalar launch limits
 (``MAX_ROWS_PER_LAUNCH``, ``MAX_LAUNCH_BYTES``, ``MAX_PAIRS_PER_LAUNCH``, ``TILE_CHUNK``,
 ``BIN_*``) are read from their own modules: set them there.
 """
@@ -73,8 +83,8 @@ __all__ = [
     "backproject_reference", "backprojection_votes", "band_m", "bin_loci", "cell_centres",
     "check_map_memory", "count_viewpoints", "in_beams", "loci_votes", "map_grid",
     "map_votes", "merge_reciprocal", "point_map", "points_window", "prepare_backprojection",
-    "prepare_loci", "reference_beam", "scan_envelope", "tangent_points", "tangent_votes",
-    "work_items",
+    "prepare_loci", "reference_beam", "reflector_points", "reflector_votes", "scan_envelope",
+    "tangent_points", "tangent_votes", "work_items",
 ]
 
 from .envelope import in_beams, scan_envelope
@@ -97,9 +107,11 @@ from .methods import (
     backprojection_votes,
     loci_votes,
     map_votes,
+    reflector_votes,
     tangent_votes,
 )
 from .points import point_map, points_window
 from .reference import accumulate_reference, backproject_reference, reference_beam
+from .reflectors import reflector_points
 from .tangents import LOCUS_SAMPLES, tangent_points
 from .tiles import TileBins, bin_loci

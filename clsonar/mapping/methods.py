@@ -20,6 +20,7 @@ from ..sensors import SensorArray, pairs
 from ..signals import Detections
 from .launch import AccumulationStats, accumulate_with_stats, backproject
 from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
+from .reflectors import reflector_points
 from .tangents import tangent_points
 
 if TYPE_CHECKING:
@@ -36,6 +37,12 @@ class Votes:
     tx: np.ndarray | None = None  # [n] transmitter index of each point's pair
     rx: np.ndarray | None = None  # [n] receiver index
     counts: dict[str, int] = field(default_factory=dict)  # the stage's counters
+    #: [k, 2] located point reflectors (corners, edges, thin posts; reflectors)
+    vertices: np.ndarray | None = None
+    #: exclusive ends, within ``points``, of the fitted patches' points (the first
+    #: ``patch_ends[-1]`` points, in order along each patch; reflectors): curves of the
+    #: profile as they are
+    patch_ends: np.ndarray | None = None
 
 
 #: ``(scene, sensors, echoes, detections, context, tiles) → Votes``.
@@ -92,11 +99,24 @@ def tangent_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source])
 
 
+def reflector_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+                    detections: Detections, context: cl.Context, tiles: bool) -> Votes:
+    """``"reflectors"`` (the default): each linear array's echoes fitted by reflector
+    models, planes and circles drawn as points, points and corners located as vertices;
+    other groups' tangent points (:func:`~clsonar.mapping.reflector_points`)."""
+    loci = _loci(scene, detections)
+    drawn = reflector_points(scene, sensors, loci)
+    return Votes(points=drawn.points, tx=loci.tx[drawn.source], rx=loci.rx[drawn.source],
+                 vertices=drawn.vertices, patch_ends=drawn.ends,
+                 counts={"patches": len(drawn.ends), "vertices_located": len(drawn.vertices)})
+
+
 #: The mapping methods by ``mapping.mode``.
 METHODS: dict[str, MapMethod] = {
     "loci": loci_votes,
     "backprojection": backprojection_votes,
     "tangents": tangent_votes,
+    "reflectors": reflector_votes,
 }
 
 

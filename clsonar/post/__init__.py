@@ -40,7 +40,7 @@ from .filters import (
     voted_box,
 )
 from .fits import Profile, fit_polynomial, fit_spline
-from .profile import NEAR_CELLS, bound_profile, extract_profile
+from .profile import NEAR_CELLS, bound_profile, extract_profile, overlay, runs
 from .thinning import along_x, thin, thin_map, thin_oriented, thin_thesis
 from .walls import Arc, Wall, find_circles, fit_walls, join_walls, merge_collinear, split_straight
 
@@ -49,6 +49,6 @@ __all__ = [
     "Profile", "Wall", "along_x", "binarize", "bound_profile", "bridge_gaps", "embed",
     "extract_profile", "filter_and_thin", "filter_box", "find_circles", "fit_polynomial",
     "fit_spline", "fit_walls", "join_walls", "low_pass", "merge_collinear", "occupancy_level",
-    "refine_cells", "refine_to_points", "split_straight", "thin", "thin_map", "thin_oriented",
-    "thin_thesis", "trace_curves", "voted_box",
+    "overlay", "refine_cells", "refine_to_points", "runs", "split_straight", "thin", "thin_map",
+    "thin_oriented", "thin_thesis", "trace_curves", "voted_box",
 ]

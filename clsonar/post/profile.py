@@ -166,4 +166,28 @@ def _curves_in_metres(linked: list[np.ndarray], extent: tuple[float, ...], cell:
     return curves
 
 
-__all__ = ["NEAR_CELLS", "bound_profile", "extract_profile"]
+def runs(points: np.ndarray, keep: np.ndarray, least: int = 2) -> list[np.ndarray]:
+    """The runs of consecutive ``points`` [n, 2] where ``keep`` holds, of at least
+    ``least`` points each."""
+    edges = np.flatnonzero(np.diff(np.r_[0, keep.astype(np.int8), 0]))
+    return [points[a:b] for a, b in zip(edges[::2], edges[1::2], strict=True)
+            if b - a >= least]
+
+
+def overlay(profile: Profile, curves: list[np.ndarray], radius: float) -> Profile:
+    """``profile`` with ``curves`` added and its own curves' points within ``radius`` of
+    them left out (what is left of a curve in runs of at least :data:`MIN_CURVE_CELLS`
+    points); its vertices kept."""
+    if not curves:
+        return profile
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(np.concatenate(curves))
+    rest = []
+    for c in profile.curves:
+        far = tree.query(c, distance_upper_bound=radius)[0] > radius
+        rest += runs(c, far, MIN_CURVE_CELLS)
+    return Profile(tuple(curves) + tuple(rest), profile.vertices)
+
+
+__all__ = ["NEAR_CELLS", "bound_profile", "extract_profile", "overlay", "runs"]

@@ -25,7 +25,7 @@ Directivity = Literal["piston", "uniform"]
 DetectionMode = Literal["threshold", "envelope"]
 
 #: How detections become a map (:class:`MappingSettings`).
-MappingMode = Literal["loci", "tangents", "backprojection"]
+MappingMode = Literal["loci", "tangents", "backprojection", "reflectors"]
 
 #: The vote of a locus (``loci`` mapping).
 VoteWeight = Literal["unit", "amplitude", "beam"]
@@ -153,15 +153,21 @@ class MappingSettings:
       (null: chosen from the scene, :mod:`clsonar.survey`).
     - ``backprojection``: the sum over pairs of each pair's envelope at the pixel's delay
       (delay-and-sum, "total focusing").
+    - ``reflectors`` (ours, the default): each linear array's echoes split into reflector
+      families — planes, points (edges, posts), right-angled corners, circles — by the
+      paths each model predicts for its T ≠ R pairs (Kleeman & Kuc 1995); planes and
+      circles drawn over their regions of constant depth (Leonard & Durrant-Whyte 1991),
+      points and corners located as vertices (mapping.reflector_points). Rings, and every
+      group of a scene whose transducers stand inside a closed room, as ``tangents``.
 
     ``reciprocal``: ``merge`` makes the detections of (T, R) and (R, T) — one path measured
     twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
-    ``precision``: the kernels' arithmetic. ``line_of_sight`` (``tangents`` only): drop the
-    points that the map itself shows hidden behind a surface from their transducers — the
-    ghosts of multiply reflected echoes (sight.line_of_sight).
+    ``precision``: the kernels' arithmetic. ``line_of_sight`` (``tangents`` and
+    ``reflectors``): drop the points that the map itself shows hidden behind a surface from
+    their transducers — the ghosts of multiply reflected echoes (sight.line_of_sight).
     """
 
-    mode: MappingMode = "tangents"
+    mode: MappingMode = "reflectors"
     weight: VoteWeight = "unit"
     band_m: float | None = None
     precision: Precision = "float32"

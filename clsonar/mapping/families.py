@@ -1,0 +1,495 @@
+"""The echoes of one linear array split into reflector families (``mapping.mode =
+"reflectors"``): each family is the set of detections one reflector explains — a plane, a
+point (an edge, a thin post), a right-angled corner or a circle (a cylinder, the crest or
+trough of a curved wall) — with the model's parameters and each detection's reflection
+point (:func:`find_families`).
+
+The plane/corner/edge distinction of Kleeman & Kuc (1995): with T ≠ R pairs the three
+predict different times of flight (:mod:`.models`), so the family's pairs decide. The
+families are grown from seeds: a detection and its nearest detections in the array
+(pairs of neighbouring elements, paths that can come from one surface) give a first fit of
+each model; each model then takes every unexplained detection it predicts to within the
+tolerance (and whose reflection point lies in both beams), is fitted again to them, and so
+on; the model that explains most wins the detections, and the simplest model (plane,
+point, corner) that explains them about as well as the free curve names the family.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .envelope import in_beams
+from .models import (
+    CURVE_STEPS,
+    Fit,
+    _jacobian,
+    corner_paths,
+    curve_paths,
+    fit_corner,
+    fit_curve,
+    fit_point,
+    plane_start,
+    point_paths,
+)
+
+#: Path residual every detection may have (m): planes, points and corners are exact models
+#: and noise-free detections are good to a few µm, but an echo distorted by an overlapping
+#: one is off by 0.5–9 mm and must not join.
+BASE_TOLERANCE_M = 0.0002
+
+#: Path residual a free curve's detections may have: a circle is a curved wall's local
+#: approximation (a sinusoid's crest leaves its osculating circle by about 1 mm 0.1 m
+#: from the apex).
+CURVE_TOLERANCE_M = 0.001
+
+#: Path noise per unit of signal noise over the echo's amplitude, in units of the pulse's
+#: c·σ (measured: 0.1; a detection's tolerance is 3.5 of these).
+NOISE_PATH_FACTOR = 0.1
+NOISE_SIGMAS = 3.5
+
+#: A family needs this many detections (fewer and every model fits them; three are the
+#: T₁ = R₁, T₂ = R₂, T₁ → R₂ triple of Kleeman & Kuc).
+MIN_FAMILY = 3
+
+#: Rounds of taking the explained rows and fitting again.
+GROW_ROUNDS = 6
+
+#: A free curve (three parameters) needs this many detections.
+MIN_CURVE = 5
+
+#: The rows a start explains to within this are the first fit's, metres of path.
+START_TOLERANCE_M = 0.005
+
+#: Detections in a seed's first fit.
+SEED_SIZE = 10
+
+#: How much a path may change per metre its transducers move: at most 1 (the triangle
+#: inequality).
+MAX_PATH_SLOPE = 1.0
+
+#: The simplest model is kept when its RMS is within this factor of the best fit's, plus
+#: the detections' expected noise and :data:`DETECTION_FLOOR_M`.
+SIMPLER_RMS_FACTOR = 1.5
+
+#: Another model is not fitted to a family whose rows its start misses by this RMS (m):
+#: a point or a corner where a plane fits (or the reverse) across a wide array.
+HOPELESS_START_M = 0.05
+
+#: Path precision of a noise-free detection (measured: a few µm), metres.
+DETECTION_FLOOR_M = 2e-5
+
+#: The free curve started at a point starts as a post of this radius (a circle of radius
+#: 0 has no normal to move it by).
+POINT_START_RADIUS_M = 0.01
+
+#: Normals tried for a seed's first plane: around its transmitter's axis, ± this, 0.25° apart.
+START_SPREAD_RAD = math.radians(20.0)
+
+#: Kinds of family.
+KINDS = ("plane", "point", "corner", "curve")
+
+
+@dataclass(frozen=True, eq=False)
+class Window:
+    """The detections of one stretch of a linear array (float64 rows)."""
+
+    rows: np.ndarray  # [m] indices into the loci
+    T: np.ndarray  # [m, 2]
+    R: np.ndarray  # [m, 2]
+    axT: np.ndarray  # [m, 2] unit axes
+    axR: np.ndarray  # [m, 2]
+    paths: np.ndarray  # [m] c·τ
+    amplitude: np.ndarray  # [m]
+    tolerance: np.ndarray  # [m] path residual allowed
+    x0: np.ndarray  # [2] reference point (the stretch's middle)
+    cut_sin2: float
+    neighbour_m: float  # pairs whose transducers moved this far (or less) are neighbours
+    curve_tolerance: float = 0.0  # least path residual a free curve's rows may have
+    max_failed: int = 24  # seeds in a row that grow nothing before the search stops
+
+
+@dataclass(frozen=True, eq=False)
+class Family:
+    """One reflector: its kind (:data:`KINDS`), model parameters (curve ``(φ, d, ψ)``
+    about ``x0``, point F, corner V), the window rows it explains and their reflection
+    points, and the RMS path residual."""
+
+    kind: str
+    params: np.ndarray
+    x0: np.ndarray
+    rows: np.ndarray  # indices into the window
+    q: np.ndarray  # [k, 2] reflection points
+    rms: float
+    window: Window
+    #: how far (1/m) the surface's curvature may be from the model's (3σ; inf when the
+    #: rows cannot tell: fewer than a free curve needs)
+    bend: float = math.inf
+
+    @property
+    def loci(self) -> np.ndarray:
+        """The loci (rows of the whole table) the family explains."""
+        return self.window.rows[self.rows]
+
+
+def window_tolerance(amplitude: np.ndarray, noise_std: float, c: float,
+                     pulse_sigma_s: float) -> np.ndarray:
+    """Path residual each detection may have: :data:`BASE_TOLERANCE_M` plus
+    :data:`NOISE_SIGMAS` times its expected path noise, :data:`NOISE_PATH_FACTOR`·c·σ·
+    (noise / amplitude)."""
+    sigma = NOISE_PATH_FACTOR * c * pulse_sigma_s * noise_std / np.maximum(amplitude, 1e-6)
+    return BASE_TOLERANCE_M + NOISE_SIGMAS * sigma
+
+
+def _predict(w: Window, kind: str, params: np.ndarray, idx: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    T, R = w.T[idx], w.R[idx]
+    if kind == "corner":
+        return corner_paths(params, T, R)
+    if kind == "point":
+        return point_paths(params, T, R)
+    return curve_paths(params, w.x0, T, R)
+
+
+def predict(f: Family, T: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """The path family ``f``'s model predicts for the pairs (T, R)."""
+    if f.kind == "corner":
+        return corner_paths(f.params, T, R)[0]
+    if f.kind == "point":
+        return point_paths(f.params, T, R)[0]
+    return curve_paths(f.params, f.x0, T, R)[0]
+
+
+def _valid(w: Window, kind: str, params: np.ndarray, idx: np.ndarray,
+           q: np.ndarray) -> np.ndarray:
+    """Reflection points inside both beams (and, for the curve model, in front of both
+    transducers: on the far side of the surface's tangent from neither)."""
+    ok = (in_beams(q, w.T[idx], w.axT[idx], w.cut_sin2)
+          & in_beams(q, w.R[idx], w.axR[idx], w.cut_sin2))
+    if kind in ("plane", "curve"):
+        n = np.array([math.cos(params[0]), math.sin(params[0])])
+        ok &= ((q - w.T[idx]) @ n > 0) & ((q - w.R[idx]) @ n > 0)
+    return ok
+
+
+def _fit(w: Window, kind: str, idx: np.ndarray, start: np.ndarray) -> Fit:
+    T, R, P = w.T[idx], w.R[idx], w.paths[idx]
+    if kind == "corner":
+        return fit_corner(T, R, P, start)
+    if kind == "point":
+        return fit_point(T, R, P, start)
+    return fit_curve(w.x0, T, R, P, start, fix_psi=kind == "plane")
+
+
+def _inliers(w: Window, kind: str, params: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """The rows of ``free`` the model predicts within their tolerance, in both beams."""
+    path, q = _predict(w, kind, params, free)
+    ok = (np.abs(path - w.paths[free]) <= _tolerance(w, kind, free)) & np.isfinite(path)
+    ok &= _valid(w, kind, params, free, q)
+    return free[ok]
+
+
+def _tolerance(w: Window, kind: str, rows: np.ndarray) -> np.ndarray:
+    """The path residual ``rows`` may have under ``kind``: the detections' own, and for
+    the free curve, a local circle, at least the window's ``curve_tolerance``."""
+    tol = w.tolerance[rows]
+    return np.maximum(tol, w.curve_tolerance) if kind == "curve" else tol
+
+
+def _least(kind: str) -> int:
+    """Fewest members a family of ``kind`` needs: more than the model has parameters."""
+    return MIN_CURVE if kind == "curve" else MIN_FAMILY
+
+
+def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
+          free: np.ndarray) -> tuple[np.ndarray, Fit] | None:
+    """Fit ``kind`` to the seed's rows that its ``start`` explains to within
+    :data:`START_TOLERANCE_M` (a free curve, started from a plane or a point, to all of
+    them if those are too few), then alternately take the rows of ``free`` it explains and
+    fit again, until they no longer change (at most :data:`GROW_ROUNDS` rounds); the
+    members are those the last fit explains. None if the start of a plane, point or corner
+    explains fewer rows than it needs (:func:`_least`), or the last fit does."""
+    least = _least(kind)
+    path, _ = _predict(w, kind, start, seed_rows)
+    close = seed_rows[np.abs(path - w.paths[seed_rows])
+                      <= START_TOLERANCE_M + w.tolerance[seed_rows]]
+    if len(close) < least and kind != "curve":
+        return None  # the start explains too few: another model's seed
+    members = close if len(close) >= least else seed_rows
+    fit = _fit(w, kind, members, start)
+    for _ in range(GROW_ROUNDS):
+        found = _inliers(w, kind, fit.params, free)
+        if len(found) < least:
+            return None
+        if np.array_equal(found, members):
+            return members, fit
+        members = found
+        fit = _fit(w, kind, members, fit.params)
+    members = _inliers(w, kind, fit.params, members)
+    return (members, fit) if len(members) >= least else None
+
+
+def _moved(w: Window, a: int, rows: np.ndarray) -> np.ndarray:
+    """How far the transducers of each of ``rows`` lie from row ``a``'s (T to T and R to R,
+    or crossed: a pair and its reciprocal are one path)."""
+    straight = np.hypot(*(w.T[rows] - w.T[a]).T) + np.hypot(*(w.R[rows] - w.R[a]).T)
+    crossed = np.hypot(*(w.T[rows] - w.R[a]).T) + np.hypot(*(w.R[rows] - w.T[a]).T)
+    return np.minimum(straight, crossed)
+
+
+def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
+    """The seed and the free rows reached from it through neighbouring pairs (transducers
+    moved by at most the window's ``neighbour_m``) whose paths change no more than one
+    surface allows (:data:`MAX_PATH_SLOPE`), nearest first, at most :data:`SEED_SIZE`; when
+    these are too few to fit, the nearest free rows whose paths are within that of the
+    seed's, however far."""
+    step = w.neighbour_m
+    members = [seed]
+    frontier = [seed]
+    left = free[free != seed]
+    while frontier and len(members) < 4 * SEED_SIZE and len(left):
+        reached = np.zeros(len(left), dtype=bool)
+        for a in frontier:
+            moved = _moved(w, a, left)
+            reached |= (moved <= step) & (np.abs(w.paths[left] - w.paths[a])
+                                          <= MAX_PATH_SLOPE * moved + w.tolerance[left]
+                                          + w.tolerance[a])
+        frontier = left[reached].tolist()
+        members += frontier
+        left = left[~reached]
+    if len(members) < MIN_FAMILY:  # a sparse array (elements facing every way): farther
+        moved = _moved(w, seed, left)
+        near = np.abs(w.paths[left] - w.paths[seed]) <= (MAX_PATH_SLOPE * moved
+                                                         + w.tolerance[left] + w.tolerance[seed])
+        members += left[near][np.argsort(moved[near], kind="stable")].tolist()
+    found = np.asarray(members)
+    order = np.argsort(_moved(w, seed, found), kind="stable")
+    return np.sort(found[order[:SEED_SIZE]])
+
+
+def _corner_start(w: Window, seed: int, rows: np.ndarray) -> np.ndarray | None:
+    """The vertex V, of the crossings of the seed's corner locus (the circle of centre
+    (T + R)/2 and radius c·τ/2, :func:`~.models.corner_paths`) with the other rows', that
+    the most rows agree with to within :data:`START_TOLERANCE_M` (None: no crossing)."""
+    m = 0.5 * (w.T[rows] + w.R[rows])
+    r = 0.5 * w.paths[rows]
+    m0, r0 = 0.5 * (w.T[seed] + w.R[seed]), 0.5 * w.paths[seed]
+    d = m - m0
+    dist = np.hypot(*d.T)
+    ok = (dist > 1e-9) & (dist <= r + r0) & (dist >= np.abs(r - r0))
+    if not ok.any():
+        return None
+    d, dist, r = d[ok], dist[ok], r[ok]
+    a = (r0 * r0 - r * r + dist * dist) / (2 * dist)
+    h = np.sqrt(np.maximum(r0 * r0 - a * a, 0.0))
+    u = d / dist[:, None]
+    v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
+    cand = np.concatenate([m0 + a[:, None] * u + h[:, None] * v,
+                           m0 + a[:, None] * u - h[:, None] * v])
+    pred = np.hypot(*(w.T[rows][None] + w.R[rows][None] - 2 * cand[:, None]).transpose(2, 0, 1))
+    votes = np.sum(np.abs(pred - w.paths[rows][None]) <= START_TOLERANCE_M, axis=1)
+    return np.asarray(cand[int(np.argmax(votes))])
+
+
+def _starts(w: Window, seed: int, rows: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """First parameters for the seed's rows, each robust to rows of other reflectors among
+    them: the plane whose tangents to the loci agree best (median), the corner (or point:
+    for T = R echoes the same) at the crossing of loci most rows agree with, and the free
+    curve (planes and points are its members, named by :func:`_simplest`) from whichever
+    of the two explains more rows."""
+    axis = math.atan2(w.axT[seed, 1], w.axT[seed, 0])
+    phis = axis + np.arange(-START_SPREAD_RAD, START_SPREAD_RAD, math.radians(0.25))
+    plane = plane_start(w.x0, w.T[rows], w.R[rows], w.paths[rows], phis)
+    n = np.array([math.cos(plane[0]), math.sin(plane[0])])
+    point = _corner_start(w, seed, rows)
+    if point is None:
+        mid = 0.5 * (w.T[rows] + w.R[rows]).mean(axis=0)
+        point = mid + 0.5 * float(np.median(w.paths[rows])) * n
+    rel = point - w.x0
+    reach = max(float(np.hypot(*rel)), 1e-3)
+    phi = math.atan2(rel[1], rel[0])
+    as_point = np.array([phi, float(np.hypot(*rel) + np.array([math.cos(phi), math.sin(phi)])
+                                    @ w.x0), 1.0 / (reach + POINT_START_RADIUS_M)])
+    starts = [("plane", plane), ("corner", point), ("point", point)]
+    if len(rows) >= MIN_CURVE:
+        starts.append(("curve", max((plane, as_point), key=lambda p: _explained(w, p, rows))))
+    return starts
+
+
+def _explained(w: Window, params: np.ndarray, rows: np.ndarray) -> int:
+    """How many ``rows`` the curve model ``params`` predicts to within
+    :data:`START_TOLERANCE_M`."""
+    path, _ = _predict(w, "curve", params, rows)
+    return int(np.count_nonzero(np.abs(path - w.paths[rows]) <= START_TOLERANCE_M))
+
+
+def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
+    """The model that, grown from ``seed``, explains the most free rows (ties: the lower
+    RMS), named by :func:`_simplest`; None if none explains :data:`MIN_FAMILY`."""
+    rows = _seed_rows(w, seed, free)
+    if len(rows) < MIN_FAMILY:
+        return None
+    # the curve model about the seed's own middle: its normal then points at the reflector
+    w = replace(w, x0=0.5 * (w.T[rows] + w.R[rows]).mean(axis=0))
+    best: tuple[np.ndarray, Fit, str] | None = None
+    for kind, start in _starts(w, seed, rows):
+        if w.curve_tolerance > 0 and kind != "curve":
+            continue  # the loose pass is the free curve's alone
+        grown = _grow(w, kind, start, rows, free)
+        if grown is None:
+            continue
+        members, fit = grown
+        if seed not in members:
+            continue
+        if (best is None or len(members) > len(best[0])
+                or (len(members) == len(best[0]) and fit.rms < best[1].rms)):
+            best = (members, fit, kind)
+    if best is None:
+        return None
+    return _simplest(w, *best)
+
+
+def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
+    """The family of ``members``: the free curve refitted, and the simplest of plane, point
+    and corner whose RMS is within :data:`SIMPLER_RMS_FACTOR` of the best fit's and that
+    still explains every member."""
+    fits: dict[str, Fit] = {kind: fit}
+    starts = _family_starts(w, kind, fit.params, members)
+    for other, start in starts.items():
+        if other in fits or len(members) < _least(other):
+            continue
+        path, _ = _predict(w, other, start, members)
+        if np.sqrt(np.mean((path - w.paths[members]) ** 2)) <= HOPELESS_START_M:
+            fits[other] = _fit(w, other, members, start)
+    floor = min(f.rms for f in fits.values())
+    noise = float(np.median(w.tolerance[members] - BASE_TOLERANCE_M)) / NOISE_SIGMAS
+    limit = SIMPLER_RMS_FACTOR * floor + noise + DETECTION_FLOOR_M
+    bend = _bend(w, members, fits.get("curve"), noise)
+    for name in ("plane", "corner", "point", "curve"):
+        f = fits.get(name)
+        if f is None or (f.rms > limit and name != "curve"):
+            continue
+        path, q = _predict(w, name, f.params, members)
+        if np.all(np.abs(path - w.paths[members]) <= _tolerance(w, name, members)):
+            return Family(name, f.params, w.x0, members, q, f.rms, w, bend)
+    path, q = _predict(w, kind, fit.params, members)
+    return Family(kind, fit.params, w.x0, members, q, fit.rms, w, bend)
+
+
+def _bend(w: Window, members: np.ndarray, fit: Fit | None, noise: float) -> float:
+    """3σ of the free curve's ψ (the curvature the rows measure, 1/m), from its fit's
+    Jacobian and its RMS (at least the detections' noise, :data:`DETECTION_FLOOR_M`):
+    how far from the fitted curvature the surface may be. Inf without a free curve."""
+    if fit is None:
+        return math.inf
+    J = _jacobian(lambda p: curve_paths(p, w.x0, w.T[members], w.R[members]), fit.params,
+                  CURVE_STEPS)
+    sigma = max(fit.rms, noise, DETECTION_FLOOR_M)
+    try:
+        cov = np.linalg.inv(J.T @ J) * sigma**2
+    except np.linalg.LinAlgError:
+        return math.inf
+    return 3.0 * math.sqrt(max(float(cov[2, 2]), 0.0))
+
+
+def _family_starts(w: Window, kind: str, params: np.ndarray,
+                   members: np.ndarray) -> dict[str, np.ndarray]:
+    """Starting parameters of every model from the fitted ``kind``'s: a plane or curve's
+    apex is the point and corner, a point's or corner's position the apex of a plane
+    facing the window's middle and of a post of radius :data:`POINT_START_RADIUS_M`."""
+    if kind in ("plane", "curve"):
+        phi, d = float(params[0]), float(params[1])
+        n = np.array([math.cos(phi), math.sin(phi)])
+        apex = w.x0 + (d - float(n @ w.x0)) * n
+        curve = np.array([phi, d, params[2] if kind == "curve" else 0.0])
+        return {"plane": np.array([phi, d, 0.0]), "curve": curve, "point": apex,
+                "corner": apex}
+    point = np.asarray(params, dtype=np.float64)
+    rel = point - w.x0
+    reach = max(float(np.hypot(*rel)), 1e-3)
+    phi = math.atan2(rel[1], rel[0])
+    d = float(point @ np.array([math.cos(phi), math.sin(phi)]))
+    return {"plane": np.array([phi, d, 0.0]),
+            "curve": np.array([phi, d, 1.0 / (reach + POINT_START_RADIUS_M)]),
+            "point": point, "corner": point}
+
+
+def shadowed(w: Window, families: list[Family], rows: np.ndarray,
+             resolution: float) -> np.ndarray:
+    """Which ``rows`` lie within ``resolution`` (the pulse's, c·σ) of the path a family
+    predicts for their pair: echoes of that reflector that an overlapping echo distorted
+    (or another reflector's that no detector could have told from it)."""
+    out = np.zeros(len(rows), dtype=bool)
+    for f in families:
+        out |= np.abs(predict(f, w.T[rows], w.R[rows]) - w.paths[rows]) <= resolution
+    return out
+
+
+def _candidates(w: Window, rows: np.ndarray) -> list[Family]:
+    """A family of ``rows`` grown from each seed among them that no earlier candidate
+    explains, strongest echo first, until the window's ``max_failed`` seeds in a row grew
+    none."""
+    covered = np.ones(len(w.paths), dtype=bool)
+    covered[rows] = False
+    found: list[Family] = []
+    failed = 0
+    for seed in np.argsort(-w.amplitude, kind="stable"):
+        if covered[seed]:
+            continue
+        if failed >= w.max_failed:
+            break
+        covered[seed] = True
+        family = _best_family(w, int(seed), rows)
+        if family is None:
+            failed += 1
+            continue
+        failed = 0
+        found.append(family)
+        covered[family.rows] = True
+    return found
+
+
+def _select(w: Window, rows: np.ndarray, taken: np.ndarray, resolution: float
+            ) -> list[Family]:
+    """The candidates of ``rows`` taken largest first (marking ``taken`` the rows each
+    holds or shadows); a candidate that lost rows to an earlier one is fitted again to the
+    rest and named again, or dropped with too few."""
+    everything = np.arange(len(w.paths))
+    families: list[Family] = []
+    for cand in sorted(_candidates(w, rows), key=lambda f: -len(f.rows)):
+        keep = cand.rows[~taken[cand.rows]]
+        v = cand.window
+        if len(keep) < _least(cand.kind):
+            continue
+        if len(keep) < len(cand.rows):
+            kind = "curve" if cand.kind == "plane" and len(keep) >= MIN_CURVE else cand.kind
+            keep = _inliers(v, kind, _fit(v, kind, keep, cand.params).params, keep)
+            if len(keep) < _least(kind):
+                continue
+            cand = _simplest(v, keep, _fit(v, kind, keep, cand.params), kind)
+        families.append(cand)
+        taken[cand.rows] = True
+        taken |= shadowed(v, [cand], everything, resolution)
+    return families
+
+
+def find_families(w: Window, resolution: float) -> tuple[list[Family], np.ndarray]:
+    """The window's families (module docstring) and the rows none explains and that no
+    family's echo :func:`shadowed` (within ``resolution``). Candidates are grown from
+    seeds (:func:`_candidates`) and taken largest first (:func:`_select`): first with
+    every model exact to the detections' tolerance, then, of the rows left, free curves
+    to :data:`CURVE_TOLERANCE_M` (local circles of a curved wall) — so that a family of
+    exact echoes shadows the distorted ones before a loose circle could take them."""
+    taken = np.zeros(len(w.paths), dtype=bool)
+    families = _select(w, np.arange(len(w.paths)), taken, resolution)
+    left = np.flatnonzero(~taken)
+    if len(left) >= MIN_CURVE:
+        families += _select(replace(w, curve_tolerance=CURVE_TOLERANCE_M), left, taken,
+                            resolution)
+    return families, np.flatnonzero(~taken)
+
+
+__all__ = ["BASE_TOLERANCE_M", "KINDS", "MIN_FAMILY", "Family", "Window", "find_families",
+           "predict", "shadowed", "window_tolerance"]

@@ -1,0 +1,259 @@
+"""Patches put together (``mapping.mode = "reflectors"``): plane patches of one line
+joined (:func:`join_collinear`), walls met at their corners and edges and patches reaching
+located vertices (:func:`meet`), and the located vertices of one reflector merged
+(:func:`merge_vertices`); then everything drawn (:func:`draw_families`).
+
+After the walls fit of rooms (thesis §3.6, :mod:`clsonar.post.walls`), but on the models'
+lines rather than on the map: two plane patches whose lines agree to within
+:data:`SAME_LINE_RAD` and :data:`SAME_LINE_M` and whose spans overlap or leave a gap of at
+most :data:`JOIN_GAP_M` are one wall, fitted again to all of their detections. Two walls
+whose lines cross within :data:`MEET_M` of an end of each meet there: both are extended or
+cut to the crossing, which is a located corner or edge.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..scene import Scene
+from ..sensors import SensorArray
+from .families import Family
+from .loci import Loci
+from .models import curve_paths, fit_curve
+from .patches import (
+    STEP_CELLS,
+    Patch,
+    Patches,
+    carrier_points,
+    coordinates,
+    draw_patch,
+    patch_of,
+    spread_patch,
+)
+
+#: Plane patches whose normals differ by at most this are candidates for one line.
+SAME_LINE_RAD = math.radians(1.0)
+
+#: ... and whose spans' ends lie within this of the other's line, metres.
+SAME_LINE_M = 0.005
+
+#: Gap between the spans of one line's patches that is bridged, metres.
+JOIN_GAP_M = 0.3
+
+#: Two walls meet where their lines cross within this of an end of each, metres (and at
+#: an angle of at least :data:`MEET_MIN_ANGLE_RAD`).
+MEET_M = 0.5
+MEET_MIN_ANGLE_RAD = math.radians(20.0)
+
+#: A wall's extension is cut where it runs through the line of another wall whose span
+#: comes within this of the crossing, metres.
+CUT_M = 1.0
+
+#: A patch reaches a located vertex within this of its line and :data:`MEET_M` of its end.
+VERTEX_ON_LINE_M = 0.015
+
+#: Located vertices closer than this are one reflector, metres.
+SAME_VERTEX_M = 0.2
+
+
+def _line(p: Patch) -> tuple[np.ndarray, np.ndarray]:
+    """A straight patch's (normal, tangent)."""
+    phi = float(p.params[0])
+    n = np.array([math.cos(phi), math.sin(phi)])
+    return n, np.array([-n[1], n[0]])
+
+
+def _ends(p: Patch) -> np.ndarray:
+    return carrier_points(p.params, p.x0, np.array([p.lo, p.hi]))
+
+
+def _same_line(a: Patch, b: Patch) -> bool:
+    na, ta = _line(a)
+    nb, _ = _line(b)
+    if float(na @ nb) < math.cos(SAME_LINE_RAD):
+        return False
+    off_b = np.abs(_ends(b) @ na - float(a.params[1]))
+    off_a = np.abs(_ends(a) @ nb - float(b.params[1]))
+    if max(off_a.max(), off_b.max()) > SAME_LINE_M:
+        return False
+    ua, ub = _ends(a) @ ta, _ends(b) @ ta
+    gap = max(ub.min() - ua.max(), ua.min() - ub.max())
+    return gap <= JOIN_GAP_M
+
+
+def _joined(parts: list[Patch]) -> Patch:
+    """One straight patch over all the spans of ``parts``, on the line fitted to all of
+    their detections (the largest part's line if that fits them worse than twice their
+    own lines do)."""
+    T = np.concatenate([p.T for p in parts])
+    R = np.concatenate([p.R for p in parts])
+    paths = np.concatenate([p.paths for p in parts])
+    x0 = 0.5 * (T + R).mean(axis=0)
+    big = max(parts, key=lambda p: len(p.u))
+    start = np.array([big.params[0], float(big.params[1]), 0.0])
+    fit = fit_curve(x0, T, R, paths, start, fix_psi=True)
+    own = np.concatenate([curve_paths(p.params, p.x0, p.T, p.R)[0] - p.paths for p in parts])
+    params = fit.params if fit.rms <= 2 * float(np.sqrt(np.mean(own**2))) + 1e-4 else start
+    ends = np.concatenate([_ends(p) for p in parts])
+    q_all = np.concatenate([carrier_points(p.params, p.x0, p.u) for p in parts])
+    span = coordinates(params, x0, ends)
+    return Patch(params, x0, coordinates(params, x0, q_all), float(span.min()),
+                 float(span.max()), np.concatenate([p.loci for p in parts]),
+                 min(p.bend for p in parts), np.concatenate([p.tx for p in parts]),
+                 np.concatenate([p.rx for p in parts]), T, R, paths)
+
+
+def join_collinear(patches: list[Patch]) -> list[Patch]:
+    """Straight patches of one line joined (module docstring); circles as they are."""
+    straight = [p for p in patches if p.straight]
+    root = list(range(len(straight)))
+
+    def find(i: int) -> int:
+        while root[i] != i:
+            root[i] = root[root[i]]
+            i = root[i]
+        return i
+
+    for i in range(len(straight)):
+        for j in range(i + 1, len(straight)):
+            if find(i) != find(j) and _same_line(straight[i], straight[j]):
+                root[find(i)] = find(j)
+    groups: dict[int, list[Patch]] = {}
+    for i, p in enumerate(straight):
+        groups.setdefault(find(i), []).append(p)
+    joined = [g[0] if len(g) == 1 else _joined(g) for g in groups.values()]
+    return joined + [p for p in patches if not p.straight]
+
+
+def _crossing(a: Patch, b: Patch) -> np.ndarray | None:
+    na, _ = _line(a)
+    nb, _ = _line(b)
+    det = na[0] * nb[1] - na[1] * nb[0]
+    if abs(det) < math.sin(MEET_MIN_ANGLE_RAD):
+        return None
+    da, db = float(a.params[1]), float(b.params[1])
+    return np.array([(da * nb[1] - db * na[1]) / det, (na[0] * db - nb[0] * da) / det])
+
+
+def _reach(p: Patch, x: np.ndarray) -> Patch | None:
+    """``p`` extended or cut so that its end nearest ``x`` is at ``x`` (None when ``x``
+    lies farther than :data:`MEET_M` from both of its ends, or inside its reflection
+    points)."""
+    ux = float(coordinates(p.params, p.x0, x[None])[0])
+    first, last = float(p.u.min()), float(p.u.max())
+    if first - MEET_M <= ux <= first + 1e-9 and ux - p.lo >= -MEET_M:
+        return replace(p, lo=ux)
+    if last - 1e-9 <= ux <= last + MEET_M and p.hi - ux >= -MEET_M:
+        return replace(p, hi=ux)
+    return None
+
+
+def _cut(p: Patch, x: np.ndarray) -> Patch:
+    """``p`` cut at ``x`` where its extension beyond its reflection points runs past it."""
+    ux = float(coordinates(p.params, p.x0, x[None])[0])
+    first, last = float(p.u.min()), float(p.u.max())
+    if p.lo < ux < first:
+        return replace(p, lo=ux)
+    if last < ux < p.hi:
+        return replace(p, hi=ux)
+    return p
+
+
+def _near_span(p: Patch, x: np.ndarray, reach: float) -> bool:
+    ux = float(coordinates(p.params, p.x0, x[None])[0])
+    return p.lo - reach <= ux <= p.hi + reach
+
+
+def meet(patches: list[Patch], vertices: np.ndarray) -> tuple[list[Patch], np.ndarray]:
+    """Walls met at the crossings of their lines, walls cut where their extension runs
+    through another wall's line near that wall, and walls reaching the located
+    ``vertices`` that lie on their lines (module docstring); the crossings where two walls
+    meet are vertices."""
+    found = [vertices]
+    patches = list(patches)
+    for i in range(len(patches)):
+        for j in range(i + 1, len(patches)):
+            a, b = patches[i], patches[j]
+            x = _crossing(a, b) if a.straight and b.straight else None
+            if x is None:
+                continue
+            a2, b2 = _reach(a, x), _reach(b, x)
+            if a2 is not None and b2 is not None:
+                patches[i], patches[j] = a2, b2
+                found.append(x[None])
+                continue
+            if _near_span(b, x, CUT_M):
+                patches[i] = _cut(a, x)
+            if _near_span(a, x, CUT_M):
+                patches[j] = _cut(b, x)
+    for k, p in enumerate(patches):
+        if not p.straight:
+            continue
+        n, _ = _line(p)
+        for v in vertices:
+            if abs(float(v @ n) - float(p.params[1])) <= VERTEX_ON_LINE_M:
+                foot = v - (float(v @ n) - float(p.params[1])) * n
+                reached = _reach(p, foot)
+                if reached is not None:
+                    patches[k] = p = reached
+    return patches, np.concatenate(found)
+
+
+def clip_to_extent(p: Patch, extent: tuple[float, ...]) -> Patch:
+    """``p`` without the parts of its span outside the map's ``extent`` (what lies beyond
+    the extent is not the map's; a wall past it would end there anyway)."""
+    xmin, ymin, xmax, ymax = extent
+    u = np.linspace(p.lo, p.hi, 2001)
+    q = carrier_points(p.params, p.x0, u)
+    inside = (q[:, 0] >= xmin) & (q[:, 0] <= xmax) & (q[:, 1] >= ymin) & (q[:, 1] <= ymax)
+    if inside.all() or not inside.any():
+        return p
+    mid = int(np.argmin(np.abs(u - 0.5 * (float(p.u.min()) + float(p.u.max())))))
+    lo_k, hi_k = mid, mid
+    while lo_k > 0 and inside[lo_k - 1]:
+        lo_k -= 1
+    while hi_k < len(u) - 1 and inside[hi_k + 1]:
+        hi_k += 1
+    return replace(p, lo=float(u[lo_k]), hi=float(u[hi_k]))
+
+
+def merge_vertices(vertices: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Located vertices within :data:`SAME_VERTEX_M` of a heavier one dropped (one
+    reflector located twice, by two stretches of an array or two arrays, or a weak family
+    of echoes distorted by an overlapping one); the heaviest first."""
+    order = np.argsort(-weights, kind="stable")
+    kept: list[np.ndarray] = []
+    for k in order:
+        v = vertices[k]
+        if all(np.hypot(*(v - w)) > SAME_VERTEX_M for w in kept):
+            kept.append(v)
+    return np.asarray(kept).reshape(-1, 2)
+
+
+def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
+                  families: list[Family]) -> Patches:
+    """The points and vertices of ``families``: patches spread over their regions of
+    constant depth, joined, met at corners and edges, drawn every :data:`STEP_CELLS`
+    cells."""
+    patches = [spread_patch(patch_of(f, loci), scene, sensors, loci)
+               for f in families if f.kind in ("plane", "curve")]
+    points = [f for f in families if f.kind in ("point", "corner")]
+    vertices = merge_vertices(
+        np.asarray([f.params for f in points], dtype=np.float64).reshape(-1, 2),
+        np.asarray([len(f.rows) for f in points], dtype=np.float64))
+    patches, vertices = meet(join_collinear(patches), vertices)
+    patches = [clip_to_extent(p, scene.extent) for p in patches]
+    vertices = merge_vertices(vertices, np.zeros(len(vertices)))
+    step = STEP_CELLS * scene.cell
+    drawn = [draw_patch(p, step) for p in patches]
+    pts = np.concatenate([d[0] for d in drawn]) if drawn else np.zeros((0, 2))
+    src = np.concatenate([d[1] for d in drawn]) if drawn else np.zeros(0, np.int64)
+    ends = np.cumsum([len(d[0]) for d in drawn]).astype(np.int64)
+    return Patches(pts, src.astype(np.int64), vertices, ends)
+
+
+__all__ = ["JOIN_GAP_M", "MEET_M", "SAME_LINE_M", "SAME_LINE_RAD", "SAME_VERTEX_M",
+           "draw_families", "join_collinear", "meet", "merge_vertices"]

@@ -1,0 +1,292 @@
+"""Reflector models of one viewpoint's echoes (``mapping.mode = "reflectors"``): the path
+length each predicts for a transmitter→receiver pair, its reflection point, and a
+least-squares fit of its parameters to detected paths. NumPy float64 throughout.
+
+After Kleeman & Kuc (1995, "Mobile robot sonar for target localization and
+classification", IJRR 14(4)): a *plane* reflects as a mirror (the path is the distance from
+T to R's mirror image), an *edge* or a thin post as a point (the path goes through the
+point), a right-angled *corner* as a retro-reflector (its double bounce is a point
+reflection through the vertex V: the path is ``|T + R − 2V|``). With T ≠ R pairs the three
+predict different times of flight, so a family of pairs tells which reflector it saw.
+
+**Curve model** (:func:`curve_paths`), parameters ``(φ, d, ψ)`` relative to a reference
+point X0 (the middle of the array): the surface's normal n = (cos φ, sin φ) points away
+from the transducers, its apex F = X0 + A·n with A = d − n·X0 (d = n·F), and ψ is the
+curvature of the ranges seen from X0: the circle of centre C = X0 + n/ψ and signed radius
+ρ = 1/ψ − A through F. ψ = 0 is a plane (exact mirror path), ψ = 1/A a point (ρ = 0: an
+edge, a post), 0 < ψ < 1/A a convex cylinder, ψ > 1/A or ψ < 0 a concave one. The ranges
+of T = R echoes near X0 are A + x²·ψ/2 along the array, so ψ is what the data measure, and
+planes, cylinders and points are one family of which the fit picks the member.
+
+**Corner model** (:func:`corner_paths`), parameters V: ``|T + R − 2V|``, the double bounce
+of a right-angled corner (the two reflections make a rotation by 180° about V).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Below this |ψ| (1/m) the curve model is the plane itself (a circle of radius 10⁶ m
+#: leaves its tangent by 0.5 µm over 1 m).
+PSI_PLANE = 1e-6
+
+#: Newton steps refining the specular point on a circle (from the bisector's point, whose
+#: path is already right to second order).
+SPECULAR_STEPS = 2
+
+
+def _normal(phi: float) -> np.ndarray:
+    return np.array([math.cos(phi), math.sin(phi)])
+
+
+def plane_points(phi: float, d: float, T: np.ndarray, R: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(path [n], q [n, 2])`` for the plane {p: n·p = d}, transducers on the side
+    n·p < d: the mirror path sqrt(4·h_T·h_R + |T − R|²) (h the distances to the plane) and
+    the reflection point, where the segment from T to R's mirror image meets the plane."""
+    n = _normal(phi)
+    hT, hR = d - T @ n, d - R @ n
+    path = np.sqrt(np.maximum(4.0 * hT * hR + np.sum((T - R) ** 2, axis=-1), 0.0))
+    mirror = R + 2.0 * hR[:, None] * n
+    share = hT / np.where(hT + hR != 0, hT + hR, 1.0)
+    return path, T + share[:, None] * (mirror - T)
+
+
+def circle_points(centre: np.ndarray, rho: float, sign: float, T: np.ndarray,
+                  R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(path [n], q [n, 2])`` for the circle of ``centre`` and signed radius ``rho``
+    (> 0 convex towards the transducers, < 0 concave): the specular point q, where the path
+    |T − q| + |q − R| is stationary on the circle, found from the point on the bisector of
+    the directions to T and R (``sign`` = sign of ψ: which side of the centre faces the
+    transducers) by :data:`SPECULAR_STEPS` Newton steps on its angle."""
+    cx, cy = float(centre[0]), float(centre[1])
+    n = len(T)
+    px = np.concatenate([T[:, 0], R[:, 0]])  # T's and R's rows side by side
+    py = np.concatenate([T[:, 1], R[:, 1]])
+    ax, ay = sign * (cx - px), sign * (cy - py)
+    la = np.maximum(np.hypot(ax, ay), 1e-300)
+    ux, uy = ax / la, ay / la
+    alpha = np.arctan2(uy[:n] + uy[n:], ux[:n] + ux[n:])
+    for _ in range(SPECULAR_STEPS):
+        c, s = np.cos(alpha), np.sin(alpha)
+        c2, s2 = np.concatenate([c, c]), np.concatenate([s, s])
+        dx, dy = cx - rho * c2 - px, cy - rho * s2 - py  # q − T, q − R
+        lu = np.maximum(np.hypot(dx, dy), 1e-300)
+        proj = rho * (dx * s2 - dy * c2) / lu  # (q − X)·dq/dα / |q − X|
+        curv = (rho * rho - proj * proj + rho * (dx * c2 + dy * s2)) / lu
+        grad, total = proj[:n] + proj[n:], curv[:n] + curv[n:]
+        alpha = alpha - np.where(total != 0, grad / np.where(total != 0, total, 1.0), 0.0)
+    qx, qy = cx - rho * np.cos(alpha), cy - rho * np.sin(alpha)
+    path = np.hypot(T[:, 0] - qx, T[:, 1] - qy) + np.hypot(R[:, 0] - qx, R[:, 1] - qy)
+    return path, np.stack([qx, qy], axis=-1)
+
+
+def project_paths(params: np.ndarray, x0: np.ndarray, T: np.ndarray, R: np.ndarray,
+                  q: np.ndarray) -> np.ndarray:
+    """The path T → q′ → R through the points ``q`` moved onto the curve model
+    ``params``'s line or circle (along its normal): the specular path is stationary along
+    the surface, so near the specular points this has the model's path and its first
+    derivatives (the Jacobian without the Newton steps)."""
+    phi, d, psi = (float(v) for v in params)
+    if abs(psi) < PSI_PLANE:
+        n = _normal(phi)
+        moved = q + (d - q @ n)[:, None] * n
+    else:
+        centre, rho, _ = curve_geometry(np.array([phi, d, psi]), x0)
+        rel = math.copysign(1.0, psi) * (centre - q)  # e(α), as circle_points orients it
+        moved = centre - rho * rel / np.maximum(np.hypot(*rel.T), 1e-300)[:, None]
+    return np.hypot(*(T - moved).T) + np.hypot(*(R - moved).T)
+
+
+def curve_geometry(params: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """``(centre, rho, A)`` of the curve model ``(φ, d, ψ)`` (centre inf for a plane)."""
+    phi, d, psi = params
+    n = _normal(phi)
+    A = d - float(n @ x0)
+    if abs(psi) < PSI_PLANE:
+        return np.array([np.inf, np.inf]), math.inf, A
+    return x0 + n / psi, 1.0 / psi - A, A
+
+
+def curve_paths(params: np.ndarray, x0: np.ndarray, T: np.ndarray, R: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """``(path [n], q [n, 2])`` the curve model ``(φ, d, ψ)`` (module docstring) predicts
+    for the pairs (T, R): the plane's mirror path for |ψ| < :data:`PSI_PLANE`, else the
+    circle's specular path (:func:`circle_points`)."""
+    phi, d, psi = (float(v) for v in params)
+    if abs(psi) < PSI_PLANE:
+        return plane_points(phi, d, T, R)
+    centre, rho, _ = curve_geometry(np.array([phi, d, psi]), x0)
+    return circle_points(centre, rho, math.copysign(1.0, psi), T, R)
+
+
+def point_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """``(path [n], q [n, 2])`` of a point reflector F = ``params`` (an edge, a thin post):
+    |T − F| + |F − R|, and F itself."""
+    f = np.asarray(params, dtype=np.float64)
+    return np.hypot(*(T - f).T) + np.hypot(*(R - f).T), np.broadcast_to(f, T.shape).copy()
+
+
+def corner_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(path [n], q [n, 2])`` of a right-angled corner at V = ``params``: the double
+    bounce's length |T + R − 2V| (a point reflection through V) and V itself."""
+    v = np.asarray(params, dtype=np.float64)
+    return np.hypot(*(T + R - 2.0 * v).T), np.broadcast_to(v, T.shape).copy()
+
+
+#: ``params → (path, q)`` of one model for fixed pairs.
+PathModel = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+@dataclass(frozen=True)
+class Fit:
+    """A least-squares fit: the parameters, the RMS path residual over the rows used and
+    whether it converged."""
+
+    params: np.ndarray
+    rms: float
+    converged: bool
+
+
+def _jacobian(model: PathModel, p: np.ndarray, steps: np.ndarray,
+              linear: LinearModel | None = None, q: np.ndarray | None = None,
+              exact: np.ndarray | None = None) -> np.ndarray:
+    """Central differences of ``model``'s paths, or of ``linear(p, q)`` (the model near the
+    reflection points ``q``) for the parameters not marked ``exact``."""
+    cols = []
+    for k, h in enumerate(steps):
+        dp = np.zeros_like(p)
+        dp[k] = h
+        if linear is None or q is None or (exact is not None and exact[k]):
+            cols.append((model(p + dp)[0] - model(p - dp)[0]) / (2 * h))
+        else:
+            cols.append((linear(p + dp, q) - linear(p - dp, q)) / (2 * h))
+    return np.stack(cols, axis=-1)
+
+
+
+#: Levenberg–Marquardt stops when a step changes no parameter by more than this (metres,
+#: radians, 1/m: far below what a map can show) or the cost by less than this share, or
+#: when the RMS path residual is under :data:`STOP_RMS` (what a detection is good to).
+STOP_STEP = 1e-8
+STOP_COST_SHARE = 1e-6
+STOP_RMS = 5e-6
+
+#: ``(params, reflection points at params) → paths``: a cheaper model for the Jacobian.
+LinearModel = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def least_squares(model: PathModel, paths: np.ndarray, start: np.ndarray,
+                  steps: np.ndarray, iterations: int = 30, fixed: np.ndarray | None = None,
+                  linear: LinearModel | None = None, exact: np.ndarray | None = None
+                  ) -> Fit:
+    """Levenberg–Marquardt on the path residuals ``model(p)[0] − paths`` from ``start``
+    (central-difference Jacobian with ``steps``, of ``linear(p, q)`` at the reflection
+    points q of the current p when given, but for the parameters marked ``exact``);
+    parameters where ``fixed`` is True stay."""
+    p = np.asarray(start, dtype=np.float64).copy()
+    free = np.ones(len(p), bool) if fixed is None else ~np.asarray(fixed)
+    pred, q = model(p)
+    r = pred - paths
+    cost = float(r @ r)
+    lam = 1e-3
+    converged = False
+    fresh = True
+    for _ in range(iterations):
+        if fresh:  # the Jacobian changes only when p does
+            J = _jacobian(model, p, steps, linear, q, exact)[:, free]
+            g, H = J.T @ r, J.T @ J
+            gain = float(g @ _damped_step(H, g, 0.0))  # what a Gauss–Newton step would gain
+            if gain <= STOP_COST_SHARE * cost or cost <= len(paths) * STOP_RMS**2:
+                converged = True
+                break
+        step = _damped_step(H, g, lam)
+        trial = p.copy()
+        trial[free] -= step
+        pred_new, q_new = model(trial)
+        r_new = pred_new - paths
+        new_cost = float(r_new @ r_new)
+        fresh = bool(np.isfinite(new_cost) and new_cost <= cost)
+        if fresh:
+            small = cost - new_cost <= STOP_COST_SHARE * cost and lam <= 1e-3
+            p, r, q, cost, lam = trial, r_new, q_new, new_cost, max(lam / 10, 1e-12)
+            if small or (np.all(np.abs(step) <= STOP_STEP) and lam <= 1e-3):
+                converged = True
+                break
+        else:
+            lam *= 10
+            if lam > 1e6:
+                converged = True
+                break
+    return Fit(p, math.sqrt(cost / max(len(paths), 1)), converged)
+
+
+def _damped_step(H: np.ndarray, g: np.ndarray, lam: float) -> np.ndarray:
+    """The Levenberg–Marquardt step (H + λ·diag H)⁻¹·g (Gauss–Newton for λ = 0)."""
+    A = H + lam * np.diag(np.maximum(np.diag(H), 1e-12))
+    try:
+        return np.linalg.solve(A, g)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(A, g, rcond=None)[0]
+
+
+#: Finite-difference steps of the curve model's (φ, d, ψ) and of a point's or corner's
+#: position (ψ's straddles the plane's threshold :data:`PSI_PLANE` with circles of 10⁴ m).
+CURVE_STEPS = np.array([1e-7, 1e-7, 1e-4])
+CORNER_STEPS = np.array([1e-7, 1e-7])
+
+
+def fit_curve(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
+              start: np.ndarray, fix_psi: bool = False) -> Fit:
+    """The curve model's least-squares ``(φ, d, ψ)`` from ``start``; ψ held at its start
+    value with ``fix_psi`` (ψ = 0: the best plane)."""
+    def model(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return curve_paths(p, x0, T, R)
+
+    def linear(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+        return project_paths(p, x0, T, R, q)
+
+    fixed = np.array([False, False, fix_psi])
+    return least_squares(model, paths, start, CURVE_STEPS, fixed=fixed, linear=linear,
+                         exact=np.array([False, False, True]))
+
+
+def fit_corner(T: np.ndarray, R: np.ndarray, paths: np.ndarray, start: np.ndarray) -> Fit:
+    """The corner model's least-squares vertex V from ``start``."""
+    return least_squares(lambda p: corner_paths(p, T, R), paths, start, CORNER_STEPS)
+
+
+def fit_point(T: np.ndarray, R: np.ndarray, paths: np.ndarray, start: np.ndarray) -> Fit:
+    """The point model's least-squares position F from ``start``."""
+    return least_squares(lambda p: point_paths(p, T, R), paths, start, CORNER_STEPS)
+
+
+def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
+                phis: np.ndarray) -> np.ndarray:
+    """A starting ``(φ, d, 0)``: of the normals ``phis`` tried, the one whose tangent lines
+    to the loci (each locus' support function, the line a plane of that normal would be)
+    agree best; d their median."""
+    n = np.stack([np.cos(phis), np.sin(phis)], axis=-1)  # [k, 2]
+    centre = 0.5 * (T + R)
+    f = 0.5 * np.hypot(*(R - T).T)
+    a = 0.5 * paths
+    b = np.sqrt(np.maximum(a * a - f * f, 0.0))
+    u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
+    along = n @ u.T  # [k, m]
+    support = (n @ centre.T).T + np.sqrt((a[:, None] * along.T) ** 2
+                                         + (b[:, None] ** 2) * (1 - along.T**2))
+    spread = np.median(np.abs(support - np.median(support, axis=0)), axis=0)
+    best = int(np.argmin(spread))
+    return np.array([phis[best], float(np.median(support[:, best])), 0.0])
+
+
+__all__ = ["CORNER_STEPS", "CURVE_STEPS", "PSI_PLANE", "SPECULAR_STEPS", "Fit", "PathModel",
+           "circle_points", "corner_paths", "curve_geometry", "curve_paths", "fit_corner",
+           "fit_curve", "fit_point", "least_squares", "plane_points", "plane_start",
+           "point_paths", "project_paths"]

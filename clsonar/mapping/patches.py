@@ -1,0 +1,270 @@
+"""What reflector families draw on the map (``mapping.mode = "reflectors"``): a plane its
+straight patch, a circle its arc, a point or a corner a located vertex
+(:func:`draw_families`).
+
+**Regions of constant depth** (Leonard & Durrant-Whyte 1991): an echo cannot tell its
+reflection point from the other surface points whose path differs from it by less than the
+pulse's resolution (c·σ of the pulse, eq. 2.3) inside both beams; a patch therefore runs
+over the union of its detections' regions, not only over their reflection points
+(:func:`extents`). Where a pair of the same array would have had its reflection point on
+that extension, inside beams as wide as the family's own detections show, and heard no
+echo there, the surface ends somewhere between: the patch stops at its last reflection
+point on that side (:func:`_clamp_to_silence`).
+
+Plane patches of the same line (from overlapping stretches of an array, or other arrays)
+join into one, fitted again to all their detections, across gaps up to :data:`JOIN_GAP_M`;
+two plane patches whose lines meet near both ends meet there, at a located corner or edge,
+and a patch whose line passes by a located vertex reaches it (:mod:`.corners`). The points
+are laid every :data:`STEP_CELLS` cells, each credited to the locus whose reflection point
+is nearest (the line-of-sight check asks which pair saw it).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..scene import Scene
+from ..sensors import SensorArray
+from .envelope import in_beams
+from .families import Family
+from .loci import Loci
+from .models import curve_geometry, curve_paths
+
+#: Spacing of a patch's points, in cells.
+STEP_CELLS = 0.5
+
+#: Bisection steps finding the ends of a detection's region of constant depth.
+BISECTIONS = 24
+
+
+@dataclass(frozen=True, eq=False)
+class Patches:
+    """Estimated surface points with the locus each is credited to, the located vertices
+    (corners, edges, thin posts), and where each drawn patch's points end: the first
+    ``ends[-1]`` points are the patches', in order along each."""
+
+    points: np.ndarray  # [n, 2]
+    source: np.ndarray  # [n] locus index
+    vertices: np.ndarray  # [k, 2]
+    ends: np.ndarray  # [m] exclusive end of each patch's points
+
+    def plus(self, points: np.ndarray, source: np.ndarray) -> Patches:
+        """These patches and more points (not a patch's) after them."""
+        return Patches(np.concatenate([self.points, points]),
+                       np.concatenate([self.source, source]).astype(np.int64), self.vertices,
+                       self.ends)
+
+
+@dataclass(frozen=True, eq=False)
+class Patch:
+    """A plane's or circle's stretch: the curve model ``(φ, d, ψ)`` about ``x0``, the
+    coordinate along it (arc length along a line from its foot d·n; angle on a circle from
+    the direction −n) of each detection's reflection point, the span drawn, and the loci."""
+
+    params: np.ndarray
+    x0: np.ndarray
+    u: np.ndarray  # [k] reflection points' coordinates
+    lo: float
+    hi: float
+    loci: np.ndarray  # [k]
+    bend: float  # 3σ of the curvature (1/m; inf: unknown)
+    tx: np.ndarray  # [k] transmitter of each locus
+    rx: np.ndarray  # [k] receiver
+    T: np.ndarray  # [k, 2]
+    R: np.ndarray  # [k, 2]
+    paths: np.ndarray  # [k]
+
+    @property
+    def straight(self) -> bool:
+        return not np.all(np.isfinite(curve_geometry(self.params, self.x0)[0]))
+
+
+def carrier_points(params: np.ndarray, x0: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """[k, 2] the points at coordinates ``u`` of the curve model's line or circle."""
+    phi = float(params[0])
+    n = np.array([math.cos(phi), math.sin(phi)])
+    centre, rho, _ = curve_geometry(params, x0)
+    u = np.asarray(u, dtype=np.float64)
+    if not np.all(np.isfinite(centre)):
+        t = np.array([-n[1], n[0]])
+        return float(params[1]) * n + u[..., None] * t
+    e = np.stack([np.cos(phi + u), np.sin(phi + u)], axis=-1)
+    return centre - rho * e
+
+
+def coordinates(params: np.ndarray, x0: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The coordinates (:class:`Patch`) of points ``q`` [k, 2] on the carrier."""
+    phi = float(params[0])
+    centre, rho, _ = curve_geometry(params, x0)
+    if not np.all(np.isfinite(centre)):
+        return q @ np.array([-math.sin(phi), math.cos(phi)])
+    rel = (centre - q) / rho
+    return np.angle(np.exp(1j * (np.arctan2(rel[:, 1], rel[:, 0]) - phi)))
+
+
+def _region_end(p: Patch, k: np.ndarray, direction: float, axes: tuple[np.ndarray, ...],
+                cut_sin2: float, resolution: float, reach: np.ndarray) -> np.ndarray:
+    """For detections ``k``: how far from its reflection point, in ``direction`` (±1) along
+    the carrier, the points stay inside both beams with a path within ``resolution`` of
+    the detected one (bisection; at most ``reach``)."""
+    axT, axR = axes
+
+    def inside(step: np.ndarray) -> np.ndarray:
+        q = carrier_points(p.params, p.x0, p.u[k] + direction * step)
+        path = np.hypot(*(p.T[k] - q).T) + np.hypot(*(p.R[k] - q).T)
+        return ((np.abs(path - p.paths[k]) <= resolution)
+                & in_beams(q, p.T[k], axT[k], cut_sin2) & in_beams(q, p.R[k], axR[k], cut_sin2))
+
+    lo, hi = np.zeros(len(k)), np.asarray(reach, dtype=np.float64).copy()
+    whole = inside(hi)
+    for _ in range(BISECTIONS):
+        mid = 0.5 * (lo + hi)
+        ok = inside(mid)
+        lo, hi = np.where(ok, mid, lo), np.where(ok, hi, mid)
+    return np.where(whole, reach, lo)
+
+
+def extents(p: Patch, sensors: SensorArray, cut_sin2: float, resolution: float
+            ) -> tuple[float, float]:
+    """``(lo, hi)``: the union of the patch's detections' regions of constant depth (module
+    docstring) along its carrier."""
+    k = np.arange(len(p.u))
+    axes = (sensors.axes[p.tx], sensors.axes[p.rx])
+    scale = 1.0 if p.straight else 1.0 / abs(curve_geometry(p.params, p.x0)[1])
+    reach = np.minimum(p.paths * scale, math.pi / 2 if not p.straight else np.inf)
+    below = p.u - _region_end(p, k, -1.0, axes, cut_sin2, resolution, reach)
+    above = p.u + _region_end(p, k, 1.0, axes, cut_sin2, resolution, reach)
+    return float(below.min()), float(above.max())
+
+
+def patch_of(f: Family, loci: Loci) -> Patch:
+    """The :class:`Patch` of a plane or circle family over its reflection points."""
+    w = f.window
+    params = np.array([f.params[0], f.params[1], 0.0 if f.kind == "plane" else f.params[2]])
+    u = coordinates(params, f.x0, f.q)
+    return Patch(params, f.x0, u, float(u.min()), float(u.max()), f.loci, f.bend,
+                 loci.tx[f.loci],
+                 loci.rx[f.loci], w.T[f.rows], w.R[f.rows], w.paths[f.rows])
+
+
+def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
+                      lo: float, hi: float) -> tuple[float, float]:
+    """The span ``(lo, hi)`` cut where the array heard nothing (module docstring)."""
+    c = scene.medium.c
+    cut_sin2, _ = scene.transducer.beam(c)
+    pairs = _group_pairs(sensors, int(p.tx[0]))
+    T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
+    path, q = curve_paths(p.params, p.x0, T, R)
+    ok = (in_beams(q, T, sensors.axes[pairs[:, 0]], cut_sin2)
+          & in_beams(q, R, sensors.axes[pairs[:, 1]], cut_sin2) & np.isfinite(path))
+    widest = _beam_angle(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
+                         sensors.axes[p.rx]).max()
+    ok &= _beam_angle(q, T, sensors.axes[pairs[:, 0]], R, sensors.axes[pairs[:, 1]]) <= widest
+    heard = _heard(loci, pairs, path, c)
+    silent = ok & ~heard
+    if not silent.any():
+        return lo, hi
+    u = coordinates(p.params, p.x0, q[silent])
+    first, last = float(p.u.min()), float(p.u.max())
+    below, above = u[u < first], u[u > last]
+    if len(below):
+        lo = max(lo, first)
+    if len(above):
+        hi = min(hi, last)
+    return lo, hi
+
+
+def _beam_angle(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
+                axR: np.ndarray) -> np.ndarray:
+    """The larger of the angles between each transducer's axis and its ray to ``q``."""
+    out = []
+    for X, ax in ((T, axT), (R, axR)):
+        d = q - X
+        cos = np.sum(d * ax, axis=-1) / np.maximum(np.hypot(*d.T), 1e-300)
+        out.append(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return np.maximum(*out)
+
+
+def _group_pairs(sensors: SensorArray, sensor: int) -> np.ndarray:
+    """[p, 2] the pairs (T ≤ R) of the group of ``sensor``."""
+    members = np.flatnonzero(sensors.groups == sensors.groups[sensor])
+    i, j = np.triu_indices(len(members))
+    return np.stack([members[i], members[j]], axis=-1)
+
+
+#: A pair heard the surface where one of its detections lies within this of the
+#: predicted path, metres.
+HEARD_TOL_M = 0.003
+
+
+def _heard(loci: Loci, pairs: np.ndarray, path: np.ndarray, c: float) -> np.ndarray:
+    """Whether each pair has a detection (either direction) within :data:`HEARD_TOL_M` of
+    ``path``."""
+    lo_ix = np.minimum(loci.tx, loci.rx)
+    hi_ix = np.maximum(loci.tx, loci.rx)
+    key = lo_ix * (int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1) + hi_ix
+    order = np.argsort(key, kind="stable")
+    key, detected = key[order], c * loci.tof_s[order]
+    want = pairs[:, 0] * (int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1) + pairs[:, 1]
+    start = np.searchsorted(key, want, side="left")
+    stop = np.searchsorted(key, want, side="right")
+    heard = np.zeros(len(pairs), dtype=bool)
+    for k in np.flatnonzero(stop > start):
+        heard[k] = bool(np.any(np.abs(detected[start[k]:stop[k]] - path[k]) <= HEARD_TOL_M))
+    return heard
+
+
+def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci) -> Patch:
+    """``p`` over its regions of constant depth, cut where the array heard nothing."""
+    c = scene.medium.c
+    cut_sin2, _ = scene.transducer.beam(c)
+    resolution = c * scene.transducer.pulse_sigma_s
+    lo, hi = extents(p, sensors, cut_sin2, resolution)
+    lo, hi = _clamp_to_silence(p, scene, sensors, loci, lo, hi)
+    reach = _trusted_reach(p)
+    return replace(p, lo=min(max(lo, p.lo - reach), p.lo), hi=max(min(hi, p.hi + reach), p.hi))
+
+
+#: A patch is extended only as far as a surface of the curvature its detections allow
+#: (:attr:`~.families.Family.bend`) stays within this of it, metres.
+PATCH_BIAS_M = 0.002
+
+
+def _trusted_reach(p: Patch) -> float:
+    """How far beyond its reflection points (in its coordinate) a patch may go: where a
+    curve bent by ``p.bend`` more than the fitted one leaves it by :data:`PATCH_BIAS_M`;
+    with the bend unknown, as far as a surface of radius no less than the range stays
+    within that of the tangent (the tangent stretch of :mod:`.tangents`)."""
+    bend = p.bend if math.isfinite(p.bend) else 2.0 / float(np.median(p.paths))
+    reach = math.sqrt(2.0 * PATCH_BIAS_M / max(bend, 1e-12))
+    if p.straight:
+        return reach
+    return reach / abs(curve_geometry(p.params, p.x0)[1])
+
+
+def draw_patch(p: Patch, step: float) -> tuple[np.ndarray, np.ndarray]:
+    """The points of ``p`` every ``step`` (metres of arc) and the locus credited to each."""
+    scale = 1.0 if p.straight else abs(curve_geometry(p.params, p.x0)[1])
+    du = step / max(scale, 1e-9)
+    u = np.arange(p.lo, p.hi + 0.5 * du, du)
+    nearest = np.abs(u[:, None] - p.u[None]).argmin(axis=1)
+    return carrier_points(p.params, p.x0, u), p.loci[nearest]
+
+
+__all__ = [
+    "BISECTIONS",
+    "HEARD_TOL_M",
+    "PATCH_BIAS_M",
+    "STEP_CELLS",
+    "Patch",
+    "Patches",
+    "carrier_points",
+    "coordinates",
+    "draw_patch",
+    "extents",
+    "patch_of",
+    "spread_patch",
+]

@@ -1,0 +1,185 @@
+"""Reflector-aware mapping (``mapping.mode = "reflectors"``, the default): the echoes of
+each linear array fitted by reflector models (Kleeman & Kuc 1995), the rest by tangent
+points.
+
+Each pair group whose transducers lie on one line (a linear array) is cut into stretches of
+at most :data:`WINDOW_M` (half overlapping); the detections of each stretch's pairs are
+split into reflector families (:func:`~clsonar.mapping.families.find_families`): planes,
+points (edges, thin posts), right-angled corners and circles (cylinders, a curved wall's
+crests and troughs). A plane is drawn over its reflection points' span and a circle over
+its arc (:mod:`.patches`); points and corners are located vertices. Loci that cross at one
+point so map to that point, and loci tangent to one curve to the curve, whatever the angle
+between the surface and the array.
+
+Groups that are not linear arrays (the rings of a wall-following scan) and every group of a
+scene whose transducers stand inside a closed room are mapped as ``tangents`` maps them
+(:func:`~clsonar.mapping.tangent_points`), unchanged.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..geometry import inside_polygon
+from ..physics import MAX_FOCUS_GAIN
+from ..scene import Polyline, Scene
+from ..sensors import SensorArray
+from .families import MIN_FAMILY, Family, Window, find_families, window_tolerance
+from .joins import draw_families
+from .loci import Loci, _subset
+from .patches import Patches
+from .tangents import tangent_points
+
+#: Longest stretch of an array whose detections are fitted together, metres.
+WINDOW_M = 1.0
+
+#: A group is a linear array when its transducers lie within this of their line, metres
+#: (and within this fraction of the array's length).
+LINEAR_TOL_M = 0.01
+LINEAR_TOL_SHARE = 0.02
+
+
+def linear_groups(sensors: SensorArray) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """``{group: (origin, unit direction)}`` of the groups of two or more transducers that
+    lie on one line (a linear array): within :data:`LINEAR_TOL_M` (or
+    :data:`LINEAR_TOL_SHARE` of the length, if less) of their principal axis."""
+    out = {}
+    for g in np.unique(sensors.groups):
+        pos = sensors.positions[sensors.groups == g]
+        if len(pos) < 2:
+            continue
+        centre = pos.mean(axis=0)
+        _, _, vt = np.linalg.svd(pos - centre, full_matrices=False)
+        along = (pos - centre) @ vt[0]
+        across = np.abs((pos - centre) @ vt[1]) if len(vt) > 1 else np.zeros(len(pos))
+        length = float(along.max() - along.min())
+        if length > 0 and across.max() <= min(LINEAR_TOL_M, LINEAR_TOL_SHARE * length + 1e-9):
+            out[int(g)] = (centre, vt[0])
+    return out
+
+
+def in_a_room(scene: Scene, sensors: SensorArray) -> bool:
+    """Whether every transducer lies inside one closed polyline (a room)."""
+    for s in scene.surfaces:
+        if isinstance(s, Polyline) and s.closed and len(sensors):
+            poly = np.asarray(s.points, dtype=np.float64)
+            if inside_polygon(poly, sensors.positions).all():
+                return True
+    return False
+
+
+#: The search over all arrays together gives up after this many seeds in a row grew no
+#: family (its seeds are single detections far apart; a few tell whether any wall is there).
+GLOBAL_MAX_FAILED = 12
+
+#: Neighbouring pairs of an array: transducers moved by at most this many element pitches.
+NEIGHBOUR_PITCHES = 1.5
+
+
+def _window(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
+            x0: np.ndarray, neighbour_m: float) -> Window:
+    """The detections ``rows`` as a :class:`~.families.Window` about ``x0``."""
+    c = scene.medium.c
+    cut_sin2, _ = scene.transducer.beam(c)
+    pos, axes = sensors.positions, sensors.axes
+    amp = loci.amplitude[rows]
+    tol = window_tolerance(amp, scene.signal.noise_std, c, scene.transducer.pulse_sigma_s)
+    return Window(rows=rows, T=pos[loci.tx[rows]], R=pos[loci.rx[rows]],
+                  axT=axes[loci.tx[rows]], axR=axes[loci.rx[rows]],
+                  paths=c * loci.tof_s[rows], amplitude=amp, tolerance=tol, x0=x0,
+                  cut_sin2=cut_sin2, neighbour_m=neighbour_m)
+
+
+def _windows(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
+             origin: np.ndarray, direction: np.ndarray) -> list[Window]:
+    """The stretches of one linear array (module docstring) with the detections of the
+    pairs inside each."""
+    pos = sensors.positions
+    sT = (pos[loci.tx[rows]] - origin) @ direction
+    sR = (pos[loci.rx[rows]] - origin) @ direction
+    lo, hi = float(min(sT.min(), sR.min())), float(max(sT.max(), sR.max()))
+    count = max(1, math.ceil((hi - lo) / (0.5 * WINDOW_M)) - 1)
+    starts = (np.linspace(lo, max(lo, hi - WINDOW_M), count) if hi - lo > WINDOW_M
+              else np.array([lo]))
+    elements = np.unique(np.round(np.r_[sT, sR], 9))
+    pitch = float(np.median(np.diff(elements))) if len(elements) > 1 else 1.0
+    out = []
+    for s0 in starts:
+        inside = ((np.minimum(sT, sR) >= s0 - 1e-9)
+                  & (np.maximum(sT, sR) <= s0 + WINDOW_M + 1e-9))
+        if inside.any():
+            mid = origin + direction * (s0 + 0.5 * min(WINDOW_M, hi - lo))
+            out.append(_window(scene, sensors, loci, rows[inside], mid,
+                               NEIGHBOUR_PITCHES * pitch))
+    return out
+
+
+def strongest_echo(scene: Scene) -> float:
+    """The largest amplitude one echo can have (the transmitted amplitude times the
+    reflection coefficient, on both axes, from a flat wall or, with ``echo.curvature_gain``,
+    a focusing one, physics.MAX_FOCUS_GAIN), with 5 % and three noise σ to spare: a
+    detection above it is two or more echoes overlapping."""
+    focus = MAX_FOCUS_GAIN if scene.echo.curvature_gain else 1.0
+    return (1.05 * scene.transducer.amplitude * scene.echo.reflection_coefficient * focus
+            + 3.0 * scene.signal.noise_std)
+
+
+def _families(scene: Scene, sensors: SensorArray, loci: Loci,
+              arrays: dict[int, tuple[np.ndarray, np.ndarray]]
+              ) -> tuple[list[Family], np.ndarray]:
+    """The families of every linear array's stretches, then of the detections none
+    explained, all arrays together (a wall seen by one element of each of several arrays);
+    and the rows still unexplained (less the echoes a family's shadowed:
+    :func:`~.families.shadowed`). Detections stronger than one echo can be
+    (:func:`strongest_echo`) are left out: overlapping echoes, whose time of flight is
+    neither's."""
+    group_of = sensors.groups[loci.tx]
+    resolution = scene.medium.c * scene.transducer.pulse_sigma_s
+    single = loci.amplitude <= strongest_echo(scene)
+    families: list[Family] = []
+    left: list[np.ndarray] = []
+    for g, (origin, direction) in arrays.items():
+        rows = np.flatnonzero((group_of == g) & single)
+        if len(rows) == 0:
+            continue
+        windows = _windows(scene, sensors, loci, rows, origin, direction)
+        explained = np.zeros(len(loci), dtype=bool)
+        for w in windows:
+            found, free = find_families(w, resolution)
+            families += found
+            left.append(w.rows[free])
+            for f in found:
+                explained[f.loci] = True
+        left[-len(windows):] = [r[~explained[r]] for r in left[-len(windows):]]
+    rest = np.unique(np.concatenate(left)) if left else np.zeros(0, np.int64)
+    if len(rest) >= MIN_FAMILY:
+        x0 = sensors.positions[loci.tx[rest]].mean(axis=0)
+        w = replace(_window(scene, sensors, loci, rest, x0, math.inf),
+                    max_failed=GLOBAL_MAX_FAILED)
+        found, free = find_families(w, resolution)
+        families += found
+        rest = rest[free]
+    return families, rest
+
+
+def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
+    """The points, their loci and the located vertices (:class:`~.patches.Patches`) of
+    every linear array's families, and the tangent points of the other groups' detections
+    and of those no family explains."""
+    arrays = {} if in_a_room(scene, sensors) else linear_groups(sensors)
+    families, left = _families(scene, sensors, loci, arrays)
+    drawn = draw_families(scene, sensors, loci, families)
+    others = np.flatnonzero(~np.isin(sensors.groups[loci.tx], list(arrays)))
+    rest = np.sort(np.concatenate([others, left]))
+    if len(rest) == 0:
+        return drawn
+    points, source = tangent_points(scene, sensors, _subset(loci, rest),
+                                    isolated_bias_m=scene.mapping.isolated_bias_m)
+    return drawn.plus(points, rest[source])
+
+
+__all__ = ["LINEAR_TOL_M", "WINDOW_M", "in_a_room", "linear_groups", "reflector_points",
+           "strongest_echo"]

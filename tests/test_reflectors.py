@@ -1,0 +1,298 @@
+"""Reflector-aware mapping (``mapping.mode = "reflectors"``, clsonar/mapping/models.py,
+families.py, patches.py, joins.py, reflectors.py): the path models against independent
+float64 geometry (mirror images, brute-force specular points, explicit double bounces), the
+fits and the plane/point/corner/circle distinction of Kleeman & Kuc (1995) on synthetic
+families, and whole runs, with the default settings, on scenes the old defaults failed
+(issue 14: a tilted wall, a corner seen at 45°, a cylinder, a sinusoid, two arrays)."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from clsonar.mapping import in_beams, models
+from clsonar.mapping.families import Window, find_families
+from clsonar.opencl import get_context
+from clsonar.pipeline import run
+from clsonar.scene import scene_from_dict
+
+finite = functools.partial(st.floats, allow_nan=False, allow_infinity=False)
+
+
+@functools.cache
+def context():
+    return get_context()
+
+
+def _array(n: int, pitch: float, centre=(0.0, 0.0), heading_deg=0.0) -> np.ndarray:
+    h = math.radians(heading_deg)
+    along = np.array([-math.sin(h), math.cos(h)])
+    return np.asarray(centre) + ((np.arange(n) - (n - 1) / 2) * pitch)[:, None] * along
+
+
+def _pairs(E: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    i, j = np.triu_indices(len(E))
+    return E[i], E[j]
+
+
+def _reflect(p: np.ndarray, a: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """``p`` mirrored across the line through ``a`` with unit normal ``n``."""
+    return p - 2.0 * ((p - a) @ n)[..., None] * n
+
+
+# --- the path models against independent geometry -------------------------------------
+
+
+@settings(max_examples=60, deadline=None)
+@given(phi=finite(min_value=-0.5, max_value=0.5), d=finite(min_value=0.5, max_value=9.0),
+       n=st.integers(2, 12), pitch=finite(min_value=0.01, max_value=0.2))
+def test_plane_path_is_the_mirror_image_distance(phi, d, n, pitch):
+    T, R = _pairs(_array(n, pitch))
+    path, q = models.plane_points(phi, d, T, R)
+    normal = np.array([math.cos(phi), math.sin(phi)])
+    mirror = _reflect(R, d * normal, normal)
+    assert np.allclose(path, np.hypot(*(T - mirror).T), rtol=0, atol=1e-12)
+    assert np.allclose(q @ normal, d, atol=1e-12)  # on the plane
+    legs = np.hypot(*(T - q).T) + np.hypot(*(R - q).T)
+    assert np.allclose(legs, path, atol=1e-12)  # the path goes through q
+
+
+@settings(max_examples=40, deadline=None)
+@given(dist=finite(min_value=1.5, max_value=6.0), radius=finite(min_value=0.05, max_value=3.0),
+       lateral=finite(min_value=-0.3, max_value=0.3), n=st.integers(2, 8),
+       pitch=finite(min_value=0.02, max_value=0.12), concave=st.booleans())
+def test_circle_path_is_the_stationary_path_on_the_circle(dist, radius, lateral, n, pitch,
+                                                          concave):
+    """The specular path on a circle whose apex is ``dist`` in front of the array — convex:
+    the shortest path through its near half; concave (a trough, the array outside it): the
+    longest through its far half — against 400 000 points of that half."""
+    if concave:
+        radius = min(radius, 0.45 * dist)
+    T, R = _pairs(_array(n, pitch))
+    centre = np.array([dist + (-radius if concave else radius), lateral])
+    rho = -radius if concave else radius
+    length = float(np.hypot(*centre))
+    unit = centre / length
+    params = np.array([math.atan2(unit[1], unit[0]), length - rho, 1.0 / length])
+    path, q = models.curve_paths(params, np.zeros(2), T, R)
+    a = np.linspace(-math.pi, math.pi, 400_001)
+    u = np.stack([np.cos(a), np.sin(a)], axis=-1)
+    half = u[(u @ unit > 0) if concave else (u @ unit < 0)]
+    ring = centre + radius * half
+    lengths = (np.hypot(*(T[:, None] - ring[None]).transpose(2, 0, 1))
+               + np.hypot(*(R[:, None] - ring[None]).transpose(2, 0, 1)))
+    brute = lengths.max(axis=1) if concave else lengths.min(axis=1)
+    assert np.allclose(path, brute, atol=2e-9)
+    assert np.allclose(np.hypot(*(q - centre).T), radius, atol=1e-9)
+
+
+@settings(max_examples=40, deadline=None)
+@given(x=finite(min_value=1.0, max_value=6.0), y=finite(min_value=-0.5, max_value=0.5))
+def test_a_circle_of_radius_zero_is_a_point(x, y):
+    T, R = _pairs(_array(6, 0.08))
+    f = np.array([x, y])
+    length = float(np.hypot(x, y))
+    params = np.array([math.atan2(y, x), length, 1.0 / length])
+    assert np.allclose(models.curve_paths(params, np.zeros(2), T, R)[0],
+                       models.point_paths(f, T, R)[0], atol=1e-12)
+
+
+@settings(max_examples=40, deadline=None)
+@given(phi=finite(min_value=-0.4, max_value=0.4), d=finite(min_value=1.0, max_value=8.0))
+def test_curve_model_tends_to_the_plane(phi, d):
+    T, R = _pairs(_array(8, 0.1))
+    plane, _ = models.curve_paths(np.array([phi, d, 0.0]), np.zeros(2), T, R)
+    almost, _ = models.curve_paths(np.array([phi, d, 1e-5]), np.zeros(2), T, R)
+    assert np.allclose(plane, almost, atol=1e-5)  # a circle of 10⁵ m sags 5 µm over 1 m
+
+
+@settings(max_examples=60, deadline=None)
+@given(dist=finite(min_value=1.0, max_value=9.0), view=finite(min_value=-40.0, max_value=40.0),
+       n=st.integers(2, 10), pitch=finite(min_value=0.02, max_value=0.11))
+def test_corner_path_is_the_double_bounce(dist, view, n, pitch):
+    """The double bounce off a right-angled corner, reflected across one wall and then the
+    other (the order does not matter), is |T + R − 2V|."""
+    v = np.array([dist, 0.0])
+    b = math.radians(view)
+    walls = [np.array([math.cos(b + s), math.sin(b + s)]) for s in (math.pi / 4, -math.pi / 4)]
+    T, R = _pairs(_array(n, pitch))
+    path, q = models.corner_paths(v, T, R)
+    image = _reflect(_reflect(R, v, walls[0]), v, walls[1])
+    assert np.allclose(path, np.hypot(*(T - image).T), atol=1e-12)
+    assert np.allclose(q, v)
+
+
+# --- fits and the distinction of the reflectors ---------------------------------------
+
+
+def _window(T, R, paths, axis=(1.0, 0.0), half_beam_deg=12.0) -> Window:
+    ax = np.broadcast_to(np.asarray(axis, float), T.shape)
+    m = len(paths)
+    return Window(rows=np.arange(m), T=T, R=R, axT=ax, axR=ax, paths=paths,
+                  amplitude=np.full(m, 3.0), tolerance=np.full(m, 2e-4),
+                  x0=0.5 * (T + R).mean(axis=0),
+                  cut_sin2=math.sin(math.radians(half_beam_deg)) ** 2, neighbour_m=0.15)
+
+
+CASES = {
+    "plane": lambda T, R: models.curve_paths(np.array([0.06, 3.0, 0.0]), np.zeros(2), T, R),
+    "point": lambda T, R: models.point_paths(np.array([2.5, 0.1]), T, R),
+    "corner": lambda T, R: models.corner_paths(np.array([4.0, -0.2]), T, R),
+    "curve": lambda T, R: models.curve_paths(np.array([0.0, 2.0, 1 / 2.3]), np.zeros(2), T, R),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(CASES))
+def test_families_tell_plane_point_corner_and_circle_apart(kind):
+    """A 10-element array's 55 pairs of one reflector make one family of its kind whose
+    reflection points the model gives."""
+    T, R = _pairs(_array(10, 0.1))
+    paths, q = CASES[kind](T, R)
+    w = _window(T, R, paths)
+    heard = in_beams(q, T, w.axT, w.cut_sin2) & in_beams(q, R, w.axR, w.cut_sin2)
+    T, R, paths, q = T[heard], R[heard], paths[heard], q[heard]
+    families, left = find_families(_window(T, R, paths), resolution=0.0185)
+    assert [f.kind for f in families] == [kind]
+    assert len(left) == 0 and len(families[0].rows) == len(paths)
+    assert np.allclose(families[0].q, q, atol=1e-6)
+
+
+def test_two_reflectors_make_two_families():
+    """A wall and a corner in one array's beams: each echo goes to its own reflector."""
+    T, R = _pairs(_array(10, 0.1))
+    wall, _ = CASES["plane"](T, R)
+    corner, _ = models.corner_paths(np.array([4.0, 0.05]), T, R)
+    paths = np.concatenate([wall, corner])
+    families, left = find_families(
+        _window(np.concatenate([T, T]), np.concatenate([R, R]), paths), resolution=0.0185)
+    assert sorted(f.kind for f in families) == ["corner", "plane"]
+    assert len(left) == 0
+
+
+@settings(max_examples=25, deadline=None)
+@given(phi=finite(min_value=-0.2, max_value=0.2), d=finite(min_value=1.5, max_value=8.0),
+       noise=finite(min_value=0.0, max_value=2e-5))
+def test_plane_fit_recovers_the_wall(phi, d, noise):
+    T, R = _pairs(_array(10, 0.1))
+    paths, _ = models.plane_points(phi, d, T, R)
+    paths = paths + noise * np.sin(np.arange(len(paths)))
+    start = models.plane_start(np.zeros(2), T, R, paths, np.radians(np.arange(-15, 15, 0.25)))
+    fit = models.fit_curve(np.zeros(2), T, R, paths, start, fix_psi=True)
+    assert abs(fit.params[0] - phi) < 1e-3 and abs(fit.params[1] - d) < 1e-3
+
+
+# --- whole runs with the default settings ----------------------------------------------
+
+
+def _scene(name, extent, surfaces, transducers, noise=0.0):
+    return scene_from_dict({"clsonar": 1, "name": name, "extent": extent, "surfaces": surfaces,
+                            "signal": {"noise_std": noise},
+                            "sensors": {"transducers": transducers}}, name)
+
+
+def _transducers(E: np.ndarray, heading_deg: float, group: int = 0) -> list[dict]:
+    return [{"position": [float(x), float(y)], "heading_deg": heading_deg, "group": group}
+            for x, y in E]
+
+
+def _wall(tilt_deg: float, dist: float = 3.0) -> list[dict]:
+    t = math.radians(tilt_deg)
+    base = np.array([5.0 + dist, 3.45])
+    d = np.array([math.sin(t), math.cos(t)])
+    return [{"type": "polyline", "points": [list(base - 4 * d), list(base + 4 * d)]}]
+
+
+def _metrics(scene):
+    return run(scene, context=context()).metrics
+
+
+@pytest.mark.parametrize("tilt", [0.0, 3.6])
+def test_a_wall_at_any_angle_is_mapped_exactly_and_completely(tilt):
+    """Issue 14: a wall 3 m from a 10-element array, square-on or tilted by 3.6° (the old
+    defaults: patches drawn level, 2.2 cm RMS)."""
+    m = _metrics(_scene("wall", [4, -1, 10, 8], _wall(tilt),
+                        _transducers(_array(10, 0.1, (5.0, 3.45)), 0.0)))
+    assert m["accuracy_m"]["rms"] < 0.001
+    assert m["completeness"]["2cm"] >= 0.95
+
+
+def test_a_corner_seen_at_45_degrees_is_its_vertex():
+    """Issue 14: a concave corner 5 m away seen at 45° (every echo a double bounce; the old
+    defaults drew an arc through the vertex, 26 cm RMS)."""
+    v = np.array([10.0, 10.0])
+    centre = v + 5.0 * np.array([-1.0, -1.0]) / math.sqrt(2)
+    scene = _scene("corner45", [4, 4, 11, 11],
+                   [{"type": "polyline", "points": [[10, 6], [10, 10], [6, 10]]}],
+                   _transducers(_array(10, 0.1, centre, 45.0), 45.0))
+    m = _metrics(scene)
+    assert m["vertices"][0]["error_m"] < 0.005
+    assert m["accuracy_m"]["rms"] < 0.005
+
+
+def test_a_cylinder_is_an_arc_not_a_bar():
+    """Issue 14: a 0.3 m cylinder 2 m in front of an array (the old defaults: a flat bar,
+    5 cm RMS)."""
+    scene = _scene("cyl03", [4, 0, 9, 8],
+                   [{"type": "circle", "center": [7.3, 3.45], "radius": 0.3}],
+                   _transducers(_array(10, 0.1, (5.0, 3.45)), 0.0))
+    m = _metrics(scene)
+    assert m["accuracy_m"]["rms"] < 0.002
+    assert m["completeness"]["2cm"] >= 0.8
+
+
+def test_a_sinusoid_is_mapped_at_its_crests_and_troughs():
+    """Issue 14: a sinusoid of 0.1 m amplitude and 1 m period 2 m away (the old defaults:
+    vertical stubs, 4.4 cm RMS)."""
+    scene = _scene("sinus", [4, 0, 9, 8],
+                   [{"type": "sinusoid", "from": [7, 0.5], "to": [7, 7.5], "amplitude": 0.1,
+                     "period": 1.0}], _transducers(_array(10, 0.1, (5.0, 3.45)), 0.0))
+    m = _metrics(scene)
+    assert m["accuracy_m"]["rms"] < 0.005
+    assert m["completeness"]["2cm"] >= 0.8
+
+
+def test_two_arrays_on_one_wall_join():
+    scene = _scene("two", [4, 0, 9, 8], _wall(0.0, 2.0),
+                   _transducers(_array(10, 0.1, (5.0, 2.5)), 0.0)
+                   + _transducers(_array(10, 0.1, (5.2, 4.6)), 0.0, group=1))
+    m = _metrics(scene)
+    assert m["accuracy_m"]["rms"] < 0.001
+    assert m["completeness"]["2cm"] >= 0.95
+
+
+def test_overlay_puts_patches_in_place_of_the_maps_curves():
+    """post.overlay: the fitted patches replace the map's curve where they lie, the rest of
+    the map's curves stays (in runs of at least MIN_CURVE_CELLS points)."""
+    from clsonar.post import MIN_CURVE_CELLS, Profile, overlay, runs
+
+    x = np.arange(0.0, 1.0, 0.01)
+    mapped = np.stack([x, 0.003 * np.ones_like(x)], axis=-1)  # the map's curve, 3 mm off
+    patch = np.stack([x[:60], np.zeros(60)], axis=-1)  # a fitted patch over its first 60 cm
+    out = overlay(Profile((mapped,), np.array([[1.0, 1.0]])), [patch], 0.02)
+    assert np.array_equal(out.curves[0], patch)
+    assert len(out.curves) == 2 and out.curves[1][0, 0] > 0.6 - 1e-9
+    assert np.array_equal(out.vertices, [[1.0, 1.0]])
+    keep = np.array([True] * 3 + [False] + [True] * MIN_CURVE_CELLS)
+    assert [len(r) for r in runs(mapped[:len(keep)], keep, MIN_CURVE_CELLS)] == [5]
+
+
+def test_the_profile_is_the_patches_and_vertices():
+    """A wall and a corner: the profile holds the fitted patch as it is (its points on the
+    wall to the µm) and the corner's located vertex."""
+    v = np.array([10.0, 10.0])
+    centre = v + 5.0 * np.array([-1.0, -1.0]) / math.sqrt(2)
+    scene = _scene("corner45", [4, 4, 11, 11],
+                   [{"type": "polyline", "points": [[10, 6], [10, 10], [6, 10]]}],
+                   _transducers(_array(10, 0.1, centre, 45.0), 45.0))
+    r = run(scene, context=context())
+    assert r.counts["vertices_located"] == 1
+    assert np.allclose(r.profile.vertices, [v], atol=0.005)
+    wall = run(_scene("wall", [4, -1, 10, 8], _wall(0.0),
+                      _transducers(_array(10, 0.1, (5.0, 3.45)), 0.0)), context=context())
+    assert wall.counts["patches"] == 1
+    assert np.allclose(wall.profile.points[:, 0], 8.0, atol=1e-5)
