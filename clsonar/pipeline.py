@@ -29,10 +29,10 @@ from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
 from .mapping import Votes
 from .opencl import device_name, get_context
+from .presets import PRESETS as PRESETS  # re-exported: pipeline.PRESETS
+from .presets import Preset as Preset
+from .presets import apply_preset
 from .scene import (
-    DetectionSettings,
-    Directivity,
-    MappingSettings,
     PostSettings,
     Scene,
     scene_to_dict,
@@ -49,34 +49,6 @@ STAGES = ("sensors", "echoes", "detection", "accumulation", "sight", "filter", "
           "profile", "metrics")
 FRONT_STAGES = STAGES[:4]
 
-@dataclass(frozen=True)
-class Preset:
-    """The detection, mapping and post-processing settings a preset puts in a scene, and the
-    parts of the world it sets: the transducer's ``directivity`` and the echo's
-    ``curvature_gain`` (None: the scene's own; the scene's other transducer and echo keys
-    are always kept)."""
-
-    detection: DetectionSettings
-    mapping: MappingSettings
-    post: PostSettings
-    directivity: Directivity | None = None
-    curvature_gain: bool | None = None
-
-
-#: Settings of the thesis' method and of ours (the defaults of a scene file). ``thesis`` is
-#: the thesis' whole world: its uniform beam inside the ±12° cut (§2.1), no curvature gain
-#: (its ray tracing), threshold detection, loci summed, eq. 2.5 thinning and the polynomial.
-PRESETS: dict[str, Preset] = {
-    "thesis": Preset(
-        detection=DetectionSettings(mode="threshold"),
-        mapping=MappingSettings(mode="loci", weight="unit", reciprocal="both", combine="sum",
-                                isolated_bias_m=0.0),
-        post=PostSettings(filter="mean3", level=1e-6, thinning="thesis", fit="polynomial",
-                          poly_order=7, subcell=False, max_gap_m=0.3, join_m=0.5),
-        directivity="uniform", curvature_gain=False),
-    "best": Preset(DetectionSettings(), MappingSettings(), PostSettings()),
-}
-
 T = TypeVar("T")
 
 Progress = Callable[[str, int, int], None]  # (stage, index from 1, number of stages)
@@ -84,23 +56,6 @@ Progress = Callable[[str, int, int], None]  # (stage, index from 1, number of st
 #: Host memory a run holds per map cell: the raw map, the filtered map and its filter's
 #: temporary (float64), the occupied and thin maps, the point sums of ``tangents``.
 PIPELINE_BYTES_PER_CELL = 48
-
-
-def apply_preset(scene: Scene, preset: str | None) -> Scene:
-    """``scene`` with the detection/mapping/post settings of ``preset``, and its transducer
-    directivity and echo curvature gain where the preset sets them (None: unchanged)."""
-    if preset is None:
-        return scene
-    if preset not in PRESETS:
-        raise ValueError(f"unknown preset {preset!r} (choose from {', '.join(PRESETS)})")
-    chosen = PRESETS[preset]
-    transducer, echo = scene.transducer, scene.echo
-    if chosen.directivity is not None:
-        transducer = dataclasses.replace(transducer, directivity=chosen.directivity)
-    if chosen.curvature_gain is not None:
-        echo = dataclasses.replace(echo, curvature_gain=chosen.curvature_gain)
-    return dataclasses.replace(scene, detection=chosen.detection, mapping=chosen.mapping,
-                               post=chosen.post, transducer=transducer, echo=echo)
 
 
 @dataclass(frozen=True, eq=False)
@@ -459,8 +414,7 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
     only_patches = (ends is not None and len(ends) > 0 and front.votes.points is not None
                     and int(ends[-1]) == len(front.votes.points))
     maps = _post_maps(scene, drawn, skips, clock, trace=not only_patches)
-    profile = _with_vertices(_with_patches(maps.profile, front.votes, drawn.seen, scene.cell),
-                             front.votes.vertices)
+    profile = _reflectors_in(maps.profile, front.votes, drawn.seen, scene)
     clock.start("metrics")
     result_metrics = metrics.evaluate(scene, front.geometry, front.sensors, front.echoes,
                                       profile.points, profile.vertices)
@@ -479,33 +433,23 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
                                warnings=checks.run_warnings(scene, counts))
 
 
-def _with_patches(profile: post.Profile, votes: Votes, seen: np.ndarray | None,
-                  cell: float) -> post.Profile:
-    """``profile`` with the fitted patches of the votes (:attr:`clsonar.mapping.Votes.
-    patch_ends`) as its curves where they are: each patch's points in sight, in runs, in
-    place of the map's curves within :data:`PATCH_RADIUS_CELLS` cells of them."""
-    ends = votes.patch_ends
-    if ends is None or len(ends) == 0 or votes.points is None:
+def _reflectors_in(profile: post.Profile, votes: Votes, seen: np.ndarray | None,
+                   scene: Scene) -> post.Profile:
+    """``profile`` with the reflectors the mapping fitted (``reflectors``: each patch's points
+    in sight in place of the map's curves near them, and the point reflectors it located
+    as vertices), none outside the extent."""
+    if votes.patch_ends is None and votes.vertices is None:
         return profile
-    keep = np.ones(len(votes.points), dtype=bool) if seen is None else seen
-    starts = np.r_[0, ends[:-1]]
-    runs = [run for a, b in zip(starts, ends, strict=True)
-            for run in post.runs(votes.points[a:b], keep[a:b])]
-    return post.overlay(profile, runs, PATCH_RADIUS_CELLS * cell)
+    keep = None if votes.points is None else (
+        np.ones(len(votes.points), dtype=bool) if seen is None else seen)
+    profile = post.with_vertices(post.with_patches(profile, votes.points, votes.patch_ends,
+                                                   keep, PATCH_RADIUS_CELLS * scene.cell),
+                                 votes.vertices)
+    return post.within_extent(profile, scene.extent)
 
 
 #: The map's profile gives way to the fitted patches within this many cells of them.
 PATCH_RADIUS_CELLS = 2.0
-
-
-def _with_vertices(profile: post.Profile, vertices: np.ndarray | None) -> post.Profile:
-    """``profile`` with the point reflectors the mapping located (corners, edges, thin
-    posts: :attr:`clsonar.mapping.Votes.vertices`) as one-point curves and vertices."""
-    if vertices is None or len(vertices) == 0:
-        return profile
-    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
-    return post.Profile(profile.curves + tuple(v[k:k + 1] for k in range(len(v))),
-                        np.concatenate([profile.vertices, v]))
 
 
 @dataclass(frozen=True, eq=False)

@@ -26,6 +26,7 @@ import numpy as np
 from ..geometry import inside_polygon
 from ..physics import MAX_FOCUS_GAIN
 from ..scene import Polyline, Scene
+from ..scene.settings import chosen
 from ..sensors import SensorArray
 from .families import MIN_FAMILY, Family, Window, find_families, window_tolerance
 from .joins import draw_families
@@ -177,7 +178,8 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
     if len(rest) == 0:
         return drawn
     points, source = tangent_points(scene, sensors, _subset(loci, rest),
-                                    isolated_bias_m=scene.mapping.isolated_bias_m)
+                                    isolated_bias_m=chosen(scene.mapping.isolated_bias_m,
+                                                           "mapping.isolated_bias_m"))
     return drawn.plus(points, rest[source])
 
 

@@ -40,7 +40,16 @@ from .filters import (
     voted_box,
 )
 from .fits import Profile, fit_polynomial, fit_spline
-from .profile import NEAR_CELLS, bound_profile, extract_profile, overlay, runs
+from .profile import (
+    NEAR_CELLS,
+    bound_profile,
+    extract_profile,
+    overlay,
+    runs,
+    with_patches,
+    with_vertices,
+    within_extent,
+)
 from .thinning import along_x, thin, thin_map, thin_oriented, thin_thesis
 from .walls import Arc, Wall, find_circles, fit_walls, join_walls, merge_collinear, split_straight
 
@@ -50,5 +59,6 @@ __all__ = [
     "extract_profile", "filter_and_thin", "filter_box", "find_circles", "fit_polynomial",
     "fit_spline", "fit_walls", "join_walls", "low_pass", "merge_collinear", "occupancy_level",
     "overlay", "refine_cells", "refine_to_points", "runs", "split_straight", "thin", "thin_map",
-    "thin_oriented", "thin_thesis", "trace_curves", "voted_box",
+    "thin_oriented", "thin_thesis", "trace_curves", "voted_box", "with_patches", "with_vertices",
+    "within_extent",
 ]

@@ -190,4 +190,38 @@ def overlay(profile: Profile, curves: list[np.ndarray], radius: float) -> Profil
     return Profile(tuple(curves) + tuple(rest), profile.vertices)
 
 
-__all__ = ["NEAR_CELLS", "bound_profile", "extract_profile", "overlay", "runs"]
+def with_patches(profile: Profile, points: np.ndarray | None, ends: np.ndarray | None,
+                 keep: np.ndarray | None, radius: float) -> Profile:
+    """``profile`` with fitted patches as its curves where they are: patch k is
+    ``points[ends[k-1]:ends[k]]``, its points where ``keep`` holds, in runs, in place of
+    the profile's curves within ``radius`` of them (:func:`overlay`)."""
+    if ends is None or len(ends) == 0 or points is None or keep is None:
+        return profile
+    starts = np.r_[0, ends[:-1]]
+    pieces = [run for a, b in zip(starts, ends, strict=True)
+              for run in runs(points[a:b], keep[a:b])]
+    return overlay(profile, pieces, radius)
+
+
+def with_vertices(profile: Profile, vertices: np.ndarray | None) -> Profile:
+    """``profile`` with located point reflectors (corners, edges, thin posts) as one-point
+    curves and vertices."""
+    if vertices is None or len(vertices) == 0:
+        return profile
+    v = np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
+    return Profile(profile.curves + tuple(v[k:k + 1] for k in range(len(v))),
+                   np.concatenate([profile.vertices, v]))
+
+
+def within_extent(profile: Profile, extent: tuple[float, ...]) -> Profile:
+    """``profile`` with no point and no vertex outside ``extent`` (curves cut there)."""
+    def inside(p: np.ndarray) -> np.ndarray:
+        return ((p[:, 0] >= extent[0]) & (p[:, 0] <= extent[2])
+                & (p[:, 1] >= extent[1]) & (p[:, 1] <= extent[3]))
+
+    curves = [run for c in profile.curves for run in runs(c, inside(c), 1)]
+    return Profile(tuple(curves), profile.vertices[inside(profile.vertices)])
+
+
+__all__ = ["NEAR_CELLS", "bound_profile", "extract_profile", "overlay", "runs",
+           "with_patches", "with_vertices", "within_extent"]
