@@ -28,9 +28,11 @@ from .models import (
     _jacobian,
     corner_paths,
     curve_paths,
+    dot2,
     fit_corner,
     fit_curve,
     fit_point,
+    gram,
     plane_start,
     point_paths,
 )
@@ -170,7 +172,7 @@ def _valid(w: Window, kind: str, params: np.ndarray, idx: np.ndarray,
           & in_beams(q, w.R[idx], w.axR[idx], w.cut_sin2))
     if kind in ("plane", "curve"):
         n = np.array([math.cos(params[0]), math.sin(params[0])])
-        ok &= ((q - w.T[idx]) @ n > 0) & ((q - w.R[idx]) @ n > 0)
+        ok &= (dot2(q - w.T[idx], n) > 0) & (dot2(q - w.R[idx], n) > 0)
     return ok
 
 
@@ -310,8 +312,8 @@ def _starts(w: Window, seed: int, rows: np.ndarray) -> list[tuple[str, np.ndarra
     rel = point - w.x0
     reach = max(float(np.hypot(*rel)), 1e-3)
     phi = math.atan2(rel[1], rel[0])
-    as_point = np.array([phi, float(np.hypot(*rel) + np.array([math.cos(phi), math.sin(phi)])
-                                    @ w.x0), 1.0 / (reach + POINT_START_RADIUS_M)])
+    along = float(np.hypot(*rel) + dot2(np.array([math.cos(phi), math.sin(phi)]), w.x0))
+    as_point = np.array([phi, along, 1.0 / (reach + POINT_START_RADIUS_M)])
     starts = [("plane", plane), ("corner", point), ("point", point)]
     if len(rows) >= MIN_CURVE:
         starts.append(("curve", max((plane, as_point), key=lambda p: _explained(w, p, rows))))
@@ -388,7 +390,7 @@ def _bend(w: Window, members: np.ndarray, fit: Fit | None, noise: float) -> floa
                   CURVE_STEPS)
     sigma = max(fit.rms, noise, DETECTION_FLOOR_M)
     try:
-        cov = np.linalg.inv(J.T @ J) * sigma**2
+        cov = np.linalg.inv(gram(J, J)) * sigma**2
     except np.linalg.LinAlgError:
         return math.inf
     return 3.0 * math.sqrt(max(float(cov[2, 2]), 0.0))
@@ -402,7 +404,7 @@ def _family_starts(w: Window, kind: str, params: np.ndarray,
     if kind in ("plane", "curve"):
         phi, d = float(params[0]), float(params[1])
         n = np.array([math.cos(phi), math.sin(phi)])
-        apex = w.x0 + (d - float(n @ w.x0)) * n
+        apex = w.x0 + (d - float(dot2(n, w.x0))) * n
         curve = np.array([phi, d, params[2] if kind == "curve" else 0.0])
         return {"plane": np.array([phi, d, 0.0]), "curve": curve, "point": apex,
                 "corner": apex}
@@ -410,7 +412,7 @@ def _family_starts(w: Window, kind: str, params: np.ndarray,
     rel = point - w.x0
     reach = max(float(np.hypot(*rel)), 1e-3)
     phi = math.atan2(rel[1], rel[0])
-    d = float(point @ np.array([math.cos(phi), math.sin(phi)]))
+    d = float(dot2(point, np.array([math.cos(phi), math.sin(phi)])))
     return {"plane": np.array([phi, d, 0.0]),
             "curve": np.array([phi, d, 1.0 / (reach + POINT_START_RADIUS_M)]),
             "point": point, "corner": point}

@@ -22,7 +22,7 @@ from ..scene import Scene
 from ..sensors import SensorArray
 from .families import Family
 from .loci import Loci
-from .models import curve_paths, fit_curve
+from .models import curve_paths, dot2, fit_curve
 from .patches import (
     STEP_CELLS,
     Patch,
@@ -73,13 +73,13 @@ def _ends(p: Patch) -> np.ndarray:
 def _same_line(a: Patch, b: Patch) -> bool:
     na, ta = _line(a)
     nb, _ = _line(b)
-    if float(na @ nb) < math.cos(SAME_LINE_RAD):
+    if float(dot2(na, nb)) < math.cos(SAME_LINE_RAD):
         return False
-    off_b = np.abs(_ends(b) @ na - float(a.params[1]))
-    off_a = np.abs(_ends(a) @ nb - float(b.params[1]))
+    off_b = np.abs(dot2(_ends(b), na) - float(a.params[1]))
+    off_a = np.abs(dot2(_ends(a), nb) - float(b.params[1]))
     if max(off_a.max(), off_b.max()) > SAME_LINE_M:
         return False
-    ua, ub = _ends(a) @ ta, _ends(b) @ ta
+    ua, ub = dot2(_ends(a), ta), dot2(_ends(b), ta)
     gap = max(ub.min() - ua.max(), ua.min() - ub.max())
     return gap <= JOIN_GAP_M
 
@@ -194,8 +194,9 @@ def meet(patches: list[Patch], vertices: np.ndarray) -> tuple[list[Patch], np.nd
             continue
         n, _ = _line(p)
         for v in vertices:
-            if abs(float(v @ n) - float(p.params[1])) <= VERTEX_ON_LINE_M:
-                foot = v - (float(v @ n) - float(p.params[1])) * n
+            off = float(dot2(v, n)) - float(p.params[1])
+            if abs(off) <= VERTEX_ON_LINE_M:
+                foot = v - off * n
                 reached = _reach(p, foot)
                 if reached is not None:
                     patches[k] = p = reached

@@ -39,6 +39,20 @@ PSI_PLANE = 1e-6
 SPECULAR_STEPS = 2
 
 
+def dot2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a·b`` over the last axis of 2-vectors, written out (no BLAS: the same bits
+    whatever the threads, as a Dask worker's run must give)."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
+
+
+def gram(J: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``Jᵀ·r`` (r a vector or a matrix) as NumPy sums, not BLAS: the same bits on every
+    run, however many threads the BLAS would use."""
+    if r.ndim == 1:
+        return np.sum(J * r[:, None], axis=0)
+    return np.sum(J[:, :, None] * r[:, None, :], axis=0)
+
+
 def _normal(phi: float) -> np.ndarray:
     return np.array([math.cos(phi), math.sin(phi)])
 
@@ -49,7 +63,7 @@ def plane_points(phi: float, d: float, T: np.ndarray, R: np.ndarray
     n·p < d: the mirror path sqrt(4·h_T·h_R + |T − R|²) (h the distances to the plane) and
     the reflection point, where the segment from T to R's mirror image meets the plane."""
     n = _normal(phi)
-    hT, hR = d - T @ n, d - R @ n
+    hT, hR = d - dot2(T, n), d - dot2(R, n)
     path = np.sqrt(np.maximum(4.0 * hT * hR + np.sum((T - R) ** 2, axis=-1), 0.0))
     mirror = R + 2.0 * hR[:, None] * n
     share = hT / np.where(hT + hR != 0, hT + hR, 1.0)
@@ -94,7 +108,7 @@ def project_paths(params: np.ndarray, x0: np.ndarray, T: np.ndarray, R: np.ndarr
     phi, d, psi = (float(v) for v in params)
     if abs(psi) < PSI_PLANE:
         n = _normal(phi)
-        moved = q + (d - q @ n)[:, None] * n
+        moved = q + (d - dot2(q, n))[:, None] * n
     else:
         centre, rho, _ = curve_geometry(np.array([phi, d, psi]), x0)
         rel = math.copysign(1.0, psi) * (centre - q)  # e(α), as circle_points orients it
@@ -106,7 +120,7 @@ def curve_geometry(params: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, floa
     """``(centre, rho, A)`` of the curve model ``(φ, d, ψ)`` (centre inf for a plane)."""
     phi, d, psi = params
     n = _normal(phi)
-    A = d - float(n @ x0)
+    A = d - float(n[0] * x0[0] + n[1] * x0[1])
     if abs(psi) < PSI_PLANE:
         return np.array([np.inf, np.inf]), math.inf, A
     return x0 + n / psi, 1.0 / psi - A, A
@@ -194,15 +208,15 @@ def least_squares(model: PathModel, paths: np.ndarray, start: np.ndarray,
     free = np.ones(len(p), bool) if fixed is None else ~np.asarray(fixed)
     pred, q = model(p)
     r = pred - paths
-    cost = float(r @ r)
+    cost = float(np.sum(r * r))
     lam = 1e-3
     converged = False
     fresh = True
     for _ in range(iterations):
         if fresh:  # the Jacobian changes only when p does
             J = _jacobian(model, p, steps, linear, q, exact)[:, free]
-            g, H = J.T @ r, J.T @ J
-            gain = float(g @ _damped_step(H, g, 0.0))  # what a Gauss–Newton step would gain
+            g, H = gram(J, r), gram(J, J)
+            gain = float(np.sum(g * _damped_step(H, g, 0.0)))  # a Gauss–Newton step's gain
             if gain <= STOP_COST_SHARE * cost or cost <= len(paths) * STOP_RMS**2:
                 converged = True
                 break
@@ -211,7 +225,7 @@ def least_squares(model: PathModel, paths: np.ndarray, start: np.ndarray,
         trial[free] -= step
         pred_new, q_new = model(trial)
         r_new = pred_new - paths
-        new_cost = float(r_new @ r_new)
+        new_cost = float(np.sum(r_new * r_new))
         fresh = bool(np.isfinite(new_cost) and new_cost <= cost)
         if fresh:
             small = cost - new_cost <= STOP_COST_SHARE * cost and lam <= 1e-3
@@ -278,8 +292,9 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
     a = 0.5 * paths
     b = np.sqrt(np.maximum(a * a - f * f, 0.0))
     u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
-    along = n @ u.T  # [k, m]
-    support = (n @ centre.T).T + np.sqrt((a[:, None] * along.T) ** 2
+    along = (n[:, None, 0] * u[None, :, 0] + n[:, None, 1] * u[None, :, 1])  # [k, m]
+    support = (n[:, None, 0] * centre[None, :, 0] + n[:, None, 1] * centre[None, :, 1]).T \
+        + np.sqrt((a[:, None] * along.T) ** 2
                                          + (b[:, None] ** 2) * (1 - along.T**2))
     spread = np.median(np.abs(support - np.median(support, axis=0)), axis=0)
     best = int(np.argmin(spread))
@@ -287,6 +302,6 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
 
 
 __all__ = ["CORNER_STEPS", "CURVE_STEPS", "PSI_PLANE", "SPECULAR_STEPS", "Fit", "PathModel",
-           "circle_points", "corner_paths", "curve_geometry", "curve_paths", "fit_corner",
-           "fit_curve", "fit_point", "least_squares", "plane_points", "plane_start",
-           "point_paths", "project_paths"]
+           "circle_points", "corner_paths", "curve_geometry", "curve_paths", "dot2",
+           "fit_corner", "fit_curve", "fit_point", "gram", "least_squares", "plane_points",
+           "plane_start", "point_paths", "project_paths"]

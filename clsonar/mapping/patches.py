@@ -31,13 +31,13 @@ from ..sensors import SensorArray
 from .envelope import in_beams
 from .families import Family
 from .loci import Loci
-from .models import curve_geometry, curve_paths
+from .models import curve_geometry, curve_paths, dot2
 
 #: Spacing of a patch's points, in cells.
 STEP_CELLS = 0.5
 
 #: Bisection steps finding the ends of a detection's region of constant depth.
-BISECTIONS = 24
+BISECTIONS = 18
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,23 +100,23 @@ def coordinates(params: np.ndarray, x0: np.ndarray, q: np.ndarray) -> np.ndarray
     phi = float(params[0])
     centre, rho, _ = curve_geometry(params, x0)
     if not np.all(np.isfinite(centre)):
-        return q @ np.array([-math.sin(phi), math.cos(phi)])
+        return dot2(q, np.array([-math.sin(phi), math.cos(phi)]))
     rel = (centre - q) / rho
     return np.angle(np.exp(1j * (np.arctan2(rel[:, 1], rel[:, 0]) - phi)))
 
 
-def _region_end(p: Patch, k: np.ndarray, direction: float, axes: tuple[np.ndarray, ...],
+def _region_end(p: Patch, k: np.ndarray, direction: np.ndarray, axes: tuple[np.ndarray, ...],
                 cut_sin2: float, resolution: float, reach: np.ndarray) -> np.ndarray:
-    """For detections ``k``: how far from its reflection point, in ``direction`` (±1) along
-    the carrier, the points stay inside both beams with a path within ``resolution`` of
-    the detected one (bisection; at most ``reach``)."""
-    axT, axR = axes
+    """For detections ``k``: how far from its reflection point, in ``direction`` (±1 each)
+    along the carrier, the points stay inside both beams with a path within ``resolution``
+    of the detected one (bisection; at most ``reach``)."""
+    axT, axR = axes  # the axes of the rows k
 
     def inside(step: np.ndarray) -> np.ndarray:
         q = carrier_points(p.params, p.x0, p.u[k] + direction * step)
         path = np.hypot(*(p.T[k] - q).T) + np.hypot(*(p.R[k] - q).T)
         return ((np.abs(path - p.paths[k]) <= resolution)
-                & in_beams(q, p.T[k], axT[k], cut_sin2) & in_beams(q, p.R[k], axR[k], cut_sin2))
+                & in_beams(q, p.T[k], axT, cut_sin2) & in_beams(q, p.R[k], axR, cut_sin2))
 
     lo, hi = np.zeros(len(k)), np.asarray(reach, dtype=np.float64).copy()
     whole = inside(hi)
@@ -127,17 +127,26 @@ def _region_end(p: Patch, k: np.ndarray, direction: float, axes: tuple[np.ndarra
     return np.where(whole, reach, lo)
 
 
+#: The union of regions of constant depth is taken over this many detections at each end
+#: of a patch (those whose reflection points lie nearest that end).
+END_DETECTIONS = 8
+
+
 def extents(p: Patch, sensors: SensorArray, cut_sin2: float, resolution: float
             ) -> tuple[float, float]:
     """``(lo, hi)``: the union of the patch's detections' regions of constant depth (module
-    docstring) along its carrier."""
-    k = np.arange(len(p.u))
-    axes = (sensors.axes[p.tx], sensors.axes[p.rx])
+    docstring) along its carrier, from the :data:`END_DETECTIONS` detections nearest each
+    end."""
+    order = np.argsort(p.u, kind="stable")
+    m = min(END_DETECTIONS, len(order))
+    k = np.concatenate([order[:m], order[-m:]])
+    direction = np.r_[-np.ones(m), np.ones(m)]
+    axes = (sensors.axes[p.tx[k]], sensors.axes[p.rx[k]])
     scale = 1.0 if p.straight else 1.0 / abs(curve_geometry(p.params, p.x0)[1])
-    reach = np.minimum(p.paths * scale, math.pi / 2 if not p.straight else np.inf)
-    below = p.u - _region_end(p, k, -1.0, axes, cut_sin2, resolution, reach)
-    above = p.u + _region_end(p, k, 1.0, axes, cut_sin2, resolution, reach)
-    return float(below.min()), float(above.max())
+    reach = np.minimum(p.paths[k] * scale, math.pi / 2 if not p.straight else np.inf)
+    ends = p.u[k] + direction * _region_end(p, k, direction, axes, cut_sin2, resolution,
+                                            reach)
+    return float(ends[:m].min()), float(ends[m:].max())
 
 
 def patch_of(f: Family, loci: Loci) -> Patch:

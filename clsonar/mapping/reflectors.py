@@ -31,6 +31,7 @@ from ..sensors import SensorArray
 from .families import MIN_FAMILY, Family, Window, find_families, window_tolerance
 from .joins import draw_families
 from .loci import Loci, _subset
+from .models import dot2
 from .patches import Patches
 from .tangents import tangent_points
 
@@ -54,8 +55,8 @@ def linear_groups(sensors: SensorArray) -> dict[int, tuple[np.ndarray, np.ndarra
             continue
         centre = pos.mean(axis=0)
         _, _, vt = np.linalg.svd(pos - centre, full_matrices=False)
-        along = (pos - centre) @ vt[0]
-        across = np.abs((pos - centre) @ vt[1]) if len(vt) > 1 else np.zeros(len(pos))
+        along = dot2(pos - centre, vt[0])
+        across = np.abs(dot2(pos - centre, vt[1])) if len(vt) > 1 else np.zeros(len(pos))
         length = float(along.max() - along.min())
         if length > 0 and across.max() <= min(LINEAR_TOL_M, LINEAR_TOL_SHARE * length + 1e-9):
             out[int(g)] = (centre, vt[0])
@@ -99,8 +100,8 @@ def _windows(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
     """The stretches of one linear array (module docstring) with the detections of the
     pairs inside each."""
     pos = sensors.positions
-    sT = (pos[loci.tx[rows]] - origin) @ direction
-    sR = (pos[loci.rx[rows]] - origin) @ direction
+    sT = dot2(pos[loci.tx[rows]] - origin, direction)
+    sR = dot2(pos[loci.rx[rows]] - origin, direction)
     lo, hi = float(min(sT.min(), sR.min())), float(max(sT.max(), sR.max()))
     count = max(1, math.ceil((hi - lo) / (0.5 * WINDOW_M)) - 1)
     starts = (np.linspace(lo, max(lo, hi - WINDOW_M), count) if hi - lo > WINDOW_M
