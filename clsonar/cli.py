@@ -27,14 +27,18 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
-from . import outputs, pipeline
 from .errors import ClsonarError
 from .opencl import PRECISIONS
-from .tools import bench, reproduce, zoo
+from .presets import PRESETS
+from .skips import SKIP_NAMES, Skips
+from .tools import defaults
 from .tools.progress import ProgressLine
+from .tools.zoo.thresholds import KINDS as ZOO_KINDS
 from .version import __version__
 
 if TYPE_CHECKING:
+    from .pipeline import RunResult
+
     Subparsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
 
 EXIT_USAGE = 2
@@ -66,14 +70,14 @@ def _add_run(sub: Subparsers) -> None:
                                    "stages.npz, profile.csv, echoes.csv and PNGs into DIR.")
     p.add_argument("scene", metavar="SCENE.json")
     _out_arg(p)
-    p.add_argument("--preset", choices=tuple(pipeline.PRESETS),
+    p.add_argument("--preset", choices=tuple(PRESETS),
                    help="detection/mapping/post settings: the thesis' methods or ours "
                         "(default: the scene file's settings, which default to ours)")
     _device_args(p)
     p.add_argument("--no-skip", action="append", default=[], metavar="WORK",
-                   choices=("all", *pipeline.SKIP_NAMES),
+                   choices=("all", *SKIP_NAMES),
                    help="do work the scene does not need anyway (to measure what skipping "
-                        f"saves; the output is the same): {', '.join(pipeline.SKIP_NAMES)} "
+                        f"saves; the output is the same): {', '.join(SKIP_NAMES)} "
                         "or all; "
                         "repeatable")
     _quiet_arg(p)
@@ -87,8 +91,8 @@ def _add_reproduce(sub: Subparsers) -> None:
                                    "with thesis-faithful and best settings; writes "
                                    "reproduce.md, reproduce.json and PNGs into DIR.")
     _out_arg(p)
-    p.add_argument("--seeds", type=int, default=reproduce.DEFAULT_SEEDS,
-                   help=f"runs per experiment (default {reproduce.DEFAULT_SEEDS})")
+    p.add_argument("--seeds", type=int, default=defaults.REPRODUCE_SEEDS,
+                   help=f"runs per experiment (default {defaults.REPRODUCE_SEEDS})")
     p.add_argument("--scenes", metavar="DIR", help="scene folder (default: the bundled ones)")
     _scheduler_arg(p, "the trials ")
     _device_args(p)
@@ -106,14 +110,14 @@ def _add_bench(sub: Subparsers) -> None:
     p.add_argument("--scenes", metavar="NAMES",
                    help="comma-separated bundled scene names (default: the thesis' shapes "
                         "and two rooms)")
-    p.add_argument("--repeat", type=int, default=bench.DEFAULT_REPEAT,
-                   help=f"timed runs, best kept (default {bench.DEFAULT_REPEAT})")
+    p.add_argument("--repeat", type=int, default=defaults.BENCH_REPEAT,
+                   help=f"timed runs, best kept (default {defaults.BENCH_REPEAT})")
     p.add_argument("--no-numpy", action="store_true",
                    help="skip the NumPy baseline (slow on large maps)")
-    p.add_argument("--floors", default=_sizes(bench.DEFAULT_FLOORS), metavar="SIZES",
+    p.add_argument("--floors", default=_sizes(defaults.BENCH_FLOORS), metavar="SIZES",
                    help="comma-separated sizes (m) of multi-room floors mapped at 1 cm, each "
                         "in its own process with its peak memory (default "
-                        f"{_sizes(bench.DEFAULT_FLOORS)}; '' for none; 100 is 10^8 cells)")
+                        f"{_sizes(defaults.BENCH_FLOORS)}; '' for none; 100 is 10^8 cells)")
     p.add_argument("--zoo", action="store_true",
                    help="also run the scene zoo with the default settings (a few minutes; "
                         "zoo.md and zoo.json in DIR)")
@@ -131,7 +135,7 @@ def _add_zoo(sub: Subparsers) -> None:
     _out_arg(p)
     p.add_argument("--seed", type=int, default=0, help="seed of the zoo (default 0)")
     p.add_argument("--kinds", metavar="KINDS",
-                   help=f"comma-separated kinds to run (default all: {','.join(zoo.KINDS)})")
+                   help=f"comma-separated kinds to run (default all: {','.join(ZOO_KINDS)})")
     p.add_argument("--write-scenes", action="store_true",
                    help="also write every scene file into DIR/scenes/")
     p.add_argument("--baseline", metavar="ZOO.json",
@@ -221,13 +225,14 @@ def _sizes(values: Sequence[float]) -> str:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    from . import outputs, pipeline
     from .scene import load_scene
 
     scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
     outputs.check_out(args.out)  # and so does an --out that cannot be written
-    names = pipeline.SKIP_NAMES
+    names = SKIP_NAMES
     off = names if "all" in args.no_skip else args.no_skip
-    skips = pipeline.Skips(**{name: name not in off for name in names})
+    skips = Skips(**{name: name not in off for name in names})
     line = ProgressLine(not args.quiet)
     try:
         result = pipeline.run(scene, device=args.device, preset=args.preset,
@@ -246,9 +251,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_run_summary(result: pipeline.RunResult, out: str, paths: list[Path]) -> None:
+def _print_run_summary(result: RunResult, out: str, paths: list[Path]) -> None:
     """What ``clsonar run`` found and wrote, in three lines (four when settings were chosen
     from the scene)."""
+    from . import outputs
+
     m = result.metrics
     rms, acc, done = (outputs.metric(m, k) for k in ("rms_m", "accuracy_m.rms", "completeness.2cm"))
     print(f"{result.scene.name}: {result.counts['echoes']} echoes, "
@@ -265,7 +272,7 @@ def _print_run_summary(result: pipeline.RunResult, out: str, paths: list[Path]) 
     print(f"  outputs in {out}/: " + ", ".join(p.name for p in paths))
 
 
-def _chosen_settings(result: pipeline.RunResult) -> str:
+def _chosen_settings(result: RunResult) -> str:
     """``settings chosen for ring poses inside a closed room: post.fit walls, …`` (empty
     when the file or a preset gave them all)."""
     auto = {k: why.removeprefix("auto: ") for k, why in result.settings_why.items()
@@ -281,6 +288,8 @@ def _chosen_settings(result: pipeline.RunResult) -> str:
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
+    from .tools import reproduce
+
     if args.seeds < 1:
         raise ClsonarError(f"--seeds must be >= 1, not {args.seeds}")
     client = None
@@ -302,10 +311,10 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
 
 
 def _bench_names(scenes: str | None) -> tuple[str, ...]:
-    """The bundled scenes ``--scenes`` names (default: :data:`bench.DEFAULT_SCENES`)."""
+    """The bundled scenes ``--scenes`` names (default: ``tools.defaults.BENCH_SCENES``)."""
     from .files import bundled_scenes
 
-    names = tuple(n.strip() for n in scenes.split(",")) if scenes else bench.DEFAULT_SCENES
+    names = tuple(n.strip() for n in scenes.split(",")) if scenes else defaults.BENCH_SCENES
     missing = [n for n in names if not (bundled_scenes() / f"{n}.json").is_file()]
     if missing:
         raise ClsonarError(f"--scenes: no bundled scene {', '.join(missing)}")
@@ -326,14 +335,16 @@ def _bench_floors(floors: str) -> tuple[float, ...]:
 def _bench_command(args: argparse.Namespace) -> str:
     """The ``clsonar bench`` command line that regenerates the report (defaults left out)."""
     given = (("--scenes", args.scenes or None, None),
-             ("--floors", args.floors, _sizes(bench.DEFAULT_FLOORS)),
-             ("--repeat", args.repeat, bench.DEFAULT_REPEAT))
+             ("--floors", args.floors, _sizes(defaults.BENCH_FLOORS)),
+             ("--repeat", args.repeat, defaults.BENCH_REPEAT))
     return f"clsonar bench --out {args.out}" + "".join(
         f" {flag} {shlex.quote(str(value))}" for flag, value, default in given
         if value != default) + (" --zoo" if getattr(args, "zoo", False) else "")
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
+    from .tools import bench
+
     if args.repeat < 1:
         raise ClsonarError(f"--repeat must be >= 1, not {args.repeat}")
     names = _bench_names(args.scenes)
@@ -353,12 +364,12 @@ def _cmd_bench(args: argparse.Namespace) -> int:
 def _zoo_kinds(kinds: str | None) -> tuple[str, ...]:
     """The kinds ``--kinds`` names (default: every kind of the zoo)."""
     if not kinds:
-        return zoo.KINDS
+        return ZOO_KINDS
     names = tuple(k.strip() for k in kinds.split(",") if k.strip())
-    unknown = [k for k in names if k not in zoo.KINDS]
+    unknown = [k for k in names if k not in ZOO_KINDS]
     if unknown or not names:
         raise ClsonarError(f"--kinds: no zoo kind {', '.join(unknown) or repr(kinds)} "
-                           f"(kinds: {', '.join(zoo.KINDS)})")
+                           f"(kinds: {', '.join(ZOO_KINDS)})")
     return names
 
 

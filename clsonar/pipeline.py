@@ -39,6 +39,8 @@ from .scene import (
 )
 from .sensors import SensorArray, pairs, place_sensors
 from .signals import Detections
+from .skips import SKIP_NAMES as SKIP_NAMES  # re-exported: pipeline.SKIP_NAMES
+from .skips import Skips
 from .survey import Survey, choose_settings, survey
 from .version import __version__
 
@@ -107,37 +109,6 @@ class RunResult:
             "metrics": self.metrics,
             "warnings": list(self.warnings),
         }
-
-
-@dataclass(frozen=True)
-class Skips:
-    """Work the pipeline leaves out because the scene does not need it; none of it changes
-    the result. A switch set False does that work anyway, so ``clsonar bench`` can show
-    what each saves; ``report.json`` counts what was skipped (``counts``)."""
-
-    #: echoes: pairs whose beams meet no surface are not evaluated (echoes.pairs_in_view)
-    empty_pairs: bool = True
-    #: detection: noise-free pairs without an echo are not scanned (signals.scanned_slots)
-    silent_pairs: bool = True
-    #: detection: in a noise-free scene only the chunks of samples an echo reaches are
-    #: synthesised and scanned (the rest of every signal is exactly 0)
-    quiet_samples: bool = True
-    #: accumulation: loci drawn tile by tile, empty tiles skipped (mapping.accumulate)
-    tiles: bool = True
-    #: post-processing: only the box of the voted cells is filtered and thinned
-    #: (post.voted_box; line of sight's own pass too)
-    empty_cells: bool = True
-    #: separate closed rooms mapped one by one (regions.split_rooms): no pair across rooms,
-    #: no wall of another room, no cell outside every room
-    rooms: bool = True
-
-    @classmethod
-    def none(cls) -> Skips:
-        """Every switch off: the work a scene does not need is done anyway."""
-        return cls(**{f.name: False for f in dataclasses.fields(cls)})
-
-
-SKIP_NAMES = tuple(f.name for f in dataclasses.fields(Skips))
 
 
 class StageCache:

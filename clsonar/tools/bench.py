@@ -42,6 +42,7 @@ from ..files import write_atomic
 from ..outputs import metric, require_plots
 from ..pipeline import STAGES
 from ..scene import Scene, load_scene
+from .defaults import BENCH_FLOORS, BENCH_REPEAT, BENCH_SCENES
 from .floors import FloorRow, bench_floor
 from .markdown import NONE, cm, percent
 from .progress import Progress
@@ -56,18 +57,12 @@ from .tradeoff import (
 )
 from .zoo.report import summary_markdown, zoo_report
 
-#: The scenes benchmarked by default: the thesis' shapes at their first distance and rooms.
-DEFAULT_SCENES = ("plane-2m", "corner-4m", "edge-1m", "cylinder-2.1m", "sinusoid-1m", "room",
-                  "room-cylinder")
+DEFAULT_SCENES = BENCH_SCENES  # tools/defaults.py
 
 #: Settings compared in the pipeline table: the thesis' methods, and the scene's own (ours).
 SETTINGS = (("thesis", "thesis"), ("best", None))
 
-#: Timed runs of each measurement (the best is kept).
-DEFAULT_REPEAT = 3
-
-#: Sizes in metres of the multi-room floors mapped by default (:mod:`clsonar.tools.floors`).
-DEFAULT_FLOORS = (50.0,)
+DEFAULT_REPEAT, DEFAULT_FLOORS = BENCH_REPEAT, BENCH_FLOORS
 
 T = TypeVar("T")
 

@@ -36,6 +36,7 @@ from ..files import bundled_scenes, write_atomic
 from ..outputs import metric, require_plots
 from ..pipeline import PRESETS
 from ..scene import Scene, load_scene
+from .defaults import REPRODUCE_SEEDS
 from .markdown import NONE, cm, percent
 from .progress import Progress
 from .sweep import Run, RunTable, make_run, run_dask, run_local
@@ -87,8 +88,7 @@ ROOMS = (
 #: Distance of the noise curves (thesis: 5 m for both).
 NOISE_DISTANCE_M = 5.0
 
-#: Runs per experiment (placement and noise seeds 0, 1, … added to the scene's).
-DEFAULT_SEEDS = 5
+DEFAULT_SEEDS = REPRODUCE_SEEDS  # tools/defaults.py
 
 
 @dataclass(frozen=True)
