@@ -23,11 +23,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..geometry import inside_polygon
 from ..physics import MAX_FOCUS_GAIN
-from ..scene import Polyline, Scene
+from ..scene import Scene
 from ..scene.settings import chosen
 from ..sensors import SensorArray
+from ..survey import in_a_room
 from .families import MIN_FAMILY, Family, Window, find_families, window_tolerance
 from .joins import draw_families
 from .loci import Loci, _subset
@@ -61,16 +61,6 @@ def linear_groups(sensors: SensorArray) -> dict[int, tuple[np.ndarray, np.ndarra
         if length > 0 and across.max() <= min(LINEAR_TOL_M, LINEAR_TOL_SHARE * length + 1e-9):
             out[int(g)] = (centre, vt[0])
     return out
-
-
-def in_a_room(scene: Scene, sensors: SensorArray) -> bool:
-    """Whether every transducer lies inside one closed polyline (a room)."""
-    for s in scene.surfaces:
-        if isinstance(s, Polyline) and s.closed and len(sensors):
-            poly = np.asarray(s.points, dtype=np.float64)
-            if inside_polygon(poly, sensors.positions).all():
-                return True
-    return False
 
 
 #: The search over all arrays together gives up after this many seeds in a row grew no
@@ -171,7 +161,7 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
     """The points, their loci and the located vertices (:class:`~.patches.Patches`) of
     every linear array's families, and the tangent points of the other groups' detections
     and of those no family explains."""
-    arrays = {} if in_a_room(scene, sensors) else linear_groups(sensors)
+    arrays = {} if in_a_room(scene, sensors.positions) else linear_groups(sensors)
     families, left = _families(scene, sensors, loci, arrays)
     drawn = draw_families(scene, sensors, loci, families)
     others = np.flatnonzero(~np.isin(sensors.groups[loci.tx], list(arrays)))
