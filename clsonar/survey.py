@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from .geometry import inside_polygon
-from .scene import Polyline, Scene
-from .sensors import SensorArray
+from .geometry import build_geometry, inside_polygon
+from .scene import Polyline, Scene, WallFollowing
+from .sensors import SensorArray, square_to_walls
 
 #: A group is a ring when its elements' distances from their centre agree within this
 #: share, the ring is at most :data:`MAX_RING_RADIUS_M` across, and every element faces
@@ -164,8 +164,10 @@ def survey(scene: Scene, sensors: SensorArray) -> Survey:
 def choose_settings(scene: Scene, found: Survey, given: str = "file"
                     ) -> tuple[Scene, dict[str, str]]:
     """``scene`` with every setting of :data:`AUTO_KEYS` it leaves out (None) chosen for
-    the kind of scan ``found`` (:data:`CHOICES`), and, per setting, why its value was used:
-    ``"auto: <kind>"`` or ``given`` (where the file, or a preset, set it)."""
+    the kind of scan ``found`` (:data:`CHOICES`), and a wall-following ring's heading
+    square to the walls (:func:`~clsonar.sensors.square_to_walls`); and, per setting, why
+    its value was used: ``"auto: <kind>"`` or ``given`` (where the file, or a preset, set
+    it)."""
     why: dict[str, str] = {}
     auto = f"auto: {found.kind}"
 
@@ -180,5 +182,14 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file"
                     changes[name] = CHOICES[found.kind][key]
         return dataclasses.replace(settings, **changes)
 
-    return dataclasses.replace(scene, mapping=filled(scene.mapping, "mapping"),
-                               post=filled(scene.post, "post")), why
+    scene = dataclasses.replace(scene, mapping=filled(scene.mapping, "mapping"),
+                                post=filled(scene.post, "post"))
+    placement = scene.sensors.placement
+    if isinstance(placement, WallFollowing):
+        unset = placement.start_deg is None
+        why["sensors.placement.start_deg"] = "auto: square to the walls" if unset else given
+        if unset:
+            start = square_to_walls(build_geometry(scene), placement.elements)
+            scene = dataclasses.replace(scene, sensors=dataclasses.replace(
+                scene.sensors, placement=dataclasses.replace(placement, start_deg=start)))
+    return scene, why

@@ -26,6 +26,7 @@ from clsonar.sensors import (
     place_sensors,
     place_wall_following,
     ring,
+    square_to_walls,
     wall_following_path,
     wall_following_substep,
 )
@@ -246,7 +247,8 @@ def _check_wall_following(scene, geom, p: WallFollowing, result):
     np.testing.assert_array_equal(groups, np.repeat(np.arange(g), p.elements))
     # each pose a thesis ring around its centre
     for k in (0, g // 2, g - 1):
-        rp, rh = ring(tuple(poses[k]), p.radius_m, p.elements, p.start_deg)
+        start = square_to_walls(geom, p.elements) if p.start_deg is None else p.start_deg
+        rp, rh = ring(tuple(poses[k]), p.radius_m, p.elements, start)
         np.testing.assert_allclose(pos[groups == k], rp)
         np.testing.assert_allclose(head[groups == k], rh)
     # at the clearance, in free space, never behind a wall

@@ -104,8 +104,6 @@ def test_the_zoo_is_deterministic_for_a_seed():
 # --------------------------------------------------------------------------- the fast subset
 
 _T_ROOM = "issue 14 item 2: the T room's rings map it at 0.68 cm (the stubs of its T)"
-_WIDE = ("issue 14 item 2: a ring path in a 2.7 m corridor maps the walls (0.04 cm) but not "
-         "the insonified stretches (0 % within 3 cm)")
 _POINT = "issue 14 item 2: loci that cross at a corner or edge are drawn as arcs"
 _POST = ("issue 14 item 2: a thin post 1 m from an array gives no reflector to the "
          "reflectors mapping (tangent points drew 5 points, 1.8 cm off)")
@@ -114,10 +112,11 @@ _POST = ("issue 14 item 2: a thin post 1 m from an array gives no reflector to t
 FAST: dict[str, dict[str, str | None]] = {
     "room-00-rect-wall-following": dict.fromkeys(CRITERIA),
     "room-04-rect-rings": dict.fromkeys(CRITERIA),
+    "room-15-T-wall-following": dict.fromkeys(CRITERIA),
     "room-19-T-rings": {**dict.fromkeys(CRITERIA), "accuracy": _T_ROOM},
     "room-10-U-per-wall": {"map": None, "accuracy": None, "completeness": None},
     "corridor-00-24x2.0m": dict.fromkeys(CRITERIA[:3]),
-    "corridor-03-11x2.7m": {"map": None, "accuracy": None, "completeness": _WIDE},
+    "corridor-03-11x2.7m": dict.fromkeys(CRITERIA[:3]),
     "wall-09-arrays": {"map": None, "accuracy": None, "completeness": None},
     "wall-04-arrays": {"map": None, "accuracy": None, "completeness": None},
     "wall-05-arrays": {"map": None, "accuracy": None, "completeness": None},
@@ -153,7 +152,7 @@ def _params():
 def test_the_fast_subset_covers_every_kind_and_scan():
     fast = [cases()[n] for n in FAST]
     assert {c.kind for c in fast} == set(KINDS) and {c.scan for c in fast} == set(SCANS)
-    assert 12 <= len(fast) <= 16 and any(c.noise for c in fast)
+    assert 12 <= len(fast) <= 18 and any(c.noise for c in fast)
     for name, expected in FAST.items():
         assert set(expected) <= set(cases()[name].criteria), name
 

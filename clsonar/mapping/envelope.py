@@ -26,6 +26,10 @@ ENVELOPE_ARC_BIAS_M = 0.001
 ENVELOPE_MAX_ALONG = math.cos(math.radians(30.0))
 
 
+#: Transducers whose axes are this close (cosine of 1°) face the same way.
+_SAME_HEADING_COS = math.cos(math.radians(1.0))
+
+
 def in_beams(p: np.ndarray, sensor: np.ndarray, axis: np.ndarray,
              cut_sin2: float) -> np.ndarray:
     """Whether points ``p`` [..., 2] lie in the beam of a transducer at ``sensor`` with unit
@@ -82,8 +86,10 @@ def _partner(s: _Scan, i: int, others: list[int] | None) -> int | None:
 def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: np.ndarray,
                     dr: float, centred: bool) -> list[EnvelopePoint]:
     """The envelope point from loci i and j, credited to i (``centred``: at i's pose) or to
-    both (midway); none unless it lies in both beams and is no nearer to either transducer
-    than its range (the distance to the nearest point of the surface it came from)."""
+    both (midway); none unless it lies in both beams (at i's pose, j's beam is not needed
+    when j's transducer faces the same way: the ring moved without turning) and is no
+    nearer to either transducer than its range (the distance to the nearest point of the
+    surface it came from)."""
     length = float(np.hypot(*d))
     along = -r * dr / length if length > 0 else np.inf
     if abs(along) > ENVELOPE_MAX_ALONG * r:
@@ -93,29 +99,64 @@ def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: n
     if v @ s.axes[s.loci.tx[i]] < 0:
         v = -v
     q = centre + along * u + np.sqrt(r * r - along * along) * v
+    # a point at i's pose need not be in the beam of j's transducer moved without turning
+    # (the poses far apart for its range)
+    straight = s.axes[s.loci.tx[i]] @ s.axes[s.loci.tx[j]] >= _SAME_HEADING_COS
     for k in (i, j):
         t = s.pos[s.loci.tx[k]]
         if (np.hypot(*(q - t)) < s.ranges[k] - ENVELOPE_TOL_M
-                or not in_beams(q, t, s.axes[s.loci.tx[k]], s.cut_sin2)):
+                or not (in_beams(q, t, s.axes[s.loci.tx[k]], s.cut_sin2)
+                        or (k == j and centred and straight))):
             return []
     return [(k, centre, r, q) for k in ((i,) if centred else (i, j))]
 
 
 def _pose_points(s: _Scan, i: int, before: int | None, after: int | None
-                 ) -> list[EnvelopePoint]:
-    """Locus ``i``'s envelope points: at its pose from the poses ``before`` and ``after``,
-    and midway to the pose after."""
-    out: list[EnvelopePoint] = []
+                 ) -> tuple[list[EnvelopePoint], list[EnvelopePoint], bool]:
+    """Locus ``i``'s envelope points: at its pose from the poses ``before`` and ``after``
+    (from the one of them there is at a stretch's end: ``True``, first order, exact for a
+    plane), and midway to the pose after."""
+    at: list[EnvelopePoint] = []
+    midway: list[EnvelopePoint] = []
     pos, tx, ranges = s.pos, s.loci.tx, s.ranges
     t = pos[tx[i]]
-    if before is not None and after is not None:
-        out += _envelope_point(s, i, after, t, ranges[i], pos[tx[after]] - pos[tx[before]],
-                               ranges[after] - ranges[before], centred=True)
+    one_sided = (before is None) != (after is None)
+    if before is not None or after is not None:
+        a = i if after is None else after
+        b = i if before is None else before
+        at = _envelope_point(s, i, a, t, ranges[i], pos[tx[a]] - pos[tx[b]],
+                             ranges[a] - ranges[b], centred=True)
     if after is not None:
         ta = pos[tx[after]]
-        out += _envelope_point(s, i, after, 0.5 * (t + ta), 0.5 * (ranges[i] + ranges[after]),
-                               ta - t, ranges[after] - ranges[i], centred=False)
-    return out
+        midway = _envelope_point(s, i, after, 0.5 * (t + ta),
+                                 0.5 * (ranges[i] + ranges[after]), ta - t,
+                                 ranges[after] - ranges[i], centred=False)
+    return at, midway, one_sided
+
+
+#: An element's envelope points in scan order: ``(place, points, one-sided)``.
+ElementScan = list[tuple[int, list[EnvelopePoint], bool]]
+
+
+def _element_scans(scene: Scene, sensors: SensorArray, loci: Loci) -> list[ElementScan]:
+    """Per element of the ring, its envelope points in scan order: ``(place, points,
+    one_sided)`` with place 2·g at pose g and 2·g + 1 midway from pose g to g + 1 (a
+    midway point credited to both of its loci; see :func:`_pose_points`)."""
+    loci = as_loci(loci)
+    ranges = 0.5 * scene.medium.c * loci.tof_s
+    by_key = _first_echoes(sensors, loci, ranges)
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+    s = _Scan(loci, ranges, sensors.positions, sensors.axes, cut_sin2)
+    scans: dict[int, ElementScan] = {}
+    for (g, e), members in sorted(by_key.items()):
+        for i in members:
+            at, midway, one_sided = _pose_points(
+                s, i, _partner(s, i, by_key.get((g - 1, e))),
+                _partner(s, i, by_key.get((g + 1, e))))
+            scan = scans.setdefault(e, [])
+            scan += [(2 * g, at, one_sided)] if at else []
+            scan += [(2 * g + 1, midway, False)] if midway else []
+    return list(scans.values())
 
 
 def scan_envelope(scene: Scene, sensors: SensorArray, loci
@@ -138,18 +179,94 @@ def scan_envelope(scene: Scene, sensors: SensorArray, loci
     point is credited to (a midway point to both of its loci), the (possibly midway)
     locus circle and the envelope point on it.
     """
-    loci = as_loci(loci)
-    ranges = 0.5 * scene.medium.c * loci.tof_s
-    by_key = _first_echoes(sensors, loci, ranges)
-    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
-    s = _Scan(loci, ranges, sensors.positions, sensors.axes, cut_sin2)
-    out: list[EnvelopePoint] = []
-    for (g, e), members in by_key.items():
-        for i in members:
-            out += _pose_points(s, i, _partner(s, i, by_key.get((g - 1, e))),
-                                _partner(s, i, by_key.get((g + 1, e))))
+    out = [p for scan in _element_scans(scene, sensors, loci)
+           for _, points, one_sided in scan if not one_sided for p in points]
     if not out:
         return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2))
     idx, centre, radius, point = zip(*out, strict=True)
     return (np.asarray(idx, np.int64), np.asarray(centre), np.asarray(radius),
             np.asarray(point))
+
+
+#: Consecutive envelope points of one element are joined by a straight stretch when their
+#: normals, and the chord between them, agree with one plane within this angle ...
+LINK_DEG = 3.0
+
+#: ... and the surface their motion implies stays within this of the chord between them.
+LINK_SAGITTA_M = 0.001
+
+
+def _flat(a: EnvelopePoint, b: EnvelopePoint) -> bool:
+    """Whether envelope points ``a`` and ``b`` lie on one plane: their normals (from their
+    locus circles' centres) and the chord between them within :data:`LINK_DEG`, and the
+    chord what the scan's motion sweeps on a surface that bends by at most
+    :data:`LINK_SAGITTA_M` over it. The envelope point of a plane moves with the
+    transducer's motion along the plane, Δq = Δc − (Δc·n)·n; of a surface of radius R at
+    range ρ, k = |Δq|/|Δc − (Δc·n)·n| = R/(R + ρ) (k → 0 for a corner or an edge,
+    whose envelope points stay put), so R = ρ·k/|1 − k| and the chord's sagitta is
+    |Δq|²/(8R)."""
+    na = (a[3] - a[1]) / a[2]
+    nb = (b[3] - b[1]) / b[2]
+    chord = b[3] - a[3]
+    length = float(np.hypot(*chord))
+    tol = math.sin(math.radians(LINK_DEG))
+    cross = na[0] * nb[1] - na[1] * nb[0]
+    if not (na @ nb > 0 and abs(cross) <= tol and abs(chord @ na) <= tol * length
+            and abs(chord @ nb) <= tol * length):
+        return False
+    n = (na + nb) / np.hypot(*(na + nb))
+    moved = (b[1] - a[1]) - ((b[1] - a[1]) @ n) * n
+    if chord @ moved <= 0:
+        return False
+    k = length / float(np.hypot(*moved))
+    rho = 0.5 * (a[2] + b[2])
+    return length * length * abs(1.0 - k) <= 8.0 * rho * k * LINK_SAGITTA_M
+
+
+def _chains(scan: ElementScan) -> list[list[EnvelopePoint]]:
+    """The runs of consecutive envelope points of one element (no pose between them
+    without one) that lie on one plane (:func:`_flat`) and hold two or more points from
+    central differences (a run's one-sided ends alone do not tell a plane from a corner
+    seen from afar); a midway point as its later locus'."""
+    chains: list[list[EnvelopePoint]] = []
+    run: list[tuple[EnvelopePoint, bool]] = []
+    last = None
+    for place, points, one_sided in scan:
+        p = points[-1]
+        if not (last is not None and place - last <= 2 and run and _flat(run[-1][0], p)):
+            if sum(not o for _, o in run) >= 2:
+                chains.append([q for q, _ in run])
+            run = []
+        run.append((p, one_sided))
+        last = place
+    if sum(not o for _, o in run) >= 2:
+        chains.append([q for q, _ in run])
+    return chains
+
+
+def envelope_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """The plane between consecutive envelope points of one element (at a pose, midway to
+    the next, at the next pose; the midway point may be missing, out of a beam) where they
+    lie on one plane: the region of constant depth that the scan swept (Leonard &
+    Durrant-Whyte 1992), located as exactly as the envelope points. Each run goes on past
+    its end points as far as their loci stay within ``bias`` of the plane,
+    ±sqrt(2·ρ·bias), as an isolated locus' arc does (:func:`~.tangents.tangent_points`).
+    Returns ``(points [m, 2], loci [m, 2])``: samples every ``step`` and the loci at both
+    ends of the stretch each lies on."""
+    points, ends = [], []
+    for scan in _element_scans(scene, sensors, loci):
+        for run in _chains(scan):
+            q = np.array([p[3] for p in run])
+            first, last = q[0] - q[1], q[-1] - q[-2]
+            q = np.r_[q[:1] + first / np.hypot(*first) * math.sqrt(2.0 * run[0][2] * bias),
+                      q, q[-1:] + last / np.hypot(*last) * math.sqrt(2.0 * run[-1][2] * bias)]
+            run = [run[0], *run, run[-1]]
+            for k in range(len(run) - 1):
+                n = max(2, math.ceil(math.hypot(*(q[k + 1] - q[k])) / step) + 1)
+                t = np.linspace(0.0, 1.0, n)[:, None]
+                points.append(q[k] + t * (q[k + 1] - q[k]))
+                ends.append(np.tile([run[k][0], run[k + 1][0]], (n, 1)))
+    if not points:
+        return np.zeros((0, 2)), np.zeros((0, 2), np.int64)
+    return np.concatenate(points), np.concatenate(ends).astype(np.int64)

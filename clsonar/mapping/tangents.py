@@ -11,7 +11,7 @@ import numpy as np
 
 from ..scene import Scene
 from ..sensors import SensorArray
-from .envelope import ENVELOPE_ARC_BIAS_M, in_beams, scan_envelope
+from .envelope import ENVELOPE_ARC_BIAS_M, envelope_links, in_beams, scan_envelope
 from .loci import Loci, as_loci
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
@@ -20,6 +20,9 @@ TANGENT_BIAS_M = 0.002
 
 #: Samples of each locus (an ellipse with foci T and R) searched for crossings: 0.25°.
 LOCUS_SAMPLES = 1440
+
+#: Spacing of the samples of a stretch between envelope points, metres.
+LINK_STEP_M = 0.002
 
 #: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
 _ARC_MARGIN = 2
@@ -219,6 +222,11 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
     for locus, arc in zip(isolated, arcs, strict=True):
         found.append(arc)
         source.append(np.full(len(arc), locus))
+    if len(isolated):
+        points, ends = envelope_links(scene, sensors, loci, LINK_STEP_M, isolated_bias_m)
+        keep = np.isin(ends, isolated).all(axis=1)
+        found.append(points[keep])
+        source.append(ends[keep, 0])
     if not found:
         return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
     return np.concatenate(found), np.concatenate(source).astype(np.int64)

@@ -127,7 +127,7 @@ class WallFollowing:
     clearance_m: float = 0.5
     radius_m: float = 0.065
     elements: int = 8
-    start_deg: float = 0.0
+    start_deg: float | None = None  # None: square to the walls (rings.square_to_walls)
     direction: WallDirection = "ccw"
     max_poses: int = 2000
     type: Literal["wall-following"] = "wall-following"

@@ -286,7 +286,7 @@ def _read_wall_following(r: JsonReader, d: dict[str, Any], k: str,
         clearance_m=r.number(d, "clearance_m", k, w.clearance_m, gt=0),
         radius_m=r.number(d, "radius_m", k, w.radius_m, ge=0),
         elements=r.integer(d, "elements", k, w.elements, ge=1, le=10000),
-        start_deg=r.number(d, "start_deg", k, w.start_deg),
+        start_deg=r.optional_number(d, "start_deg", k),
         direction=r.literal(d, "direction", k, WallDirection, w.direction),
         max_poses=r.integer(d, "max_poses", k, w.max_poses, ge=1, le=10**6),
     )

@@ -29,6 +29,7 @@ from .rings import (
     place_circular,
     place_wall_following,
     ring,
+    square_to_walls,
     wall_following_path,
     wall_following_substep,
 )
@@ -36,5 +37,5 @@ from .space import Placed, in_free_space
 
 __all__ = ["Placed", "SensorArray", "heading_deg", "in_free_space", "pairs", "per_wall_lines",
            "per_wall_seed", "place_circular", "place_per_wall", "place_random_lines",
-           "place_sensors", "place_wall_following", "ring", "wall_following_path",
-           "wall_following_substep"]
+           "place_sensors", "place_wall_following", "ring", "square_to_walls",
+           "wall_following_path", "wall_following_substep"]

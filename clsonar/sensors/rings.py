@@ -189,13 +189,31 @@ def _substep(geom: Geometry, point: np.ndarray, wall: np.ndarray, sweep: np.ndar
     return nxt, next_wall, step
 
 
+def square_to_walls(geom: Geometry, elements: int) -> float:
+    """The ring heading (``start_deg``) that turns some element square to as much of the
+    walls as it can: a ring of n elements repeats every 360°/n, so the walls' normal
+    angles, taken n times over, are averaged on the circle weighted by length (a rectangular
+    room turned by θ gives θ mod 360°/n; a room whose walls run along x and y gives 0, the
+    thesis' ring). Rounded to 1e-6°."""
+    walls = geom.walls
+    if len(walls) == 0 or elements < 1:
+        return 0.0
+    d = walls[:, 2:] - walls[:, :2]
+    length = np.hypot(d[:, 0], d[:, 1])
+    normal = np.arctan2(d[:, 0], -d[:, 1]) * elements
+    mean = math.atan2(float(length @ np.sin(normal)), float(length @ np.cos(normal)))
+    period = 360.0 / elements
+    return round(math.degrees(mean) / elements % period, 6) % period
+
+
 def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry) -> Placed:
     """Ring poses along the walls, thesis §2.1.2 (see :class:`~clsonar.scene.WallFollowing`).
 
     The ring centre runs along :func:`wall_following_path`; a pose every ``step_m`` of arc
     length, the first at the projected start, the last the last one before the trace is back
     at the start (a pose closer than half a sub-step to the start is dropped). Each pose is
-    a :func:`ring` and its own pair group.
+    a :func:`ring` and its own pair group, its first element at ``start_deg`` or, where
+    the file leaves that out, square to the walls (:func:`square_to_walls`).
 
     Returns ``(positions [G·n, 2], headings_deg, groups, poses [G, 2])``.
     """
@@ -219,9 +237,10 @@ def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry) -> Plac
         guess = closed_path[i] + t * (closed_path[i + 1] - closed_path[i])
         centres.append(_project(geom, guess, p.clearance_m)[0])
     poses = np.asarray(centres).reshape(-1, 2)
+    start_deg = square_to_walls(geom, p.elements) if p.start_deg is None else p.start_deg
     pos, head = [], []
     for centre in poses:
-        rp, rh = ring(tuple(centre), p.radius_m, p.elements, p.start_deg)
+        rp, rh = ring(tuple(centre), p.radius_m, p.elements, start_deg)
         pos.append(rp)
         head.append(rh)
     groups = np.repeat(np.arange(len(poses), dtype=np.int64), p.elements)
