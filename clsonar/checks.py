@@ -2,11 +2,13 @@
 
 A run that completes is never refused for these; each is one line of ``report.json``'s
 ``warnings`` list, and ``clsonar run`` prints it on stderr as ``clsonar: warning: FILE:
-TEXT`` (exit status 0). Two are given:
+TEXT`` (exit status 0). Three are given:
 
 - the scene has a closed polyline inside another one and the file leaves its ``solid``
   unset: it is read as a solid obstacle (a box, a pillar) that reflects on its outside
   (:func:`clsonar.geometry.solid_surfaces`), which the user may not have meant;
+- a ``wall-following`` ring in a room never comes near the room's walls: its start was
+  nearest an obstacle, which it circles instead (:func:`placement_warnings`);
 - the map is empty although echoes were detected: the surfaces heard lie outside the map's
   extent, or the settings lost every detection on the way to the profile (the counters say
   at which stage).
@@ -16,8 +18,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from .geometry import enclosing
-from .scene import Polyline, Scene
+import numpy as np
+
+from .geometry import enclosing, inside_polygon
+from .scene import Polyline, Scene, WallFollowing
 
 
 def scene_warnings(scene: Scene) -> list[str]:
@@ -44,9 +48,42 @@ def result_warnings(counts: Mapping[str, int]) -> list[str]:
             "and post-processing settings do not suit this scene"]
 
 
-def run_warnings(scene: Scene, counts: Mapping[str, int]) -> tuple[str, ...]:
-    """Every warning of a run of ``scene`` with counters ``counts``."""
-    return (*scene_warnings(scene), *result_warnings(counts))
+#: A wall-following trace follows a room's walls when it passes this close to them, beyond
+#: its clearance (metres).
+FOLLOWS_WALLS_M = 0.05
 
 
-__all__ = ["result_warnings", "run_warnings", "scene_warnings"]
+def placement_warnings(scene: Scene, poses: np.ndarray) -> list[str]:
+    """One line when a ``wall-following`` ring (its ``poses``) stands in a room but its
+    trace never comes near the room's walls: it circles the obstacle nearest its start."""
+    p = scene.sensors.placement
+    if not isinstance(p, WallFollowing) or len(poses) == 0:
+        return []
+    for i, s in enumerate(scene.surfaces):
+        if not (isinstance(s, Polyline) and s.closed):
+            continue
+        outline = np.asarray(s.points, dtype=np.float64)
+        if not inside_polygon(outline, np.asarray([p.start], dtype=np.float64))[0]:
+            continue
+        a, b = outline, np.roll(outline, -1, axis=0)
+        d = b - a
+        t = np.clip(np.einsum("mkj,kj->mk", poses[:, None] - a[None], d)
+                    / np.maximum(np.sum(d * d, 1), 1e-300), 0.0, 1.0)
+        gap = np.hypot(*(poses[:, None] - (a[None] + t[..., None] * d[None])).transpose(2, 0, 1))
+        if gap.min() > p.clearance_m + FOLLOWS_WALLS_M:
+            return [f"the wall-following ring circles an obstacle, not the walls of "
+                    f"surfaces[{i}] (it follows the surface nearest its start): move "
+                    f"sensors.placement.start nearer a wall to scan the room"]
+    return []
+
+
+def run_warnings(scene: Scene, counts: Mapping[str, int],
+                 poses: np.ndarray | None = None) -> tuple[str, ...]:
+    """Every warning of a run of ``scene`` with counters ``counts`` (and the sensors'
+    ``poses``, for :func:`placement_warnings`)."""
+    placed = placement_warnings(scene, poses) if poses is not None else []
+    return (*scene_warnings(scene), *placed, *result_warnings(counts))
+
+
+__all__ = ["FOLLOWS_WALLS_M", "placement_warnings", "result_warnings", "run_warnings",
+           "scene_warnings"]

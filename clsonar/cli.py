@@ -281,8 +281,10 @@ def _chosen_settings(result: RunResult) -> str:
         return ""
     values = []
     for key in auto:
-        block, name = key.split(".")
-        values.append(f"{key} {getattr(getattr(result.scene, block), name)}")
+        value: object = result.scene
+        for part in key.split("."):
+            value = getattr(value, part)
+        values.append(f"{key} {value:g}" if isinstance(value, float) else f"{key} {value}")
     kinds = " / ".join(sorted(set(auto.values())))
     return f"settings chosen for {kinds}: " + ", ".join(values)
 

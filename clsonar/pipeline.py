@@ -269,7 +269,7 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
                      profile=profile, metrics=regions.combine_metrics([p.metrics for p in parts]),
                      seconds=seconds, counts=counts, device=device_name(ctx),
                      settings_why=parts[0].settings_why, asked=scene,
-                     warnings=checks.run_warnings(scene, counts))
+                     warnings=checks.run_warnings(scene, counts, sensors.poses))
 
 
 def _add_to_mosaic(maps: dict[str, np.ndarray], r: RunResult, room: regions.Region) -> None:
@@ -401,7 +401,8 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
                                occupied=maps.occupied, thin=maps.thin, profile=profile,
                                metrics=result_metrics, seconds=seconds, counts=counts,
                                point_sums=drawn.point_sums, point_window=drawn.window,
-                               warnings=checks.run_warnings(scene, counts))
+                               warnings=checks.run_warnings(scene, counts,
+                                                            front.sensors.poses))
 
 
 def _reflectors_in(profile: post.Profile, votes: Votes, seen: np.ndarray | None,

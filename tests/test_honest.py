@@ -162,3 +162,24 @@ def test_thesis_preset_maps_a_wall_along_x_as_along_y(angle):
     _bounded(result)
     assert result.metrics["rms_m"] < 0.01
     assert result.metrics["completeness"]["2cm"] > 0.9
+
+
+def test_a_wall_following_ring_that_circles_a_pillar_says_so():
+    """The start nearest a pillar: the trace follows the pillar (as documented), and the run
+    warns that the room's walls were not followed; started near a wall, no warning."""
+    from clsonar.checks import placement_warnings
+    from clsonar.sensors import place_sensors
+
+    def warned(start):
+        scene = scene_from_dict({
+            "clsonar": 1, "name": "pillar", "extent": [0, 0, 7, 5],
+            "surfaces": [{"type": "polyline", "closed": True, "points": ROOM},
+                         {"type": "circle", "center": [3.5, 2.5], "radius": 0.3}],
+            "sensors": {"placement": {"type": "wall-following", "start": start}}})
+        poses = place_sensors(scene, build_geometry(scene)).poses
+        return placement_warnings(scene, poses)
+
+    (line,) = warned([3.5, 3.3])
+    assert line.startswith("the wall-following ring circles an obstacle, not the walls of "
+                           "surfaces[0]")
+    assert warned([1.2, 2.5]) == []

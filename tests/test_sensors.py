@@ -575,3 +575,26 @@ def test_pairs_of_a_placement():
     s = place(scene)
     sizes = np.bincount(s.groups)
     assert len(pairs(s)) == int(np.sum(sizes**2))
+
+
+def _turned(points, deg):
+    a = math.radians(deg)
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    return [list(rot @ (np.asarray(p, float) - 5.0) + 5.0) for p in points]
+
+
+@pytest.mark.parametrize("deg", [0.0, 7.0, -20.0, 33.0])
+def test_wall_following_ring_is_turned_square_to_the_walls(deg):
+    """start_deg left out: a room turned by θ gets rings turned by θ modulo 45°, a box turned
+    otherwise inside it does not move that; the thesis' axis-aligned room keeps 0."""
+    box = {"type": "polyline", "closed": True,
+           "points": _turned([[5.0, 4.0], [5.6, 4.1], [5.5, 4.7], [4.9, 4.6]], deg)}
+    small = [(2, 2), (8, 2), (8, 6), (2, 6)]  # stays inside the extent turned
+    scene, geom, p, result = _wall_following([room(_turned(small, deg)), box],
+                                              start=_turned([[3.0, 3.0]], deg)[0])
+    expected = (deg + 22.5) % 45.0 - 22.5
+    assert square_to_walls(geom, 8) == pytest.approx(expected, abs=1e-6)
+    heads = result[1].reshape(-1, 8)
+    np.testing.assert_allclose((heads[:, 0] - expected + 180) % 360 - 180, 0.0, atol=1e-6)
+    explicit = dataclasses.replace(p, start_deg=5.0)
+    assert place_wall_following(explicit, scene, geom)[1][0] == 5.0

@@ -189,21 +189,33 @@ def _substep(geom: Geometry, point: np.ndarray, wall: np.ndarray, sweep: np.ndar
     return nxt, next_wall, step
 
 
+#: Walls whose normals agree within this (modulo the ring's symmetry) share a heading.
+SQUARE_TOL_DEG = 2.0
+
+
 def square_to_walls(geom: Geometry, elements: int) -> float:
-    """The ring heading (``start_deg``) that turns some element square to as much of the
-    walls as it can: a ring of n elements repeats every 360°/n, so the walls' normal
-    angles, taken n times over, are averaged on the circle weighted by length (a rectangular
-    room turned by θ gives θ mod 360°/n; a room whose walls run along x and y gives 0, the
-    thesis' ring). Rounded to 1e-6°."""
+    """The ring heading (``start_deg``) that turns an element square to the most wall: a
+    ring of n elements repeats every 360°/n, so each wall's normal angle is taken modulo
+    that; the angle shared (within :data:`SQUARE_TOL_DEG`) by the greatest length of wall
+    wins, refined to those walls' length-weighted mean. A room turned by θ gives θ modulo
+    360°/n whatever boxes stand in it; a room whose walls run along x and y gives 0, the
+    thesis' ring. In (−180°/n, 180°/n], rounded to 1e-6°."""
     walls = geom.walls
     if len(walls) == 0 or elements < 1:
         return 0.0
+    period = 360.0 / elements
     d = walls[:, 2:] - walls[:, :2]
     length = np.hypot(d[:, 0], d[:, 1])
-    normal = np.arctan2(d[:, 0], -d[:, 1]) * elements
-    mean = math.atan2(float(length @ np.sin(normal)), float(length @ np.cos(normal)))
-    period = 360.0 / elements
-    return round(math.degrees(mean) / elements % period, 6) % period
+    normal = np.degrees(np.arctan2(d[:, 0], -d[:, 1]))
+
+    def off(a: np.ndarray, b: float) -> np.ndarray:
+        return (a - b + 0.5 * period) % period - 0.5 * period
+
+    share = [float(length[np.abs(off(normal, n)) <= SQUARE_TOL_DEG].sum()) for n in normal]
+    best = float(normal[int(np.argmax(share))])
+    near = np.abs(off(normal, best)) <= SQUARE_TOL_DEG
+    mean = best + float(length[near] @ off(normal[near], best)) / float(length[near].sum())
+    return round(float(off(np.array([mean]), 0.0)[0]), 6) + 0.0
 
 
 def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry) -> Placed:

@@ -3,6 +3,7 @@ a robot's path, ``wall-following``, ``per-wall``)."""
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -52,6 +53,31 @@ def _spot(rng: np.random.Generator, polygon: np.ndarray, keep: float,
         if all(np.hypot(*(p - c)) > r + q + 0.6 for c, q in taken):
             return p
     return None
+
+
+def _nearest_obstacle(p: np.ndarray, extra: list[dict[str, Any]]) -> float:
+    """The distance from ``p`` to the nearest of the obstacles ``extra`` (inf if none)."""
+    out = math.inf
+    for s in extra:
+        if s["type"] == "circle":
+            out = min(out, float(np.hypot(*(p - np.asarray(s["center"])))) - s["radius"])
+        else:
+            out = min(out, float(segment_distance(p, np.asarray(s["points"]))[0]))
+    return out
+
+
+def _follow_start(rng: np.random.Generator, polygon: np.ndarray,
+                  extra: list[dict[str, Any]]) -> np.ndarray:
+    """A ``wall-following`` start for a scan of the room's walls: a random point inside
+    ``polygon`` 0.6–1.2 m from its walls and nearer them than any obstacle (a start nearer
+    a pillar would follow the pillar, as the placement is documented to)."""
+    lo, hi = polygon.min(axis=0), polygon.max(axis=0)
+    while True:
+        p = rng.uniform(lo, hi)
+        d = float(segment_distance(p, polygon)[0])
+        if (inside_polygon(polygon, p[None])[0] and 0.6 <= d <= 1.2
+                and _nearest_obstacle(p, extra) > d + 0.1):
+            return p
 
 
 def obstacles(rng: np.random.Generator, polygon: np.ndarray, keep: float, pillars: int,
@@ -105,9 +131,7 @@ def room(rng: np.random.Generator, index: int) -> Draft:
                  "points": [[float(x), float(y)] for x, y in polygon]}, *extra]
     sensors: dict[str, Any]
     if scan == "wall-following":
-        taken = [(np.asarray(s["center"]), s["radius"]) for s in extra if s["type"] == "circle"]
-        start = _spot(rng, polygon, 0.6, taken, 0.0)
-        assert start is not None
+        start = _follow_start(rng, polygon, extra)
         sensors = {"placement": {"type": "wall-following",
                                  "start": [float(start[0]), float(start[1])],
                                  "step_m": round(float(rng.uniform(0.25, 0.75)), 2)}}
