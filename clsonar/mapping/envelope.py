@@ -196,8 +196,9 @@ LINK_DEG = 3.0
 LINK_SAGITTA_M = 0.001
 
 
-def _flat(a: EnvelopePoint, b: EnvelopePoint) -> bool:
-    """Whether envelope points ``a`` and ``b`` lie on one plane: their normals (from their
+def _link_radius(a: EnvelopePoint, b: EnvelopePoint) -> float | None:
+    """The radius of the surface through envelope points ``a`` and ``b`` (inf for a plane),
+    or None where they do not lie on one nearly flat surface: their normals (from their
     locus circles' centres) and the chord between them within :data:`LINK_DEG`, and the
     chord what the scan's motion sweeps on a surface that bends by at most
     :data:`LINK_SAGITTA_M` over it. The envelope point of a plane moves with the
@@ -213,34 +214,39 @@ def _flat(a: EnvelopePoint, b: EnvelopePoint) -> bool:
     cross = na[0] * nb[1] - na[1] * nb[0]
     if not (na @ nb > 0 and abs(cross) <= tol and abs(chord @ na) <= tol * length
             and abs(chord @ nb) <= tol * length):
-        return False
+        return None
     n = (na + nb) / np.hypot(*(na + nb))
     moved = (b[1] - a[1]) - ((b[1] - a[1]) @ n) * n
     if chord @ moved <= 0:
-        return False
+        return None
     k = length / float(np.hypot(*moved))
-    rho = 0.5 * (a[2] + b[2])
-    return length * length * abs(1.0 - k) <= 8.0 * rho * k * LINK_SAGITTA_M
+    radius = 0.5 * (a[2] + b[2]) * k / abs(1.0 - k) if k != 1.0 else math.inf
+    return radius if length * length <= 8.0 * radius * LINK_SAGITTA_M else None
 
 
-def _chains(scan: ElementScan) -> list[list[EnvelopePoint]]:
+def _chains(scan: ElementScan) -> list[tuple[list[EnvelopePoint], float]]:
     """The runs of consecutive envelope points of one element (no pose between them
-    without one) that lie on one plane (:func:`_flat`) and hold two or more points from
-    central differences (a run's one-sided ends alone do not tell a plane from a corner
-    seen from afar); a midway point as its later locus'."""
-    chains: list[list[EnvelopePoint]] = []
+    without one) that lie on one nearly flat surface (:func:`_link_radius`) and hold two
+    or more points from central differences (a run's one-sided ends alone do not tell a
+    plane from a corner seen from afar), each with the smallest radius its links show; a
+    midway point as its later locus'."""
+    chains: list[tuple[list[EnvelopePoint], float]] = []
     run: list[tuple[EnvelopePoint, bool]] = []
-    last = None
+    radius, last = math.inf, None
     for place, points, one_sided in scan:
         p = points[-1]
-        if not (last is not None and place - last <= 2 and run and _flat(run[-1][0], p)):
+        link = (_link_radius(run[-1][0], p)
+                if last is not None and place - last <= 2 and run else None)
+        if link is None:
             if sum(not o for _, o in run) >= 2:
-                chains.append([q for q, _ in run])
-            run = []
+                chains.append(([q for q, _ in run], radius))
+            run, radius = [], math.inf
+        else:
+            radius = min(radius, link)
         run.append((p, one_sided))
         last = place
     if sum(not o for _, o in run) >= 2:
-        chains.append([q for q, _ in run])
+        chains.append(([q for q, _ in run], radius))
     return chains
 
 
@@ -251,16 +257,20 @@ def envelope_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: 
     lie on one plane: the region of constant depth that the scan swept (Leonard &
     Durrant-Whyte 1992), located as exactly as the envelope points. Each run goes on past
     its end points as far as their loci stay within ``bias`` of the plane,
-    ±sqrt(2·ρ·bias), as an isolated locus' arc does (:func:`~.tangents.tangent_points`).
+    ±sqrt(2·ρ·bias), as an isolated locus' arc does (:func:`~.tangents.tangent_points`),
+    and no farther than a surface of the run's radius R stays within
+    :data:`LINK_SAGITTA_M` of its tangent, sqrt(2·R·LINK_SAGITTA_M).
     Returns ``(points [m, 2], loci [m, 2])``: samples every ``step`` and the loci at both
     ends of the stretch each lies on."""
     points, ends = [], []
     for scan in _element_scans(scene, sensors, loci):
-        for run in _chains(scan):
+        for run, radius in _chains(scan):
             q = np.array([p[3] for p in run])
             first, last = q[0] - q[1], q[-1] - q[-2]
-            q = np.r_[q[:1] + first / np.hypot(*first) * math.sqrt(2.0 * run[0][2] * bias),
-                      q, q[-1:] + last / np.hypot(*last) * math.sqrt(2.0 * run[-1][2] * bias)]
+            curved = math.sqrt(2.0 * radius * LINK_SAGITTA_M)
+            ext = [min(math.sqrt(2.0 * end[2] * bias), curved) for end in (run[0], run[-1])]
+            q = np.r_[q[:1] + first / np.hypot(*first) * ext[0], q,
+                      q[-1:] + last / np.hypot(*last) * ext[1]]
             run = [run[0], *run, run[-1]]
             for k in range(len(run) - 1):
                 n = max(2, math.ceil(math.hypot(*(q[k + 1] - q[k])) / step) + 1)
