@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 import clsonar
 from clsonar.geometry import EDGE, build_geometry, true_vertices
-from clsonar.mapping import Loci, scan_envelope, tangent_points
+from clsonar.mapping import Loci, envelope_links, scan_envelope, tangent_points
 from clsonar.metrics import VERTEX_FOUND_M, cylinder_coverage, evaluate, vertex_errors
 from clsonar.post.walls import Arc, Wall, find_circles, join_walls, merge_collinear, split_straight
 from clsonar.sensors import SensorArray
@@ -410,6 +410,43 @@ def test_scan_envelope_of_a_cylinder_is_within_the_second_order_error(room_scene
         assert err.max() <= 0.005
     # the points face the ring (the near side of the cylinder)
     assert np.all(point[:, 1] < centre[1])
+
+
+@settings(max_examples=30, deadline=None)
+@given(tilt=st.floats(-12.0, 12.0), y0=st.floats(0.8, 4.0), step=st.floats(0.1, 0.6))
+def test_envelope_links_of_a_plane_lie_on_it_and_cover_the_scan(room_scene, tilt, y0, step):
+    """A plane swept by a moving element: the links between its envelope points lie on the
+    plane (to rounding) and run unbroken from the first pose's foot to the last's, and
+    past both by the isolated locus' stretch sqrt(2·ρ·bias) at most."""
+    scene = room_scene
+    xs = np.arange(0.0, 3.0 + 1e-9, step)
+    sensors = straight_scan(xs)
+    normal, p0 = tilted_plane(tilt, y0)
+    ranges = (p0 - sensors.positions) @ normal
+    points, ends = envelope_links(scene, sensors, t_eq_r(scene, ranges), 0.002, 0.005)
+    assert len(points) > 0 and ends.shape == (len(points), 2)
+    np.testing.assert_allclose((points - p0) @ normal, 0.0, atol=1e-6)
+    feet = sensors.positions + ranges[:, None] * normal
+    along = np.array([-normal[1], normal[0]])
+    s, s_feet = points @ along, feet @ along
+    assert s.min() <= s_feet.min() + 1e-6 and s.max() >= s_feet.max() - 1e-6
+    reach = np.sqrt(2 * ranges.max() * 0.005)
+    assert s.min() >= s_feet.min() - reach - 1e-6 and s.max() <= s_feet.max() + reach + 1e-6
+    assert np.diff(np.sort(s)).max() <= 0.002 + 1e-9  # unbroken
+
+
+@pytest.mark.parametrize("radius", [0.0, 0.05, 0.3])
+def test_envelope_links_do_not_join_a_corner_or_a_post_seen_from_afar(room_scene, radius):
+    """A point reflector (a corner, an edge) or a thin post 4 m away: its envelope points
+    stay put as the element moves, so no run of them is taken for a plane."""
+    scene = wide(room_scene)
+    sensors = straight_scan(np.arange(0.0, 2.0 + 1e-9, 0.25))
+    centre = np.array([1.0, 4.0])
+    ranges = np.hypot(*(sensors.positions - centre).T) - radius
+    points, _ = envelope_links(scene, sensors, t_eq_r(scene, ranges), 0.002, 0.005)
+    if len(points):
+        off = np.abs(np.hypot(*(points - centre).T) - radius)
+        assert off.max() <= 0.002
 
 
 def test_tangent_points_of_a_scan_come_from_the_envelope_with_their_source(room_scene):

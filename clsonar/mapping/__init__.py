@@ -81,13 +81,13 @@ __all__ = [
     "MapGrid", "MapMethod", "MapProblem", "TileBins", "Votes", "accumulate",
     "accumulate_reference", "accumulate_with_stats", "as_loci", "backproject",
     "backproject_reference", "backprojection_votes", "band_m", "bin_loci", "cell_centres",
-    "check_map_memory", "count_viewpoints", "in_beams", "loci_votes", "map_grid",
-    "map_votes", "merge_reciprocal", "point_map", "points_window", "prepare_backprojection",
-    "prepare_loci", "reference_beam", "reflector_points", "reflector_votes", "scan_envelope",
-    "tangent_points", "tangent_votes", "work_items",
+    "check_map_memory", "count_viewpoints", "envelope_links", "in_beams", "loci_votes",
+    "map_grid", "map_votes", "merge_reciprocal", "point_map", "points_window",
+    "prepare_backprojection", "prepare_loci", "reference_beam", "reflector_points",
+    "reflector_votes", "scan_envelope", "tangent_points", "tangent_votes", "work_items",
 ]
 
-from .envelope import in_beams, scan_envelope
+from .envelope import envelope_links, in_beams, scan_envelope
 from .grid import LAUNCH, MapGrid, band_m, cell_centres, check_map_memory, map_grid, work_items
 from .launch import TILES, AccumulationStats, accumulate, accumulate_with_stats, backproject
 from .loci import (
