@@ -257,7 +257,8 @@ def envelope_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: 
     lie on one plane: the region of constant depth that the scan swept (Leonard &
     Durrant-Whyte 1992), located as exactly as the envelope points. Each run goes on past
     its end points as far as their loci stay within ``bias`` of the plane,
-    ±sqrt(2·ρ·bias), as an isolated locus' arc does (:func:`~.tangents.tangent_points`),
+    ±sqrt(2·ρ·bias), as the arc kept around an envelope point does (``bias`` =
+    :data:`ENVELOPE_ARC_BIAS_M`: where a box's face ends at a convex edge, no farther),
     and no farther than a surface of the run's radius R stays within
     :data:`LINK_SAGITTA_M` of its tangent, sqrt(2·R·LINK_SAGITTA_M).
     Returns ``(points [m, 2], loci [m, 2])``: samples every ``step`` and the loci at both

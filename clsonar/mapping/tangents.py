@@ -223,7 +223,8 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
         found.append(arc)
         source.append(np.full(len(arc), locus))
     if len(isolated):
-        points, ends = envelope_links(scene, sensors, loci, LINK_STEP_M, isolated_bias_m)
+        points, ends = envelope_links(scene, sensors, loci, LINK_STEP_M,
+                                       min(isolated_bias_m, ENVELOPE_ARC_BIAS_M))
         keep = np.isin(ends, isolated).all(axis=1)
         found.append(points[keep])
         source.append(ends[keep, 0])
