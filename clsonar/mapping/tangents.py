@@ -21,8 +21,9 @@ TANGENT_BIAS_M = 0.002
 #: Samples of each locus (an ellipse with foci T and R) searched for crossings: 0.25°.
 LOCUS_SAMPLES = 1440
 
-#: Spacing of the samples of a stretch between envelope points, metres.
-LINK_STEP_M = 0.002
+#: Spacing of the samples of a stretch between envelope points, in cells (as a reflector
+#: patch's, :data:`~.patches.STEP_CELLS`).
+LINK_STEP_CELLS = 0.5
 
 #: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
 _ARC_MARGIN = 2
@@ -151,9 +152,10 @@ def _tangent_segments(s: _Sampled, i: int, ks: np.ndarray,
 
 
 def _isolated_points(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.ndarray,
-                     bias: float) -> list[np.ndarray]:
-    """Per locus in ``isolated``, the middle of its in-beam arc or, where the scan envelope
-    has points on it, the arcs around them inside the element's beam."""
+                     bias: float, linked: np.ndarray) -> list[np.ndarray]:
+    """Per locus in ``isolated``, the middle of its in-beam arc (none for a locus in
+    ``linked``: the scan envelope's links already hold its surface point) or, where the scan
+    envelope has points on it, the arcs around them inside the element's beam."""
     if len(isolated) == 0:
         return []
     env = scan_envelope(scene, sensors, s.loci)
@@ -161,7 +163,8 @@ def _isolated_points(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: 
     for i in isolated:
         mine = np.flatnonzero(env[0] == i)
         if len(mine) == 0:
-            found.append(_middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
+            found.append(np.zeros((0, 2)) if i in linked
+                         else _middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
         else:  # around the scan envelope's points, inside the element's beam
             arcs = np.concatenate([_arc_around(env[1][m], env[2][m], env[3][m],
                                                min(bias, ENVELOPE_ARC_BIAS_M))
@@ -218,16 +221,18 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
             found.append(segment)
             source.append(np.full(len(segment), i))
     isolated = np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0))
-    arcs = _isolated_points(scene, sensors, s, isolated, isolated_bias_m)
-    for locus, arc in zip(isolated, arcs, strict=True):
-        found.append(arc)
-        source.append(np.full(len(arc), locus))
+    linked = np.zeros(0, np.int64)
     if len(isolated):
-        points, ends = envelope_links(scene, sensors, loci, LINK_STEP_M,
-                                       min(isolated_bias_m, ENVELOPE_ARC_BIAS_M))
+        points, ends = envelope_links(scene, sensors, loci, LINK_STEP_CELLS * scene.cell,
+                                      min(isolated_bias_m, ENVELOPE_ARC_BIAS_M))
         keep = np.isin(ends, isolated).all(axis=1)
         found.append(points[keep])
         source.append(ends[keep, 0])
+        linked = np.unique(ends[keep])
+    arcs = _isolated_points(scene, sensors, s, isolated, isolated_bias_m, linked)
+    for locus, arc in zip(isolated, arcs, strict=True):
+        found.append(arc)
+        source.append(np.full(len(arc), locus))
     if not found:
         return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
     return np.concatenate(found), np.concatenate(source).astype(np.int64)

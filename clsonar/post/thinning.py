@@ -96,39 +96,40 @@ def _simple_table() -> np.ndarray:
 _SIMPLE = _simple_table()
 
 
-def _codes_at(b: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
+def _codes_at(p: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
     """The neighbour code (the correlation with :data:`_NEIGHBOUR_BITS`) of the pixels
-    ``(iy, ix)`` of ``b`` only — thinning needs it at set pixels, a few per cent of a map."""
-    p = np.pad(b, 1)
+    ``(iy, ix)`` of the padded map ``p`` only (indices into ``p``, never on its one-pixel
+    border) — thinning needs it at set pixels, a few per cent of a map."""
     code = np.zeros(len(iy), dtype=np.int64)
     for i in range(3):
         for j in range(3):
             if _NEIGHBOUR_BITS[i, j]:
-                code += int(_NEIGHBOUR_BITS[i, j]) * p[iy + i, ix + j]
+                code += int(_NEIGHBOUR_BITS[i, j]) * p[iy + i - 1, ix + j - 1]
     return code
 
 
-def _redundant_at(b: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
-    """Whether the set pixels ``(iy, ix)`` make a curve thicker than one pixel in the
-    8-connected sense: two orthogonal 4-neighbours set (a staircase corner, or part of a
-    2×2 block)."""
-    p = np.pad(b, 1)
-    north, south = p[iy + 2, ix + 1], p[iy, ix + 1]
-    east, west = p[iy + 1, ix + 2], p[iy + 1, ix]
+def _redundant_at(p: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
+    """Whether the set pixels ``(iy, ix)`` of the padded map ``p`` make a curve thicker than
+    one pixel in the 8-connected sense: two orthogonal 4-neighbours set (a staircase corner,
+    or part of a 2×2 block)."""
+    north, south = p[iy + 1, ix], p[iy - 1, ix]
+    east, west = p[iy, ix + 1], p[iy, ix - 1]
     return (north | south) & (east | west)
 
 
-def _guo_hall(skeleton: np.ndarray, max_iterations: int) -> np.ndarray:
-    """Guo and Hall's two sub-iterations on ``skeleton`` (in place) until nothing changes."""
+def _guo_hall(p: np.ndarray, iy: np.ndarray, ix: np.ndarray, max_iterations: int
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Guo and Hall's two sub-iterations on the padded map ``p`` (in place), whose set
+    pixels are ``(iy, ix)``, until nothing changes; returns the set pixels left."""
     for _ in range(max_iterations):
-        before = np.count_nonzero(skeleton)
+        before = len(iy)
         for table in (_DELETE_FIRST, _DELETE_SECOND):
-            iy, ix = np.nonzero(skeleton)
-            gone = table[_codes_at(skeleton, iy, ix)]
-            skeleton[iy[gone], ix[gone]] = False
-        if np.count_nonzero(skeleton) == before:
+            gone = table[_codes_at(p, iy, ix)]
+            p[iy[gone], ix[gone]] = False
+            iy, ix = iy[~gone], ix[~gone]
+        if len(iy) == before:
             break
-    return skeleton
+    return iy, ix
 
 
 def thin(binary: np.ndarray, max_iterations: int = 10_000) -> np.ndarray:
@@ -140,21 +141,24 @@ def thin(binary: np.ndarray, max_iterations: int = 10_000) -> np.ndarray:
     (deleting them keeps the topology) are then deleted one parity subfield at a time —
     pixels of one subfield are never neighbours, so deleting them together cannot
     disconnect anything. Both steps repeat until nothing changes. Each step looks only at
-    the set pixels.
+    the set pixels (their indices kept as pixels are deleted, the map padded once).
     """
-    skeleton = np.asarray(binary, dtype=bool).copy()
+    p = np.pad(np.asarray(binary, dtype=bool), 1)
+    iy, ix = np.nonzero(p)
     for _ in range(max_iterations):
-        before = np.count_nonzero(skeleton)
-        skeleton = _guo_hall(skeleton, max_iterations)
-        for a, b in ((0, 0), (0, 1), (1, 0), (1, 1)):
-            iy, ix = np.nonzero(skeleton)
-            mine = (iy % 2 == a) & (ix % 2 == b)
-            iy, ix = iy[mine], ix[mine]
-            gone = _redundant_at(skeleton, iy, ix) & _SIMPLE[_codes_at(skeleton, iy, ix)]
-            skeleton[iy[gone], ix[gone]] = False
-        if np.count_nonzero(skeleton) == before:
+        before = len(iy)
+        iy, ix = _guo_hall(p, iy, ix, max_iterations)
+        for a, b in ((1, 1), (1, 0), (0, 1), (0, 0)):  # the parities of the unpadded map
+            mine = np.flatnonzero((iy % 2 == a) & (ix % 2 == b))
+            gone = mine[_redundant_at(p, iy[mine], ix[mine])
+                        & _SIMPLE[_codes_at(p, iy[mine], ix[mine])]]
+            p[iy[gone], ix[gone]] = False
+            keep = np.ones(len(iy), dtype=bool)
+            keep[gone] = False
+            iy, ix = iy[keep], ix[keep]
+        if len(iy) == before:
             break
-    return skeleton
+    return p[1:-1, 1:-1].copy()
 
 
 #: A part of the map runs along x where its occupied cells spread along x more than this
