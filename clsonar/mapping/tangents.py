@@ -21,9 +21,9 @@ TANGENT_BIAS_M = 0.002
 #: Samples of each locus (an ellipse with foci T and R) searched for crossings: 0.25°.
 LOCUS_SAMPLES = 1440
 
-#: Spacing of the samples of a stretch between envelope points, in cells (as a reflector
-#: patch's, :data:`~.patches.STEP_CELLS`).
-LINK_STEP_CELLS = 0.5
+#: Spacing of the samples of a stretch between envelope points, metres (about the spacing
+#: of a locus' own samples, 0.25° at 0.5 m: a stretch weighs as much as the arcs it joins).
+LINK_STEP_M = 0.002
 
 #: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
 _ARC_MARGIN = 2
@@ -223,7 +223,7 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
     isolated = np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0))
     linked = np.zeros(0, np.int64)
     if len(isolated):
-        points, ends = envelope_links(scene, sensors, loci, LINK_STEP_CELLS * scene.cell,
+        points, ends = envelope_links(scene, sensors, loci, LINK_STEP_M,
                                       min(isolated_bias_m, ENVELOPE_ARC_BIAS_M))
         keep = np.isin(ends, isolated).all(axis=1)
         found.append(points[keep])
