@@ -608,3 +608,37 @@ def test_l_room_locates_its_convex_edge(room_l):
     assert errors[(4.5, 3.5)] <= 0.03
     assert max(errors.values()) <= 0.03
     assert room_l.metrics["vertices_found"] == "6/6"
+
+
+# --------------------------------------------------------------------------- pillars
+
+
+@settings(max_examples=40, deadline=None)
+@given(cx=st.floats(-2.0, 2.0), cy=st.floats(1.5, 4.0), radius=st.floats(0.05, 1.0),
+       n=st.integers(3, 9), noise=st.floats(0.0, 0.001))
+def test_a_pillar_is_fitted_from_the_ranges_that_touch_it(cx, cy, radius, n, noise):
+    """Loci |C − T| = ρ + R from transducers spread along a line below the pillar give its
+    centre and radius back (to the ranges' noise), and every locus is explained."""
+    from clsonar.mapping.pillars import fit_pillar
+
+    rng = np.random.default_rng(n)
+    centre = np.array([cx, cy])
+    T = np.stack([np.linspace(-3.0, 3.0, n), np.zeros(n)], axis=-1)
+    rho = np.hypot(*(centre - T).T) - radius + noise * rng.standard_normal(n)
+    middles = centre + 0.2 * rng.standard_normal((n, 2))
+    found = fit_pillar(T, rho, middles, np.full(n, 0.003))
+    assert found is not None
+    c, r, explained = found
+    assert np.all(explained)
+    assert np.hypot(*(c - centre)) <= 0.01 + 20 * noise and abs(r - radius) <= 0.01 + 20 * noise
+
+
+def test_a_corner_seen_from_a_narrow_spread_is_no_pillar():
+    """A point reflector's loci (|V − T| = ρ) from a few nearby positions: a point explains
+    them as well as any circle, so no pillar is drawn."""
+    from clsonar.mapping.pillars import fit_pillar
+
+    vertex = np.array([0.3, 4.0])
+    T = np.stack([np.linspace(-0.5, 0.5, 5), np.zeros(5)], axis=-1)
+    rho = np.hypot(*(vertex - T).T)
+    assert fit_pillar(T, rho, np.tile(vertex, (5, 1)), np.full(5, 0.003)) is None

@@ -12,7 +12,9 @@ import numpy as np
 from ..scene import Scene
 from ..sensors import SensorArray
 from .envelope import ENVELOPE_ARC_BIAS_M, envelope_links, in_beams, scan_envelope
+from .families import window_tolerance
 from .loci import Loci, as_loci
+from .pillars import MIN_PILLAR_LOCI, PILLAR_TOL_M, pillar_arcs
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
@@ -24,6 +26,10 @@ LOCUS_SAMPLES = 1440
 #: Spacing of the samples of a stretch between envelope points, metres (about the spacing
 #: of a locus' own samples, 0.25° at 0.5 m: a stretch weighs as much as the arcs it joins).
 LINK_STEP_M = 0.002
+
+#: A pillar is seen through where an echo came from beyond it within this share of the
+#: beam's half-angle (sine) of the element's axis.
+SEEN_THROUGH_SHARE = 1.0 / 3.0
 
 #: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
 _ARC_MARGIN = 2
@@ -153,9 +159,11 @@ def _tangent_segments(s: _Sampled, i: int, ks: np.ndarray,
 
 def _isolated_points(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.ndarray,
                      bias: float, linked: np.ndarray) -> list[np.ndarray]:
-    """Per locus in ``isolated``, the middle of its in-beam arc (none for a locus in
-    ``linked``: the scan envelope's links already hold its surface point) or, where the scan
-    envelope has points on it, the arcs around them inside the element's beam."""
+    """Per locus in ``isolated``: where the scan envelope has points on it, the arcs around
+    them inside the element's beam; else the middle of its in-beam arc (none for a locus
+    in ``linked``: the scan envelope's links already hold its surface point) or, for T = R
+    loci that agree on one pillar (:func:`~.pillars.pillar_arcs`), its stretch of the
+    pillar."""
     if len(isolated) == 0:
         return []
     env = scan_envelope(scene, sensors, s.loci)
@@ -170,7 +178,63 @@ def _isolated_points(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: 
                                                min(bias, ENVELOPE_ARC_BIAS_M))
                                    for m in mine])
             found.append(arcs[in_beams(arcs, s.T[i], s.axes[s.loci.tx[i]], s.cut_sin2)])
+    stubs = [k for k, i in enumerate(isolated) if len(found[k]) and i not in env[0]
+             and s.loci.tx[i] == s.loci.rx[i]]
+    for k, arc in _pillars(scene, s, isolated[stubs], found, stubs, bias).items():
+        found[k] = arc
     return found
+
+
+def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray],
+             slots: list[int], bias: float) -> dict[int, np.ndarray]:
+    """``{slot: arc}``: the middle-of-arc stubs (``found[slot]`` of T = R locus
+    ``loci[n]``) that a pillar fitted to their ranges replaces (:mod:`.pillars`), each
+    arc kept inside its element's beam."""
+    if len(loci) < MIN_PILLAR_LOCI:
+        return {}
+    c = scene.medium.c
+    T = s.T[loci]
+    tol = np.maximum(PILLAR_TOL_M, 0.5 * window_tolerance(
+        s.loci.amplitude[loci], scene.signal.noise_std, c, scene.transducer.pulse_sigma_s))
+    middles = np.array([found[k].mean(axis=0) for k in slots])
+    mono = np.flatnonzero(s.loci.tx == s.loci.rx)
+    axes = s.axes[s.loci.tx[mono]]
+
+    def seen_through(centre: np.ndarray, radius: float) -> bool:
+        """Whether a T = R echo came from beyond the circle's point nearest its element,
+        near its beam's axis (:data:`SEEN_THROUGH_SHARE`: the element would have heard the
+        circle first; nearer the beam's edge a pillar's weak echo may be missed)."""
+        d = s.T[mono] - centre
+        dist = np.hypot(*d.T)
+        q = centre + radius * d / np.maximum(dist, 1e-12)[:, None]
+        return bool(np.any((dist - radius < s.a[mono] - PILLAR_TOL_M)
+                           & in_beams(q, s.T[mono], axes, SEEN_THROUGH_SHARE**2 * s.cut_sin2)))
+
+    arcs = pillar_arcs(T, s.a[loci], middles, tol, bias, 0.5 * scene.cell, seen_through)
+    out = {}
+    for n, arc in arcs.items():
+        inside = in_beams(arc, T[n], s.axes[s.loci.tx[loci[n]]], s.cut_sin2)
+        out[slots[n]] = arc[inside]
+    return out
+
+
+def _add_isolated(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.ndarray,
+                  bias: float, found: list[np.ndarray], source: list[np.ndarray]) -> None:
+    """Append to ``found`` and ``source`` what the ``isolated`` loci give: the scan
+    envelope's links between them (:func:`~.envelope.envelope_links`) and each one's
+    points (:func:`_isolated_points`)."""
+    linked = np.zeros(0, np.int64)
+    if len(isolated):
+        points, ends = envelope_links(scene, sensors, s.loci, LINK_STEP_M,
+                                      min(bias, ENVELOPE_ARC_BIAS_M))
+        keep = np.isin(ends, isolated).all(axis=1)
+        found.append(points[keep])
+        source.append(ends[keep, 0])
+        linked = np.unique(ends[keep])
+    arcs = _isolated_points(scene, sensors, s, isolated, bias, linked)
+    for locus, arc in zip(isolated, arcs, strict=True):
+        found.append(arc)
+        source.append(np.full(len(arc), locus))
 
 
 def tangent_points(scene: Scene, sensors: SensorArray, loci,
@@ -221,18 +285,7 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
             found.append(segment)
             source.append(np.full(len(segment), i))
     isolated = np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0))
-    linked = np.zeros(0, np.int64)
-    if len(isolated):
-        points, ends = envelope_links(scene, sensors, loci, LINK_STEP_M,
-                                      min(isolated_bias_m, ENVELOPE_ARC_BIAS_M))
-        keep = np.isin(ends, isolated).all(axis=1)
-        found.append(points[keep])
-        source.append(ends[keep, 0])
-        linked = np.unique(ends[keep])
-    arcs = _isolated_points(scene, sensors, s, isolated, isolated_bias_m, linked)
-    for locus, arc in zip(isolated, arcs, strict=True):
-        found.append(arc)
-        source.append(np.full(len(arc), locus))
+    _add_isolated(scene, sensors, s, isolated, isolated_bias_m, found, source)
     if not found:
         return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
     return np.concatenate(found), np.concatenate(source).astype(np.int64)

@@ -1,0 +1,170 @@
+"""Pillars from the ranges of a ring scan (:func:`pillar_arcs`): the isolated T = R loci
+that no scan envelope holds — a pillar in the middle of a room, seen by one element from
+poses too far apart for consecutive loci to touch it together — are fitted by a circle.
+
+A locus of range ρ from T touches a circle (C, R) when |C − T| = ρ + R; three or more loci
+from different transducer positions that agree on one circle (to within the pulse's range
+resolution) place it, where the middle of each locus' in-beam arc would draw a straight
+stub off it by up to ρ·α²/2 (α the angle between the beam's axis and the pillar).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from scipy.optimize import least_squares
+
+#: Candidate loci whose middle-of-arc points lie within this of each other are fitted
+#: together, metres.
+CLUSTER_M = 1.0
+
+#: A fitted circle explains a locus when |C − T| − ρ − R is within this, metres.
+PILLAR_TOL_M = 0.003
+
+#: Radii taken for pillars, metres (a point reflector, R → 0, is a corner or an edge).
+PILLAR_RADII_M = (0.03, 2.0)
+
+#: Loci a circle needs, from as many different transducer positions.
+MIN_PILLAR_LOCI = 3
+
+
+def _clusters(points: np.ndarray) -> list[np.ndarray]:
+    """Single-linkage groups (index arrays) of ``points`` within :data:`CLUSTER_M`."""
+    label = np.arange(len(points))
+    for i in range(len(points)):
+        near = np.flatnonzero(np.hypot(*(points - points[i]).T) <= CLUSTER_M)
+        label[np.isin(label, label[near])] = label[i]
+    return [np.flatnonzero(label == k) for k in np.unique(label)]
+
+
+def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+    """Least-squares circle ``(C, R)`` with |C − T_k| = ρ_k + R, and the residuals."""
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        return np.hypot(*(x[:2] - T).T) - rho - x[2]
+
+    x = least_squares(residual, np.r_[start, 0.1]).x
+    return x[:2], float(x[2]), residual(x)
+
+
+def fit_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray
+               ) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """The circle the loci (T_k, ρ_k) touch, started from their middle-of-arc points, fitted
+    again without the loci it does not explain (within 27, 9, 3 and then 1 times ``tol``):
+    ``(centre, radius, explained)``, or None when fewer than :data:`MIN_PILLAR_LOCI` loci
+    from as many positions agree or the radius is not a pillar's."""
+    keep = np.ones(len(T), dtype=bool)
+    for loose in (27.0, 9.0, 3.0, 1.0, 1.0):  # outliers dropped, the bar lowered
+        if np.count_nonzero(keep) < MIN_PILLAR_LOCI:
+            return None
+        centre, radius, _ = _fit(T[keep], rho[keep], middles[keep].mean(axis=0))
+        keep = np.abs(np.hypot(*(centre - T).T) - rho - radius) <= loose * tol
+    positions = np.unique(np.round(T[keep], 6), axis=0)
+    if (len(positions) < MIN_PILLAR_LOCI
+            or not PILLAR_RADII_M[0] <= radius <= PILLAR_RADII_M[1]
+            or _a_point(T[keep], rho[keep], centre, tol[keep])):
+        return None
+    return centre, radius, keep
+
+
+def _a_point(T: np.ndarray, rho: np.ndarray, centre: np.ndarray, tol: np.ndarray) -> bool:
+    """Whether one point (|V − T_k| = ρ_k: a corner or an edge) explains the loci as well:
+    seen over a narrow spread of directions a pillar and a point cannot be told apart, and
+    a room's corners are far more common than pillars."""
+
+    def residual(v: np.ndarray) -> np.ndarray:
+        return np.hypot(*(v - T).T) - rho
+
+    v = least_squares(residual, centre).x
+    return bool(np.all(np.abs(residual(v)) <= tol))
+
+
+def pillar_arc(centre: np.ndarray, radius: float, T: np.ndarray, rho: float, bias: float,
+               step: float) -> np.ndarray:
+    """The stretch of the circle around the point the locus (T, ρ) touches, as far as the
+    locus stays within ``bias`` of it: a point θ round from it is farther from T by about
+    R·(ρ + R)·θ²/(2ρ)."""
+    u = (T - centre) / np.hypot(*(T - centre))
+    half = math.sqrt(2.0 * rho * bias / (radius * (rho + radius)))
+    n = max(1, math.ceil(half * radius / step))
+    theta = math.atan2(u[1], u[0]) + np.linspace(-half, half, 2 * n + 1)
+    return centre + radius * np.stack([np.cos(theta), np.sin(theta)], axis=-1)
+
+
+#: Each candidate pillar is first fitted to the loci whose middle-of-arc points lie within
+#: this of one locus' (a pillar's stubs around it), metres.
+SEED_M = 0.5
+
+
+#: ``seen_through(centre, radius)``: whether some element's echo came from beyond the point
+#: of the circle nearest it, inside its beam (it would have heard the circle first).
+SeenThrough = Callable[[np.ndarray, float], bool]
+
+
+def _plausible(T: np.ndarray, rho: np.ndarray, tol: np.ndarray) -> bool:
+    """Whether a circle the loci touch (|C − T|² = (ρ + R)², linear in C, R and
+    w = |C|² − R²: one least-squares solve) explains :data:`MIN_PILLAR_LOCI` of them within
+    three times their tolerance — the quick test before the least-squares fit."""
+    a = np.column_stack([-2.0 * T, -2.0 * rho, np.ones(len(T))])
+    x = np.linalg.lstsq(a, rho * rho - np.sum(T * T, axis=1), rcond=None)[0]
+    off = np.abs(np.hypot(*(x[:2] - T).T) - rho - x[2])
+    return bool(np.count_nonzero(off <= 3.0 * tol) >= MIN_PILLAR_LOCI)
+
+
+def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
+                 seen_through: SeenThrough) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """The pillar that explains the most of the loci: fitted (:func:`fit_pillar`) from the
+    neighbourhood (:data:`SEED_M`) of each locus' middle-of-arc point in turn, then again to
+    every locus it explains (several pillars in one cluster are found one by one); none
+    that the scan saw through (``seen_through``: a convex block's faces and edges, whose
+    ranges a circle can mimic, stand beside free space other elements see into)."""
+    best = None
+    tried: set[bytes] = set()
+    for k in range(len(T)):
+        near = np.flatnonzero(np.hypot(*(middles - middles[k]).T) <= SEED_M)
+        if len(near) < MIN_PILLAR_LOCI or near.tobytes() in tried:
+            continue
+        tried.add(near.tobytes())
+        if len(near) > MIN_PILLAR_LOCI and not _plausible(T[near], rho[near], tol[near]):
+            continue
+        found = fit_pillar(T[near], rho[near], middles[near], tol[near])
+        if found is None or seen_through(found[0], found[1]):
+            continue
+        centre, radius, _ = found
+        explained = np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
+        if best is None or explained.sum() > best[2].sum():
+            best = (centre, radius, explained)
+    if best is None:
+        return None
+    found = fit_pillar(T[best[2]], rho[best[2]], middles[best[2]], tol[best[2]])
+    if found is None or seen_through(found[0], found[1]):
+        return None
+    centre, radius, _ = found
+    return centre, radius, np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
+
+
+def pillar_arcs(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
+                bias: float, step: float, seen_through: SeenThrough
+                ) -> dict[int, np.ndarray]:
+    """``{k: arc points}`` for the loci (T_k, ρ_k) (middle-of-arc points ``middles``, range
+    tolerances ``tol``) that a fitted pillar explains (:func:`_best_pillar`, cluster by
+    cluster, pillar after pillar): each its stretch of the pillar (:func:`pillar_arc`) in
+    place of its middle-of-arc stub."""
+    out: dict[int, np.ndarray] = {}
+    for members in _clusters(middles):
+        while len(members) >= MIN_PILLAR_LOCI:
+            found = _best_pillar(T[members], rho[members], middles[members], tol[members],
+                                 seen_through)
+            if found is None:
+                break
+            centre, radius, explained = found
+            for k in members[explained]:
+                out[int(k)] = pillar_arc(centre, radius, T[k], float(rho[k]), bias, step)
+            members = members[~explained]
+    return out
+
+
+__all__ = ["CLUSTER_M", "MIN_PILLAR_LOCI", "PILLAR_RADII_M", "PILLAR_TOL_M", "SEED_M", "fit_pillar",
+           "pillar_arc", "pillar_arcs"]
