@@ -98,9 +98,10 @@ def pillar_arc(centre: np.ndarray, radius: float, T: np.ndarray, rho: float, bia
 SEED_M = 0.5
 
 
-#: ``seen_through(centre, radius)``: whether some element's echo came from beyond the point
-#: of the circle nearest it, inside its beam (it would have heard the circle first).
-SeenThrough = Callable[[np.ndarray, float], bool]
+#: ``seen_through(centre, radius, reach)``: whether some element no farther than ``reach``
+#: from the circle had its echo from beyond the circle's point nearest it, inside its beam
+#: (it would have heard the circle first, as the loci that touch it did from as far).
+SeenThrough = Callable[[np.ndarray, float, float], bool]
 
 
 def _plausible(T: np.ndarray, rho: np.ndarray, tol: np.ndarray) -> bool:
@@ -130,7 +131,7 @@ def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nd
         if len(near) > MIN_PILLAR_LOCI and not _plausible(T[near], rho[near], tol[near]):
             continue
         found = fit_pillar(T[near], rho[near], middles[near], tol[near])
-        if found is None or seen_through(found[0], found[1]):
+        if found is None or seen_through(found[0], found[1], float(rho[near][found[2]].max())):
             continue
         centre, radius, _ = found
         explained = np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
@@ -139,7 +140,7 @@ def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nd
     if best is None:
         return None
     found = fit_pillar(T[best[2]], rho[best[2]], middles[best[2]], tol[best[2]])
-    if found is None or seen_through(found[0], found[1]):
+    if found is None or seen_through(found[0], found[1], float(rho[best[2]][found[2]].max())):
         return None
     centre, radius, _ = found
     return centre, radius, np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol

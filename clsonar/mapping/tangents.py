@@ -200,14 +200,16 @@ def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray
     mono = np.flatnonzero(s.loci.tx == s.loci.rx)
     axes = s.axes[s.loci.tx[mono]]
 
-    def seen_through(centre: np.ndarray, radius: float) -> bool:
-        """Whether a T = R echo came from beyond the circle's point nearest its element,
-        near its beam's axis (:data:`SEEN_THROUGH_SHARE`: the element would have heard the
-        circle first; nearer the beam's edge a pillar's weak echo may be missed)."""
+    def seen_through(centre: np.ndarray, radius: float, reach: float) -> bool:
+        """Whether a T = R echo of an element within ``reach`` of the circle came from
+        beyond the circle's point nearest it, near its beam's axis
+        (:data:`SEEN_THROUGH_SHARE`): the element would have heard the circle first. Nearer
+        the beam's edge, or from farther than the loci that touch it, a pillar's weak
+        echo may be missed."""
         d = s.T[mono] - centre
-        dist = np.hypot(*d.T)
-        q = centre + radius * d / np.maximum(dist, 1e-12)[:, None]
-        return bool(np.any((dist - radius < s.a[mono] - PILLAR_TOL_M)
+        near = np.hypot(*d.T) - radius
+        q = centre + radius * d / np.maximum(near + radius, 1e-12)[:, None]
+        return bool(np.any((near < s.a[mono] - PILLAR_TOL_M) & (near <= reach)
                            & in_beams(q, s.T[mono], axes, SEEN_THROUGH_SHARE**2 * s.cut_sin2)))
 
     arcs = pillar_arcs(T, s.a[loci], middles, tol, bias, 0.5 * scene.cell, seen_through)
