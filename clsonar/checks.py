@@ -20,7 +20,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .geometry import enclosing, inside_polygon
+from .geometry import enclosing, inside_polygon, segment_distance
 from .scene import Polyline, Scene, WallFollowing
 
 
@@ -65,12 +65,7 @@ def placement_warnings(scene: Scene, poses: np.ndarray) -> list[str]:
         outline = np.asarray(s.points, dtype=np.float64)
         if not inside_polygon(outline, np.asarray([p.start], dtype=np.float64))[0]:
             continue
-        a, b = outline, np.roll(outline, -1, axis=0)
-        d = b - a
-        t = np.clip(np.einsum("mkj,kj->mk", poses[:, None] - a[None], d)
-                    / np.maximum(np.sum(d * d, 1), 1e-300), 0.0, 1.0)
-        gap = np.hypot(*(poses[:, None] - (a[None] + t[..., None] * d[None])).transpose(2, 0, 1))
-        if gap.min() > p.clearance_m + FOLLOWS_WALLS_M:
+        if segment_distance(poses, outline).min() > p.clearance_m + FOLLOWS_WALLS_M:
             return [f"the wall-following ring circles an obstacle, not the walls of "
                     f"surfaces[{i}] (it follows the surface nearest its start): move "
                     f"sensors.placement.start nearer a wall to scan the room"]

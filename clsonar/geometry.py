@@ -398,6 +398,22 @@ def nearest_surface_point(geom: Geometry, points: np.ndarray) -> tuple[np.ndarra
     return best, near
 
 
+def segment_distance(points: np.ndarray, polygon: np.ndarray, closed: bool = True
+                     ) -> np.ndarray:
+    """[M] the distance of each of ``points`` [M, 2] to the sides of ``polygon`` [K, 2]
+    (closed: the last vertex joined to the first)."""
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    a = np.asarray(polygon, dtype=np.float64)
+    b = np.roll(a, -1, axis=0)
+    if not closed:
+        a, b = a[:-1], b[:-1]
+    d = b - a
+    t = np.clip(np.einsum("mkj,kj->mk", pts[:, None] - a[None], d)
+                / np.maximum(np.sum(d * d, 1), 1e-300), 0, 1)
+    near = a[None] + t[..., None] * d[None]
+    return np.min(np.hypot(*(pts[:, None] - near).transpose(2, 0, 1)), axis=1)
+
+
 def ray_distance(geom: Geometry, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:
     """Distance along each ray (unit ``directions``) to the first surface it meets (``inf``
     if none). Rays starting on a surface do not hit it at distance 0."""

@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 
-from ...geometry import inside_polygon
+from ...geometry import inside_polygon, segment_distance
 from .draft import Draft
-from .shapes import inset, l_shape, rect, ring_transducers, segment_distance, t_shape, u_shape
+from .shapes import inset, l_shape, rect, ring_transducers, t_shape, u_shape
 from .shapes import walk as walk_loop
 
 #: Outlines of the zoo's rooms, cycled case by case.

@@ -84,20 +84,6 @@ def walk(loop: np.ndarray, step: float, start: float = 0.0
     return points, heading
 
 
-def segment_distance(points: np.ndarray, polygon: np.ndarray, closed: bool = True
-                     ) -> np.ndarray:
-    """[M] the distance of each of ``points`` [M, 2] to the sides of ``polygon``."""
-    pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    a = np.asarray(polygon, dtype=np.float64)
-    b = np.roll(a, -1, axis=0)
-    if not closed:
-        a, b = a[:-1], b[:-1]
-    d = b - a
-    t = np.clip(np.einsum("mkj,kj->mk", pts[:, None] - a[None], d) / np.sum(d * d, 1), 0, 1)
-    near = a[None] + t[..., None] * d[None]
-    return np.min(np.hypot(*(pts[:, None] - near).transpose(2, 0, 1)), axis=1)
-
-
 def ring_transducers(center: np.ndarray, start_deg: float, group: int,
                      radius_m: float = 0.065, elements: int = 8) -> list[dict[str, Any]]:
     """One ring pose as explicit transducers (thesis §2.1.2: 8 facing outwards on 6.5 cm),

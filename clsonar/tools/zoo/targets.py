@@ -16,8 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from ...geometry import segment_distance
 from .draft import Draft, noise_for, reach
-from .shapes import array_transducers, crosses, segment_distance, unit
+from .shapes import array_transducers, crosses, unit
 
 #: ``pose(rng) -> (centre, heading_deg, line_deg, tags)`` of one array.
 Pose = Callable[[np.random.Generator], tuple[np.ndarray, float, float, list[str]]]
