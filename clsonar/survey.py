@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from .geometry import build_geometry, inside_polygon
+from .geometry import Geometry, build_geometry, inside_polygon
 from .scene import Polyline, Scene, WallFollowing
 from .sensors import SensorArray, square_to_walls
 
@@ -161,13 +161,13 @@ def survey(scene: Scene, sensors: SensorArray) -> Survey:
     return Survey(kind, len(members), sum(rings), int(arrays), room, path)
 
 
-def choose_settings(scene: Scene, found: Survey, given: str = "file"
-                    ) -> tuple[Scene, dict[str, str]]:
+def choose_settings(scene: Scene, found: Survey, given: str = "file",
+                    geom: Geometry | None = None) -> tuple[Scene, dict[str, str]]:
     """``scene`` with every setting of :data:`AUTO_KEYS` it leaves out (None) chosen for
     the kind of scan ``found`` (:data:`CHOICES`), and a wall-following ring's heading
-    square to the walls (:func:`~clsonar.sensors.square_to_walls`); and, per setting, why
-    its value was used: ``"auto: <kind>"`` or ``given`` (where the file, or a preset, set
-    it)."""
+    square to the walls (:func:`~clsonar.sensors.square_to_walls`, on ``geom``, the
+    scene's geometry if the caller has built it); and, per setting, why its value was used:
+    ``"auto: <kind>"`` or ``given`` (where the file, or a preset, set it)."""
     why: dict[str, str] = {}
     auto = f"auto: {found.kind}"
 
@@ -189,7 +189,8 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file"
         unset = placement.start_deg is None
         why["sensors.placement.start_deg"] = "auto: square to the walls" if unset else given
         if unset:
-            start = square_to_walls(build_geometry(scene), placement.elements)
+            geom = build_geometry(scene) if geom is None else geom
+            start = square_to_walls(geom, placement.elements)
             scene = dataclasses.replace(scene, sensors=dataclasses.replace(
                 scene.sensors, placement=dataclasses.replace(placement, start_deg=start)))
     return scene, why

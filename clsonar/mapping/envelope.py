@@ -138,10 +138,12 @@ def _pose_points(s: _Scan, i: int, before: int | None, after: int | None
 ElementScan = list[tuple[int, list[EnvelopePoint], bool]]
 
 
-def _element_scans(scene: Scene, sensors: SensorArray, loci: Loci) -> list[ElementScan]:
+def element_scans(scene: Scene, sensors: SensorArray, loci) -> list[ElementScan]:
     """Per element of the ring, its envelope points in scan order: ``(place, points,
     one_sided)`` with place 2·g at pose g and 2·g + 1 midway from pose g to g + 1 (a
-    midway point credited to both of its loci; see :func:`_pose_points`)."""
+    midway point credited to both of its loci; see :func:`_pose_points`): what
+    :func:`scan_envelope` and :func:`envelope_links` are made of, computed once for both
+    where a caller needs both."""
     loci = as_loci(loci)
     ranges = 0.5 * scene.medium.c * loci.tof_s
     by_key = _first_echoes(sensors, loci, ranges)
@@ -159,7 +161,8 @@ def _element_scans(scene: Scene, sensors: SensorArray, loci: Loci) -> list[Eleme
     return list(scans.values())
 
 
-def scan_envelope(scene: Scene, sensors: SensorArray, loci
+def scan_envelope(scene: Scene, sensors: SensorArray, loci,
+                  scans: list[ElementScan] | None = None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Surface points of the T = R loci of a moving array (a wall-following ring): the
     envelope of the loci of one element at consecutive poses.
@@ -177,10 +180,13 @@ def scan_envelope(scene: Scene, sensors: SensorArray, loci
 
     Returns ``(locus [m], centre [m, 2], radius [m], point [m, 2])``: the locus each
     point is credited to (a midway point to both of its loci), the (possibly midway)
-    locus circle and the envelope point on it.
+    locus circle and the envelope point on it. ``scans``: :func:`element_scans`, if the
+    caller has them.
     """
-    out = [p for scan in _element_scans(scene, sensors, loci)
-           for _, points, one_sided in scan if not one_sided for p in points]
+    if scans is None:
+        scans = element_scans(scene, sensors, loci)
+    out = [p for scan in scans for _, points, one_sided in scan if not one_sided
+           for p in points]
     if not out:
         return np.zeros(0, np.int64), np.zeros((0, 2)), np.zeros(0), np.zeros((0, 2))
     idx, centre, radius, point = zip(*out, strict=True)
@@ -232,11 +238,10 @@ def _chains(scan: ElementScan) -> list[tuple[list[EnvelopePoint], float]]:
     midway point as its later locus'."""
     chains: list[tuple[list[EnvelopePoint], float]] = []
     run: list[tuple[EnvelopePoint, bool]] = []
-    radius, last = math.inf, None
+    radius, last = math.inf, 0
     for place, points, one_sided in scan:
         p = points[-1]
-        link = (_link_radius(run[-1][0], p)
-                if last is not None and place - last <= 2 and run else None)
+        link = _link_radius(run[-1][0], p) if run and place - last <= 2 else None
         if link is None:
             if sum(not o for _, o in run) >= 2:
                 chains.append(([q for q, _ in run], radius))
@@ -250,7 +255,8 @@ def _chains(scan: ElementScan) -> list[tuple[list[EnvelopePoint], float]]:
     return chains
 
 
-def envelope_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: float
+def envelope_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: float,
+                   scans: list[ElementScan] | None = None
                    ) -> tuple[np.ndarray, np.ndarray]:
     """The plane between consecutive envelope points of one element (at a pose, midway to
     the next, at the next pose; the midway point may be missing, out of a beam) where they
@@ -262,9 +268,10 @@ def envelope_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: 
     and no farther than a surface of the run's radius R stays within
     :data:`LINK_SAGITTA_M` of its tangent, sqrt(2·R·LINK_SAGITTA_M).
     Returns ``(points [m, 2], loci [m, 2])``: samples every ``step`` and the loci at both
-    ends of the stretch each lies on."""
+    ends of the stretch each lies on. ``scans``: :func:`element_scans`, if the caller has
+    them."""
     points, ends = [], []
-    for scan in _element_scans(scene, sensors, loci):
+    for scan in element_scans(scene, sensors, loci) if scans is None else scans:
         for run, radius in _chains(scan):
             q = np.array([p[3] for p in run])
             first, last = q[0] - q[1], q[-1] - q[-2]

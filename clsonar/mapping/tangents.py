@@ -11,7 +11,7 @@ import numpy as np
 
 from ..scene import Scene
 from ..sensors import SensorArray
-from .envelope import ENVELOPE_ARC_BIAS_M, envelope_links, in_beams, scan_envelope
+from .envelope import ENVELOPE_ARC_BIAS_M, element_scans, envelope_links, in_beams, scan_envelope
 from .families import window_tolerance
 from .loci import Loci, as_loci
 from .pillars import MIN_PILLAR_LOCI, PILLAR_TOL_M, pillar_arcs
@@ -157,32 +157,27 @@ def _tangent_segments(s: _Sampled, i: int, ks: np.ndarray,
     return out
 
 
-def _isolated_points(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.ndarray,
-                     bias: float, linked: np.ndarray) -> list[np.ndarray]:
-    """Per locus in ``isolated``: where the scan envelope has points on it, the arcs around
-    them inside the element's beam; else the middle of its in-beam arc (none for a locus
-    in ``linked``: the scan envelope's links already hold its surface point) or, for T = R
-    loci that agree on one pillar (:func:`~.pillars.pillar_arcs`), its stretch of the
-    pillar."""
-    if len(isolated) == 0:
-        return []
-    env = scan_envelope(scene, sensors, s.loci)
-    found = []
-    for i in isolated:
+def _isolated_points(s: _Sampled, isolated: np.ndarray, bias: float, linked: np.ndarray,
+                     env: tuple[np.ndarray, ...]) -> tuple[list[np.ndarray], list[int]]:
+    """Per locus in ``isolated``: where the scan envelope ``env`` has points on it, the arcs
+    around them inside the element's beam; else the middle of its in-beam arc (none for a
+    locus in ``linked``: the scan envelope's links already hold its surface point). And the
+    slots of the T = R loci given a middle of arc (pillar candidates, :func:`_pillars`)."""
+    found, stubs = [], []
+    for k, i in enumerate(isolated):
         mine = np.flatnonzero(env[0] == i)
-        if len(mine) == 0:
-            found.append(np.zeros((0, 2)) if i in linked
-                         else _middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
-        else:  # around the scan envelope's points, inside the element's beam
+        if len(mine):  # around the scan envelope's points, inside the element's beam
             arcs = np.concatenate([_arc_around(env[1][m], env[2][m], env[3][m],
                                                min(bias, ENVELOPE_ARC_BIAS_M))
                                    for m in mine])
             found.append(arcs[in_beams(arcs, s.T[i], s.axes[s.loci.tx[i]], s.cut_sin2)])
-    stubs = [k for k, i in enumerate(isolated) if len(found[k]) and i not in env[0]
-             and s.loci.tx[i] == s.loci.rx[i]]
-    for k, arc in _pillars(scene, s, isolated[stubs], found, stubs, bias).items():
-        found[k] = arc
-    return found
+        elif i in linked:
+            found.append(np.zeros((0, 2)))
+        else:
+            found.append(_middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
+            if len(found[-1]) and s.loci.tx[i] == s.loci.rx[i]:
+                stubs.append(k)
+    return found, stubs
 
 
 def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray],
@@ -223,17 +218,21 @@ def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray
 def _add_isolated(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.ndarray,
                   bias: float, found: list[np.ndarray], source: list[np.ndarray]) -> None:
     """Append to ``found`` and ``source`` what the ``isolated`` loci give: the scan
-    envelope's links between them (:func:`~.envelope.envelope_links`) and each one's
-    points (:func:`_isolated_points`)."""
-    linked = np.zeros(0, np.int64)
-    if len(isolated):
-        points, ends = envelope_links(scene, sensors, s.loci, LINK_STEP_M,
-                                      min(bias, ENVELOPE_ARC_BIAS_M))
-        keep = np.isin(ends, isolated).all(axis=1)
-        found.append(points[keep])
-        source.append(ends[keep, 0])
-        linked = np.unique(ends[keep])
-    arcs = _isolated_points(scene, sensors, s, isolated, bias, linked)
+    envelope's links between them (:func:`~.envelope.envelope_links`), and each one's
+    points (:func:`_isolated_points`), a pillar's stretch for those a pillar explains
+    (:func:`_pillars`)."""
+    if len(isolated) == 0:
+        return
+    scans = element_scans(scene, sensors, s.loci)
+    points, ends = envelope_links(scene, sensors, s.loci, LINK_STEP_M,
+                                  min(bias, ENVELOPE_ARC_BIAS_M), scans)
+    keep = np.isin(ends, isolated).all(axis=1)
+    found.append(points[keep])
+    source.append(ends[keep, 0])
+    env = scan_envelope(scene, sensors, s.loci, scans)
+    arcs, stubs = _isolated_points(s, isolated, bias, np.unique(ends[keep]), env)
+    for k, arc in _pillars(scene, s, isolated[stubs], arcs, stubs, bias).items():
+        arcs[k] = arc
     for locus, arc in zip(isolated, arcs, strict=True):
         found.append(arc)
         source.append(np.full(len(arc), locus))
