@@ -53,13 +53,20 @@ class JsonReader:
                 raise self.fail(join(key, k), "missing required key")
         return value
 
+    def _absent(self, d: dict[str, Any], name: str, path: str, default: Any) -> bool:
+        """Whether ``name`` is absent from ``d`` (its ``default`` then stands); absent
+        without a default, it is an error."""
+        if name in d:
+            return False
+        if default is _MISSING:
+            raise self.fail(path, "missing required key")
+        return True
+
     def number(self, d: dict[str, Any], name: str, key: str, default: Any = _MISSING, *,
                gt: float | None = None, ge: float | None = None, le: float | None = None,
                lt: float | None = None) -> float:
         path = join(key, name)
-        if name not in d:
-            if default is _MISSING:
-                raise self.fail(path, "missing required key")
+        if self._absent(d, name, path, default):
             return default
         return self._bounded(self.check_number(d[name], path, gt=gt, ge=ge, le=le, lt=lt), path)
 
@@ -95,9 +102,7 @@ class JsonReader:
     def integer(self, d: dict[str, Any], name: str, key: str, default: Any = _MISSING, *,
                 ge: int | None = None, le: int | None = None) -> int:
         path = join(key, name)
-        if name not in d:
-            if default is _MISSING:
-                raise self.fail(path, "missing required key")
+        if self._absent(d, name, path, default):
             return default
         v = d[name]
         if isinstance(v, float) and v.is_integer() and abs(v) < 2**53:
@@ -119,9 +124,7 @@ class JsonReader:
     def choice(self, d: dict[str, Any], name: str, key: str, options: tuple[str, ...],
                default: Any = _MISSING) -> str:
         path = join(key, name)
-        if name not in d:
-            if default is _MISSING:
-                raise self.fail(path, "missing required key")
+        if self._absent(d, name, path, default):
             return default
         v = d[name]
         if v not in options or not isinstance(v, str):
@@ -155,9 +158,7 @@ class JsonReader:
 
     def point(self, d: dict[str, Any], name: str, key: str, default: Any = _MISSING) -> Point:
         path = join(key, name)
-        if name not in d or (d[name] is None and default is None):
-            if default is _MISSING:
-                raise self.fail(path, "missing required key")
+        if self._absent(d, name, path, default) or (d[name] is None and default is None):
             return default
         return self.xy(d[name], path)
 
