@@ -188,6 +188,18 @@ def _angle(rng: np.random.Generator, lo: float, hi: float) -> float:
     return 90.0 if rng.random() < 2 / 3 else float(rng.uniform(lo, hi))
 
 
+def _vertex_case(rng: np.random.Generator, index: int, kind: str, walls: np.ndarray,
+                 bearing: Callable[[np.random.Generator], tuple[float, str]], tag: str
+                 ) -> Draft:
+    """A corner or edge case: the two ``walls`` meeting at the origin, scanned from a pose
+    drawn with ``bearing`` (:func:`_vertex_pose`), tagged ``tag`` and the scan's tags."""
+    pose = _vertex_pose(rng, index, kind, bearing)
+    kind_scan, sensors, extra, tags = scan(rng, index, kind, pose,
+                                           _clear_of(walls, np.zeros(2)))
+    surfaces = [{"type": "polyline", "points": walls.tolist()}]
+    return Draft(kind, kind_scan, kind_scan, surfaces, sensors, extra, [tag, *tags])
+
+
 def corner(rng: np.random.Generator, index: int) -> Draft:
     """A concave corner (90°, or 60–120°) open towards −x, seen 3–60° from its first
     wall's normal (45°: along the bisector of a right angle), 1–9 m away."""
@@ -198,12 +210,7 @@ def corner(rng: np.random.Generator, index: int) -> Draft:
     def bearing(r: np.random.Generator) -> tuple[float, str]:
         psi = float(r.uniform(max(0.0, 90.0 - alpha) + 3.0, 60.0))
         return normal - psi, f"seen at {psi:.0f}°"
-    pose = _vertex_pose(rng, index, "corner", bearing)
-    kind_scan, sensors, extra, tags = scan(rng, index, "corner", pose,
-                                           _clear_of(walls, np.zeros(2)))
-    surfaces = [{"type": "polyline", "points": walls.tolist()}]
-    return Draft("corner", kind_scan, kind_scan, surfaces, sensors, extra,
-                 [f"{alpha:.0f}°", *tags])
+    return _vertex_case(rng, index, "corner", walls, bearing, f"{alpha:.0f}°")
 
 
 def edge(rng: np.random.Generator, index: int) -> Draft:
@@ -215,12 +222,7 @@ def edge(rng: np.random.Generator, index: int) -> Draft:
     def bearing(r: np.random.Generator) -> tuple[float, str]:
         psi = float(r.uniform(-60.0, 60.0))
         return 180.0 + psi, f"seen at {psi:.0f}°"
-    pose = _vertex_pose(rng, index, "edge", bearing)
-    kind_scan, sensors, extra, tags = scan(rng, index, "edge", pose,
-                                           _clear_of(walls, np.zeros(2)))
-    surfaces = [{"type": "polyline", "points": walls.tolist()}]
-    return Draft("edge", kind_scan, kind_scan, surfaces, sensors, extra,
-                 [f"{beta:.0f}°", *tags])
+    return _vertex_case(rng, index, "edge", walls, bearing, f"{beta:.0f}°")
 
 
 def _round(rng: np.random.Generator, index: int, kind: str, radius: float,
