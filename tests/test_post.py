@@ -255,3 +255,14 @@ def test_refine_cells_finds_the_ridge_between_cells():
     w[:, 2] = w[:, 3] = 1.0  # a ridge on the boundary between columns 2 and 3
     refined = refine_cells(np.array([[2, 2], [2, 3]]), w)
     assert np.allclose(refined[:, 1], 2.5) and np.allclose(refined[:, 0], 2.0)
+
+
+def test_a_patch_of_one_point_is_kept_and_longer_patches_lose_lone_points():
+    from clsonar.post import Profile
+    from clsonar.post.profile import with_patches
+
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [1.1, 0.0], [1.2, 0.0], [2.0, 0.0]])
+    ends = np.array([1, 5])  # a thin post's single specular spot, then a 4-point patch
+    keep = np.array([True, True, False, True, True])  # the patch's 2nd point out of sight
+    out = with_patches(Profile(()), points, ends, keep, 0.02)
+    assert [c.tolist() for c in out.curves] == [[[0.0, 0.0]], [[1.2, 0.0], [2.0, 0.0]]]

@@ -194,12 +194,14 @@ def with_patches(profile: Profile, points: np.ndarray | None, ends: np.ndarray |
                  keep: np.ndarray | None, radius: float) -> Profile:
     """``profile`` with fitted patches as its curves where they are: patch k is
     ``points[ends[k-1]:ends[k]]``, its points where ``keep`` holds, in runs, in place of
-    the profile's curves within ``radius`` of them (:func:`overlay`)."""
+    the profile's curves within ``radius`` of them (:func:`overlay`). A patch of one point
+    (a reflector smaller than the spacing of its points: a thin post's specular spot) is
+    kept as it is."""
     if ends is None or len(ends) == 0 or points is None or keep is None:
         return profile
     starts = np.r_[0, ends[:-1]]
     pieces = [run for a, b in zip(starts, ends, strict=True)
-              for run in runs(points[a:b], keep[a:b])]
+              for run in runs(points[a:b], keep[a:b], min(2, b - a))]
     return overlay(profile, pieces, radius)
 
 
