@@ -19,8 +19,8 @@ off its axis, after ``n`` reflections along a path of length ``L``, has amplitud
 - ``G_kind`` is 1 for flat walls (specular and corner multi-bounce); for curved surfaces
   the extra divergence of the reflected ray tube relative to a flat mirror
   (:func:`curved_gain`; scene key ``echo.curvature_gain`` false sets it to 1, as the
-  thesis' ray tracing had it); for diffraction at a convex edge the geometrical theory of
-  diffraction's order of magnitude (:func:`edge_gain`).
+  thesis' ray tracing had it); for diffraction at a convex edge the uniform theory of
+  diffraction's coefficient of a rigid wedge (:func:`edge_gain`).
 
 Why ρ = 0.9: with the thesis' threshold of 4 units and A0 = 5, a single reflection at
 normal incidence gives 4.5 (detected), a double reflection 4.05 — above threshold only
@@ -155,18 +155,97 @@ def curved_gain(
     return np.sqrt(path / np.maximum(l_eff, floor))
 
 
-def edge_gain(d1: np.ndarray, d2: np.ndarray, k: float, coefficient: float) -> np.ndarray:
-    """Echo amplitude diffracted by a convex edge relative to a flat mirror at the same path.
-
-    The geometrical theory of diffraction gives an edge-diffracted field of order
-    ``|D|/sqrt(d1·d2·(d1+d2))`` with ``|D| ≈ 1/(2·sqrt(2πk))`` against ``1/(d1+d2)`` for a
-    mirror, so the ratio is ``coefficient · sqrt((d1+d2)/(d1·d2)) / (2·sqrt(2πk))``
-    (about 0.01 at 1 m for 50 kHz). ``coefficient`` (scene key ``echo.edge_coefficient``,
-    default 1) scales it for wedges whose angular factor differs.
-    """
+def edge_gain_estimate(d1: np.ndarray, d2: np.ndarray, k: float,
+                       coefficient: float) -> np.ndarray:
+    """Echo amplitude diffracted by a convex edge relative to a flat mirror at the same
+    path, as an order of magnitude (``echo.edge_model`` ``"estimate"``): the geometrical
+    theory of diffraction's ``|D|/sqrt(d1·d2·(d1+d2))`` against ``1/(d1 + d2)`` with
+    ``|D| ≈ 1/(2·sqrt(2πk))`` and no angular factor, ``coefficient · sqrt((d1+d2)/(d1·d2))
+    / (2·sqrt(2πk))`` (about 0.01 at 1 m for 50 kHz). Against the exact wedge it is 4 dB
+    low along a box corner's diagonal and tens of dB low near the faces' reflection
+    boundaries (docs/physics.md); :func:`edge_gain` is the uniform theory."""
     d1 = np.asarray(d1, dtype=np.float64)
     d2 = np.asarray(d2, dtype=np.float64)
     return coefficient * np.sqrt((d1 + d2) / (d1 * d2)) / (2.0 * math.sqrt(2.0 * math.pi * k))
+
+
+#: Below this argument the Fresnel auxiliary functions are the rational approximations of
+#: Abramowitz & Stegun 7.3.32–33 (absolute error < 2e-3), above it their asymptotic series,
+#: A&S 7.3.27–28 to the second term (relative error < 2e-4).
+FRESNEL_SWITCH = 3.0
+
+
+def fresnel_auxiliary(z: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+    """``(f(z), g(z))``, the auxiliary functions of the Fresnel integrals (A&S 7.3.9–10:
+    ``C(z) = 1/2 + f·sin(πz²/2) − g·cos(πz²/2)``, ``S(z) = 1/2 − f·cos(πz²/2) −
+    g·sin(πz²/2)``), z ≥ 0; f(0) = g(0) = 1/2, f ~ 1/(πz) and g ~ 1/(π²z³) for large z.
+    ``|f + i·g|`` is within 1.4 % of the exact value (tests/test_physics.py), which is what
+    :func:`edge_gain` needs; the kernels use the same formulas (:data:`FRESNEL_SWITCH`)."""
+    z = np.asarray(z, dtype=np.float64)
+    zf = np.maximum(z, FRESNEL_SWITCH)  # the far branch, evaluated only where it applies
+    x2 = (math.pi * zf * zf) ** -2.0
+    f_far = (1.0 - 3.0 * x2 + 105.0 * x2 * x2) / (math.pi * zf)
+    g_far = (1.0 - 15.0 * x2 + 945.0 * x2 * x2) / (math.pi**2 * zf**3)
+    f_near = (1.0 + 0.926 * z) / (2.0 + 1.792 * z + 3.104 * z * z)
+    g_near = 1.0 / (2.0 + 4.142 * z + 3.492 * z * z + 6.670 * z**3)
+    far = z >= FRESNEL_SWITCH
+    return np.where(far, f_far, f_near), np.where(far, g_far, g_near)
+
+
+def wedge_angles(x: np.ndarray, v: np.ndarray, va: np.ndarray, vb: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``(φ, n)`` of points ``x`` [..., 2] about a convex edge at ``v`` whose faces leave
+    it along the unit vectors ``va`` and ``vb`` (the solid wedge is the convex angle α
+    between them): φ the angle of x − v from face a through the free region, 0 ≤ φ ≤ nπ,
+    and n = (2π − α)/π the wedge index of the diffraction coefficient (n = 1.5 for a right-
+    angled box corner, 2 for a thin wall's end)."""
+    cab = va[..., 0] * vb[..., 1] - va[..., 1] * vb[..., 0]
+    s = np.where(cab >= 0, 1.0, -1.0)
+    alpha = np.arctan2(np.abs(cab), va[..., 0] * vb[..., 0] + va[..., 1] * vb[..., 1])
+    w = x - v
+    cross_aw = va[..., 0] * w[..., 1] - va[..., 1] * w[..., 0]
+    phi = np.arctan2(-s * cross_aw, va[..., 0] * w[..., 0] + va[..., 1] * w[..., 1])
+    return np.where(phi < 0, phi + 2.0 * math.pi, phi), (2.0 * math.pi - alpha) / math.pi
+
+
+def edge_gain(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarray,
+              n: np.ndarray, k: float, coefficient: float) -> np.ndarray:
+    """Echo amplitude diffracted by a rigid convex edge relative to a flat mirror at the
+    same path length: the uniform theory of diffraction (Kouyoumjian & Pathak, Proc. IEEE
+    62(11), 1974) for a spherical wave, edge perpendicular to the scene's plane.
+
+    The diffracted field is ``u_i·D·sqrt(d1/(d2·(d1 + d2)))`` against ``1/(d1 + d2)`` for
+    a mirror, so the ratio is ``|D|/sqrt(L)``, L = d1·d2/(d1 + d2). D (hard wedge, the
+    sum of its four terms) is ``−e^{−iπ/4}/(2n·sqrt(2πk))·Σ cot((π ± β)/(2n))·F(kL·a±(β))``
+    over β = φ_R ∓ φ_T; with ε the distance of π ± β from its nearest multiple of 2πn,
+    each term is ``2·sqrt(πkL)·q·(f(z) + i·g(z))``, q = cot(ε/2n)·|sin(ε/2)| and
+    z = 2|sin(ε/2)|·sqrt(kL/π) (:func:`fresnel_auxiliary`), so that
+
+        gain = coefficient · |Σ q·(f + i·g)| / (n·sqrt(2)).
+
+    Far from the shadow and reflection boundaries this is Keller's geometrical theory of
+    diffraction (about 0.01 at 1 m for 50 kHz); at a boundary it is 1/2, half the mirror
+    echo that the face's specular reflection gives on its lit side. ``coefficient``
+    (scene key ``echo.edge_coefficient``, default 1) scales it. The phase of D is not kept
+    (an echo's amplitude is its envelope), and the 2-D scene's edges are infinitely long.
+    """
+    d1 = np.asarray(d1, dtype=np.float64)
+    d2 = np.asarray(d2, dtype=np.float64)
+    kl = k * d1 * d2 / (d1 + d2)
+    re = np.zeros(np.broadcast(d1, d2, phi_t, phi_r, n).shape)
+    im = np.zeros_like(re)
+    for sign_b in (-1.0, 1.0):
+        beta = phi_r + sign_b * phi_t
+        for x in (math.pi + beta, math.pi - beta):
+            eps = x - 2.0 * math.pi * n * np.floor(x / (2.0 * math.pi * n) + 0.5)
+            half = np.abs(np.sin(0.5 * eps))
+            tiny = np.abs(np.sin(eps / (2.0 * n))) < 1e-12
+            q = np.where(tiny, n, np.cos(eps / (2.0 * n)) * half
+                         / np.where(tiny, 1.0, np.sin(eps / (2.0 * n))))
+            f, g = fresnel_auxiliary(2.0 * half * np.sqrt(kl / math.pi))
+            re = re + q * f
+            im = im + q * g
+    return coefficient * np.hypot(re, im) / (n * math.sqrt(2.0))
 
 
 def absorption_factor(path_m: np.ndarray, absorption_db_per_m: float) -> np.ndarray:

@@ -32,10 +32,12 @@
 #define K_CUT_SIN2 2     // sin² of the hard beam cut (min of half_beam_deg and the null)
 #define K_RHO 3          // wall reflection coefficient ρ
 #define K_ABSORPTION 4   // α·ln(10)/20 per metre: amplitude factor exp(−K_ABSORPTION·L)
-#define K_EDGE 5         // edge_coefficient / (2·sqrt(2πk)), see physics.edge_gain
+#define K_EDGE 5         // edge_coefficient, see physics.edge_gain and edge_gain_estimate
 #define K_INV_C 6        // 1 / speed of sound (eq. 2.1 unless the scene overrides it)
 #define K_CURVATURE 7    // 1, or 0 where curved surfaces reflect like flat ones (the thesis)
-#define K_COUNT 8
+#define K_WAVENUMBER 8   // k = 2πf/c, rad/m
+#define K_EDGE_UTD 9     // 1: edges diffract by the uniform theory (echo.edge_model "utd")
+#define K_COUNT 10
 
 // Coefficients c_k of the beam series (physics.beam_series_coefficients), from the host:
 // -DBEAM_TERMS=14 -DBEAM_SERIES={c0,c1,...}.

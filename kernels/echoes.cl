@@ -172,7 +172,7 @@ __kernel void vertex_paths(PAIR_ARGS, __global const real *corners, OCCLUDER_ARG
 // Diffraction at a convex edge V (a polyline vertex that a free side sees as convex): path
 // T→V→R, valid iff neither T nor R is strictly inside the solid cone (the convex angle
 // between the unit vectors va, vb to the neighbouring points). Amplitude factor
-// physics.edge_gain (geometrical theory of diffraction, no ρ).
+// physics.edge_gain: the uniform theory of diffraction for a rigid wedge, no ρ.
 inline bool in_solid_cone(real2 x, real2 v, real2 va, real2 vb) {
     real cab = cross2(va, vb);
     if (cab == R(0.0)) return false;
@@ -181,6 +181,51 @@ inline bool in_solid_cone(real2 x, real2 v, real2 va, real2 vb) {
     real alpha = cross2(w, vb) / cab;
     real beta = cross2(va, w) / cab;
     return alpha > R(0.0) && beta > R(0.0);
+}
+
+// Angle of x about the edge, from face a through the free region (physics.wedge_angles).
+inline real wedge_angle(real2 x, real2 v, real2 va, real s) {
+    real2 w = x - v;
+    real phi = atan2(-s * cross2(va, w), dot2(va, w));
+    return phi < R(0.0) ? phi + R(2.0) * M_PI_R : phi;
+}
+
+// One term q·(f(z) + i·g(z)) of the diffraction coefficient for π ± β (physics.edge_gain):
+// ε the distance of x from its nearest multiple of 2πn, f and g the Fresnel auxiliary
+// functions (A&S 7.3.32–33 below z = 3, the asymptotic series 7.3.27–28 above).
+inline real2 edge_term(real x, real n, real kl) {
+    real eps = x - R(2.0) * M_PI_R * n * floor(x / (R(2.0) * M_PI_R * n) + R(0.5));
+    real sh = fabs(sin(R(0.5) * eps));  // |sin(ε/2)|
+    real sn = sin(eps / (R(2.0) * n));
+    real q = fabs(sn) < R(1e-12) ? n : cos(eps / (R(2.0) * n)) * sh / sn;
+    real z = R(2.0) * sh * sqrt(kl / M_PI_R);
+    real f, g;
+    if (z >= R(3.0)) {
+        real x2 = R(1.0) / (M_PI_R * z * z * M_PI_R * z * z);
+        f = (R(1.0) - R(3.0) * x2 + R(105.0) * x2 * x2) / (M_PI_R * z);
+        g = (R(1.0) - R(15.0) * x2 + R(945.0) * x2 * x2) / (M_PI_R * M_PI_R * z * z * z);
+    } else {
+        f = (R(1.0) + R(0.926) * z) / (R(2.0) + R(1.792) * z + R(3.104) * z * z);
+        g = R(1.0) / (R(2.0) + R(4.142) * z + R(3.492) * z * z + R(6.670) * z * z * z);
+    }
+    return (real2)(q * f, q * g);
+}
+
+// |D|/sqrt(L) of a hard wedge: |Σ of the four terms| / (n·sqrt 2), times edge_coefficient;
+// with echo.edge_model "estimate", coefficient·sqrt((d1+d2)/(d1·d2))/(2·sqrt(2πk)).
+inline real edge_gain(real2 T, real2 R_, real2 V, real2 va, real2 vb, real d1, real d2,
+                      __global const real *k) {
+    if (!(k[K_EDGE_UTD] > R(0.0)))
+        return k[K_EDGE] * sqrt((d1 + d2) / (d1 * d2))
+               / (R(2.0) * sqrt(R(2.0) * M_PI_R * k[K_WAVENUMBER]));
+    real cab = cross2(va, vb);
+    real s = cab >= R(0.0) ? R(1.0) : R(-1.0);
+    real n = (R(2.0) * M_PI_R - atan2(fabs(cab), dot2(va, vb))) / M_PI_R;
+    real pt = wedge_angle(T, V, va, s), pr = wedge_angle(R_, V, va, s);
+    real kl = k[K_WAVENUMBER] * d1 * d2 / (d1 + d2);
+    real2 sum = edge_term(M_PI_R + (pr - pt), n, kl) + edge_term(M_PI_R - (pr - pt), n, kl)
+              + edge_term(M_PI_R + (pr + pt), n, kl) + edge_term(M_PI_R - (pr + pt), n, kl);
+    return k[K_EDGE] * norm2(sum) / (n * sqrt(R(2.0)));
 }
 
 __kernel void edge_paths(PAIR_ARGS, __global const real *diffractors, OCCLUDER_ARGS,
@@ -197,7 +242,7 @@ __kernel void edge_paths(PAIR_ARGS, __global const real *diffractors, OCCLUDER_A
     real d1 = norm2(V - T);
     real d2 = norm2(R_ - V);
     if (!(d1 > R(EPS_M) && d2 > R(EPS_M))) return;
-    emit_via_point(slot, pr, T, R_, V, k[K_EDGE] * sqrt((d1 + d2) / (d1 * d2)), axis, occ,
+    emit_via_point(slot, pr, T, R_, V, edge_gain(T, R_, V, va, vb, d1, d2, k), axis, occ,
                    n_occ, circles, n_circles, k, tof, amp, point);
 }
 

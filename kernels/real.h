@@ -17,3 +17,5 @@ typedef float2 real2;
 typedef float4 real4;
 #define R(x) ((float)(x))
 #endif
+
+#define M_PI_R R(3.14159265358979323846)

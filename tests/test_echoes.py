@@ -408,8 +408,9 @@ def test_cylinder_between_transducer_and_wall_removes_the_wall_echo(implementati
 # --------------------------------------------------------------------------- edges
 
 
+@pytest.mark.parametrize("edge_model", ["estimate", "utd"])
 @pytest.mark.parametrize("implementation", ["reference", "float64", "float32"])
-def test_convex_edge_returns_a_diffraction_echo_from_its_vertex(implementation):
+def test_convex_edge_returns_a_diffraction_echo_from_its_vertex(implementation, edge_model):
     vertex = (3.0, 2.0)
     obstacle = Polyline(((3.0, 0.5), vertex, (4.5, 2.0)))
     outside = (1.6, 3.1)  # sees the vertex as a convex edge
@@ -418,6 +419,8 @@ def test_convex_edge_returns_a_diffraction_echo_from_its_vertex(implementation):
     heading_in = math.degrees(math.atan2(vertex[1] - inside[1], vertex[0] - inside[0]))
     scene = make_scene([obstacle], [(*outside, heading_out + 2.0, 0), (*inside, heading_in, 1)],
                        extent=(0.0, 0.0, 5.0, 4.0), offset=(-1200.0, 300.0))
+    scene = dataclasses.replace(scene, echo=dataclasses.replace(scene.echo,
+                                                                edge_model=edge_model))
     table = (reference_echoes(scene) if implementation == "reference"
              else kernel(scene, implementation))
     edges = np.flatnonzero(table.kind_names() == "edge")
@@ -431,7 +434,12 @@ def test_convex_edge_returns_a_diffraction_echo_from_its_vertex(implementation):
     t = scene.transducer
     ka = physics.wavenumber(t.frequency_hz, scene.medium.c) * t.radius_m
     b = physics.piston_pattern(ka * math.sin(math.radians(2.0)))
-    gain = physics.edge_gain(d, d, physics.wavenumber(t.frequency_hz, scene.medium.c), 1.0)
+    # faces down (0, −1) and right (1, 0): a 270° free wedge, n = 1.5; the transducer is
+    # 90° + (180° − 141.8°) from the lower face, measured through the free region
+    phi = math.radians(90.0 + 180.0 - math.degrees(math.atan2(1.1, -1.4)))
+    k = physics.wavenumber(t.frequency_hz, scene.medium.c)
+    gain = (physics.edge_gain(d, d, phi, phi, 1.5, k, 1.0) if edge_model == "utd"
+            else physics.edge_gain_estimate(d, d, k, 1.0))
     assert table.amplitude[i] == pytest.approx(t.amplitude * b * b * gain, rel=1e-5)
 
 
@@ -595,6 +603,7 @@ def random_scenes(draw) -> Scene:
     echo = {"max_order": draw(st.sampled_from([1, 2, 2, 3])),
             "reflection_coefficient": draw(st.floats(0.3, 1.0)),
             "edge_coefficient": draw(st.floats(0.5, 20.0)),
+            "edge_model": draw(st.sampled_from(["estimate", "utd"])),
             "absorption_db_per_m": draw(st.sampled_from([0.0, 0.0, 0.3])),
             "curve_step_m": draw(st.sampled_from([0.01, 0.02]))}
     return make_scene(surfaces, transducers, extent=(0.0, 0.0, w, h), offset=offset, **echo)

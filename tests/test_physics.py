@@ -61,7 +61,37 @@ def test_curved_gain_is_one_for_a_plane_and_below_one_for_a_cylinder():
     assert physics.curved_gain(1.0, 1.0, -1.0, 1.0) == pytest.approx(physics.MAX_FOCUS_GAIN)
 
 
-def test_edge_gain_order_of_magnitude():
+def test_edge_gain_is_kellers_far_from_the_boundaries_and_half_a_mirror_on_them():
     k = physics.wavenumber(50e3, 343.4)
-    g = physics.edge_gain(1.0, 1.0, k, 1.0)
+    n, phi = 1.5, math.radians(135.0)  # a box corner seen along its diagonal, from 1 m
+    g = physics.edge_gain(1.0, 1.0, phi, phi, n, k, 1.0)
+    keller = (math.sin(math.pi / n) / (n * math.sqrt(2 * math.pi * k))
+              * abs(1 / (math.cos(math.pi / n) - 1)
+                    + 1 / (math.cos(math.pi / n) - math.cos(2 * phi / n))))
+    assert g == pytest.approx(keller * math.sqrt(2.0), rel=1e-3)  # |D|·sqrt((d1+d2)/(d1d2))
     assert 0.005 < g < 0.02
+    # on the reflection boundary of face a (φ_T + φ_R = π) the edge gives half a mirror
+    on = physics.edge_gain(2.0, 3.0, math.radians(40.0), math.radians(140.0), n, k, 1.0)
+    assert on == pytest.approx(0.5, abs=0.01)
+    assert physics.edge_gain(1.0, 1.0, phi, phi, n, k, 3.0) == pytest.approx(3 * g)
+
+
+def test_wedge_angles_from_face_a_through_the_free_region():
+    v, va, vb = np.zeros(2), np.array([0.0, -1.0]), np.array([1.0, 0.0])  # solid: x > 0, y < 0
+    pts = np.array([[-1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [-1.0, -1.0]])
+    phi, n = physics.wedge_angles(pts, v, va, vb)
+    np.testing.assert_allclose(np.degrees(phi), [90.0, 180.0, 225.0, 45.0])
+    np.testing.assert_allclose(n, 1.5)
+    phi2, _ = physics.wedge_angles(pts, v, vb, va)  # faces swapped: measured the other way
+    np.testing.assert_allclose(np.degrees(phi2), 270.0 - np.degrees(phi))
+
+
+def test_fresnel_auxiliary_functions_against_scipys_fresnel_integrals():
+    z = np.linspace(0.0, 20.0, 20001)
+    s, c = special.fresnel(z)
+    x = np.pi * z**2 / 2
+    f = -(0.5 - c) * np.sin(x) + (0.5 - s) * np.cos(x)  # A&S 7.3.9–10 solved for f, g
+    g = (0.5 - c) * np.cos(x) + (0.5 - s) * np.sin(x)
+    fa, ga = physics.fresnel_auxiliary(z)
+    assert np.max(np.abs(np.hypot(fa, ga) / np.hypot(f, g) - 1)) < 0.014
+    assert np.max(np.abs(fa - f)) < 2e-3 and np.max(np.abs(ga - g)) < 2e-3

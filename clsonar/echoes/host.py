@@ -54,9 +54,11 @@ def _constants(pb: EchoProblem) -> np.ndarray:
         pb.cut_sin2,
         pb.rho,
         pb.absorption_db_per_m * math.log(10.0) / 20.0,
-        pb.edge_coefficient / (2.0 * math.sqrt(2.0 * math.pi * pb.wavenumber)),
+        pb.edge_coefficient,
         1.0 / pb.c,
         pb.curvature,
+        pb.wavenumber,
+        pb.edge_utd,
     ])
 
 

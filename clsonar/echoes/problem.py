@@ -54,6 +54,7 @@ class EchoProblem:
     cut_sin2: float
     rho: float
     edge_coefficient: float
+    edge_utd: float  # 1.0: physics.edge_gain (echo.edge_model "utd"); 0.0: edge_gain_estimate
     absorption_db_per_m: float
     curvature: float  # 1.0, or 0.0: curved surfaces reflect like flat ones (echo.curvature_gain)
 
@@ -160,6 +161,7 @@ def prepare_problem(scene: Scene, sensors: SensorArray | None = None,
         cut_sin2=cut_sin2,
         rho=scene.echo.reflection_coefficient,
         edge_coefficient=scene.echo.edge_coefficient,
+        edge_utd=1.0 if scene.echo.edge_model == "utd" else 0.0,
         absorption_db_per_m=scene.echo.absorption_db_per_m,
         curvature=1.0 if scene.echo.curvature_gain else 0.0,
     )

@@ -251,7 +251,13 @@ def _ref_edge(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
     amp = pb.amplitude * _ref_beam(pb, pb.axes[pr[:, 0]][:, None], V - T)
     amp = amp * _ref_beam(pb, pb.axes[pr[:, 1]][:, None], V - R)
     amp = np.where(valid, amp, 0.0)
-    amp = amp * physics.edge_gain(d1, d2, pb.wavenumber, pb.edge_coefficient)
+    if pb.edge_utd:
+        phi_t, n = physics.wedge_angles(T, V, va, vb)
+        phi_r, _ = physics.wedge_angles(R, V, va, vb)
+        gain = physics.edge_gain(d1, d2, phi_t, phi_r, n, pb.wavenumber, pb.edge_coefficient)
+    else:
+        gain = physics.edge_gain_estimate(d1, d2, pb.wavenumber, pb.edge_coefficient)
+    amp = amp * gain
     amp = amp * physics.absorption_factor(path, pb.absorption_db_per_m)
     amp = np.where(valid, amp, 0.0)
     vb_ = np.broadcast_to(V, (*amp.shape, 2))

@@ -21,6 +21,9 @@ from ..physics import (
 #: Beam pattern of every transducer: the circular piston, or the thesis' flat sensitivity.
 Directivity = Literal["piston", "uniform"]
 
+#: ``echo.edge_model``: diffraction at convex edges (physics.edge_gain_estimate, edge_gain).
+EdgeModel = Literal["estimate", "utd"]
+
 #: How times of flight are found (:class:`DetectionSettings`).
 DetectionMode = Literal["threshold", "envelope"]
 
@@ -104,11 +107,15 @@ class EchoModel:
 
     ``curvature_gain`` false makes curved surfaces reflect as strongly as flat ones, as in
     the thesis' ray tracing (its scenes use it with ``transducer.directivity`` uniform).
+    ``edge_model`` ``"utd"`` diffracts at convex edges as a rigid wedge does (the uniform
+    theory of diffraction, checked against the exact Biot–Tolstoy–Medwin solution);
+    ``"estimate"`` keeps the order-of-magnitude coefficient with no angular factor.
     """
 
     max_order: int = 2
     reflection_coefficient: float = DEFAULT_REFLECTION_COEFFICIENT
     edge_coefficient: float = 1.0
+    edge_model: EdgeModel = "estimate"
     absorption_db_per_m: float = 0.0
     curve_step_m: float = 0.01
     curvature_gain: bool = True
