@@ -296,3 +296,21 @@ def test_the_profile_is_the_patches_and_vertices():
                       _transducers(_array(10, 0.1, (5.0, 3.45)), 0.0)), context=context())
     assert wall.counts["patches"] == 1
     assert np.allclose(wall.profile.points[:, 0], 8.0, atol=1e-5)
+
+
+def test_a_planes_echo_is_as_strong_as_a_mirrors_and_an_edges_past_its_end_is_not():
+    from clsonar import physics
+    from clsonar.mapping.families import MIRROR_SHARE, mirror_strong
+
+    T = np.array([[0.0, 0.0], [0.0, 0.0], [0.1, 0.0]])  # monostatic: R = T
+    axis = np.array([[0.0, 1.0]] * 3)
+    q = np.array([[0.0, 2.0], [0.0, 2.0], [0.3, 2.0]])  # the last 5.7° off the axis
+    ka = 18.3
+    off = physics.piston_pattern(ka * math.sin(math.atan2(0.2, 2.0))) ** 2
+    amplitude = np.array([4.5, 0.5 * 4.5, 0.9 * 4.5 * off])  # mirror, edge on the boundary
+    assert mirror_strong(amplitude, q, T, axis, T, axis, 4.5, ka, 0.0).tolist() == [
+        True, False, True]
+    assert mirror_strong(amplitude, q, T, axis, T, axis, 0.0, ka, 0.0).all()  # unchecked
+    sigma = (MIRROR_SHARE - 0.5) * 4.5 / 3 + 1e-9  # within three noise σ of the share
+    assert mirror_strong(amplitude[1:2], q[:1], T[:1], axis[:1], T[:1], axis[:1], 4.5, ka,
+                         sigma).tolist() == [True]

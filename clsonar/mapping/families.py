@@ -21,6 +21,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..physics import piston_pattern
 from .envelope import in_beams
 from .models import (
     CURVE_STEPS,
@@ -111,6 +112,11 @@ class Window:
     neighbour_m: float  # pairs whose transducers moved this far (or less) are neighbours
     curve_tolerance: float = 0.0  # least path residual a free curve's rows may have
     max_failed: int = 24  # seeds in a row that grow nothing before the search stops
+    #: a flat mirror's echo on both axes (A0·ρ), the beam's k·a and the noise σ, for the
+    #: amplitude a plane's echo has (:func:`mirror_strong`); mirror 0: not checked
+    mirror: float = 0.0
+    ka: float = 0.0
+    noise_std: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -143,6 +149,36 @@ def window_tolerance(amplitude: np.ndarray, noise_std: float, c: float,
     (noise / amplitude)."""
     sigma = NOISE_PATH_FACTOR * c * pulse_sigma_s * noise_std / np.maximum(amplitude, 1e-6)
     return BASE_TOLERANCE_M + NOISE_SIGMAS * sigma
+
+
+#: A plane's echo is at least this share of a flat mirror's at its reflection point (less
+#: three noise σ). Diffraction at a face's end continues the face's echoes past it, at half
+#: a mirror's on the reflection boundary and less further on (physics.edge_gain): those
+#: echoes are the edge's, not a longer face's.
+MIRROR_SHARE = 0.6
+
+
+def mirror_strong(amplitude: np.ndarray, q: np.ndarray, T: np.ndarray, axT: np.ndarray,
+                  R: np.ndarray, axR: np.ndarray, mirror: float, ka: float,
+                  noise_std: float) -> np.ndarray:
+    """Whether echoes of ``amplitude`` are as strong as a flat mirror's with reflection
+    points ``q`` for the pairs (T, R) (:data:`MIRROR_SHARE` of ``mirror``·b(θ_T)·b(θ_R),
+    the piston patterns towards q); all, when ``mirror`` is 0."""
+    if mirror <= 0:
+        return np.ones(len(amplitude), dtype=bool)
+    expected = mirror * _towards(q - T, axT, ka) * _towards(q - R, axR, ka)
+    return amplitude >= MIRROR_SHARE * expected - 3.0 * noise_std
+
+
+def _towards(d: np.ndarray, axis: np.ndarray, ka: float) -> np.ndarray:
+    """The piston pattern towards ``d`` of transducers with unit ``axis`` (no cut)."""
+    dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
+    return piston_pattern(ka * np.abs(axis[:, 0] * d[:, 1] - axis[:, 1] * d[:, 0]) / dist)
+
+
+def _mirror_strong(w: Window, rows: np.ndarray, q: np.ndarray) -> np.ndarray:
+    return mirror_strong(w.amplitude[rows], q, w.T[rows], w.axT[rows], w.R[rows],
+                         w.axR[rows], w.mirror, w.ka, w.noise_std)
 
 
 def _predict(w: Window, kind: str, params: np.ndarray, idx: np.ndarray
@@ -374,8 +410,14 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
         if f is None or (f.rms > limit and name != "curve"):
             continue
         path, q = _predict(w, name, f.params, members)
-        if np.all(np.abs(path - w.paths[members]) <= _tolerance(w, name, members)):
-            return Family(name, f.params, w.x0, members, q, f.rms, w, bend)
+        if not np.all(np.abs(path - w.paths[members]) <= _tolerance(w, name, members)):
+            continue
+        if name == "plane":  # echoes weaker than a mirror's past the face's end: the edge's
+            strong = _mirror_strong(w, members, q)
+            if np.count_nonzero(strong) < MIN_FAMILY:
+                continue
+            members, q = members[strong], q[strong]
+        return Family(name, f.params, w.x0, members, q, f.rms, w, bend)
     path, q = _predict(w, kind, fit.params, members)
     return Family(kind, fit.params, w.x0, members, q, fit.rms, w, bend)
 

@@ -22,6 +22,7 @@ is nearest (the line-of-sight check asks which pair saw it).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -29,7 +30,7 @@ import numpy as np
 from ..scene import Scene
 from ..sensors import SensorArray
 from .envelope import in_beams
-from .families import Family
+from .families import Family, mirror_strong
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2
 
@@ -172,7 +173,7 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
     widest = _beam_angle(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
                          sensors.axes[p.rx]).max()
     ok &= _beam_angle(q, T, sensors.axes[pairs[:, 0]], R, sensors.axes[pairs[:, 1]]) <= widest
-    heard = _heard(loci, pairs, path, c)
+    heard = _heard(loci, pairs, path, c, _mirror(scene, sensors, pairs, q))
     silent = ok & ~heard
     if not silent.any():
         return lo, hi
@@ -209,20 +210,39 @@ def _group_pairs(sensors: SensorArray, sensor: int) -> np.ndarray:
 HEARD_TOL_M = 0.003
 
 
-def _heard(loci: Loci, pairs: np.ndarray, path: np.ndarray, c: float) -> np.ndarray:
+def _mirror(scene: Scene, sensors: SensorArray, pairs: np.ndarray, q: np.ndarray
+            ) -> Callable[[int, np.ndarray], np.ndarray]:
+    """``(k, amplitudes) → strong``: whether detections of pair k are as strong as a flat
+    mirror's echo with reflection point ``q[k]`` (:func:`~.families.mirror_strong`)."""
+    mirror = scene.transducer.amplitude * scene.echo.reflection_coefficient
+    ka = scene.transducer.beam(scene.medium.c)[1]
+    pos, axes = sensors.positions, sensors.axes
+
+    def strong(k: int, amplitude: np.ndarray) -> np.ndarray:
+        t, r = int(pairs[k, 0]), int(pairs[k, 1])
+        one = np.ones((len(amplitude), 1))
+        return mirror_strong(amplitude, q[k] * one, pos[t] * one, axes[t] * one,
+                             pos[r] * one, axes[r] * one, mirror, ka,
+                             scene.signal.noise_std)
+    return strong
+
+
+def _heard(loci: Loci, pairs: np.ndarray, path: np.ndarray, c: float,
+           strong: Callable[[int, np.ndarray], np.ndarray]) -> np.ndarray:
     """Whether each pair has a detection (either direction) within :data:`HEARD_TOL_M` of
-    ``path``."""
+    ``path`` and as strong as the surface's echo would be (``strong``)."""
     lo_ix = np.minimum(loci.tx, loci.rx)
     hi_ix = np.maximum(loci.tx, loci.rx)
     key = lo_ix * (int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1) + hi_ix
     order = np.argsort(key, kind="stable")
-    key, detected = key[order], c * loci.tof_s[order]
+    key, detected, amplitude = key[order], c * loci.tof_s[order], loci.amplitude[order]
     want = pairs[:, 0] * (int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1) + pairs[:, 1]
     start = np.searchsorted(key, want, side="left")
     stop = np.searchsorted(key, want, side="right")
     heard = np.zeros(len(pairs), dtype=bool)
     for k in np.flatnonzero(stop > start):
-        heard[k] = bool(np.any(np.abs(detected[start[k]:stop[k]] - path[k]) <= HEARD_TOL_M))
+        near = np.abs(detected[start[k]:stop[k]] - path[k]) <= HEARD_TOL_M
+        heard[k] = bool(np.any(near & strong(int(k), amplitude[start[k]:stop[k]])))
     return heard
 
 

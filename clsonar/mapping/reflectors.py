@@ -82,7 +82,9 @@ def _window(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
     return Window(rows=rows, T=pos[loci.tx[rows]], R=pos[loci.rx[rows]],
                   axT=axes[loci.tx[rows]], axR=axes[loci.rx[rows]],
                   paths=c * loci.tof_s[rows], amplitude=amp, tolerance=tol, x0=x0,
-                  cut_sin2=cut_sin2, neighbour_m=neighbour_m)
+                  cut_sin2=cut_sin2, neighbour_m=neighbour_m,
+                  mirror=scene.transducer.amplitude * scene.echo.reflection_coefficient,
+                  ka=scene.transducer.beam(c)[1], noise_std=scene.signal.noise_std)
 
 
 def _windows(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
