@@ -314,3 +314,21 @@ def test_a_planes_echo_is_as_strong_as_a_mirrors_and_an_edges_past_its_end_is_no
     sigma = (MIRROR_SHARE - 0.5) * 4.5 / 3 + 1e-9  # within three noise σ of the share
     assert mirror_strong(amplitude[1:2], q[:1], T[:1], axis[:1], T[:1], axis[:1], 4.5, ka,
                          sigma).tolist() == [True]
+
+
+def test_a_points_echoes_agree_over_their_beams_and_a_faces_echo_is_not_its_edges():
+    from dataclasses import replace
+
+    from clsonar.mapping.families import POINT_SPREAD, Window, _strong
+
+    T = np.array([[0.0, 0.0], [0.1, 0.0], [0.2, 0.0], [0.3, 0.0]])
+    axis = np.array([[0.0, 1.0]] * 4)
+    w = Window(rows=np.arange(4), T=T, R=T, axT=axis, axR=axis, paths=np.full(4, 4.0),
+               amplitude=np.array([0.03, 0.028, 0.031, 4.5]), tolerance=np.full(4, 2e-4),
+               x0=np.zeros(2), cut_sin2=0.04, neighbour_m=0.15, mirror=4.5, ka=0.0)
+    q = np.broadcast_to([0.15, 2.0], (4, 2))  # an edge 2 m away, heard by all four
+    assert _strong(w, "point", np.arange(4), q).tolist() == [True, True, True, False]
+    assert _strong(w, "curve", np.arange(4), q).all()  # curves: not judged by strength
+    unchecked = replace(w, mirror=0.0)
+    assert _strong(unchecked, "point", np.arange(4), q).all()
+    assert 4.5 / 0.031 > POINT_SPREAD  # the face's echo, 43 dB above the edge's

@@ -166,19 +166,36 @@ def mirror_strong(amplitude: np.ndarray, q: np.ndarray, T: np.ndarray, axT: np.n
     the piston patterns towards q); all, when ``mirror`` is 0."""
     if mirror <= 0:
         return np.ones(len(amplitude), dtype=bool)
-    expected = mirror * _towards(q - T, axT, ka) * _towards(q - R, axR, ka)
+    expected = mirror * towards(q - T, axT, ka) * towards(q - R, axR, ka)
     return amplitude >= MIRROR_SHARE * expected - 3.0 * noise_std
 
 
-def _towards(d: np.ndarray, axis: np.ndarray, ka: float) -> np.ndarray:
+def towards(d: np.ndarray, axis: np.ndarray, ka: float) -> np.ndarray:
     """The piston pattern towards ``d`` of transducers with unit ``axis`` (no cut)."""
     dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
     return piston_pattern(ka * np.abs(axis[:, 0] * d[:, 1] - axis[:, 1] * d[:, 0]) / dist)
 
 
-def _mirror_strong(w: Window, rows: np.ndarray, q: np.ndarray) -> np.ndarray:
-    return mirror_strong(w.amplitude[rows], q, w.T[rows], w.axT[rows], w.R[rows],
-                         w.axR[rows], w.mirror, w.ka, w.noise_std)
+#: The echoes of one point reflector, each over its two-way beam, agree within this factor.
+POINT_SPREAD = 10.0
+
+
+def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Whether the detections ``rows`` are as strong as a ``kind`` reflector's echoes can
+    be (planes: :func:`mirror_strong`; a point's, within :data:`POINT_SPREAD` of each
+    other over their beams); all, for corners and curves, or a window without a mirror."""
+    if kind == "plane":
+        return mirror_strong(w.amplitude[rows], q, w.T[rows], w.axT[rows], w.R[rows],
+                             w.axR[rows], w.mirror, w.ka, w.noise_std)
+    if kind == "point" and w.mirror > 0 and len(rows):
+        # one point reflector's echoes differ by their beams only: not by 20 dB (a face's
+        # specular echo beside its edge's diffraction, 40 dB weaker, fits a point too)
+        seen = w.amplitude[rows] / np.maximum(
+            towards(q - w.T[rows], w.axT[rows], w.ka) * towards(q - w.R[rows], w.axR[rows],
+                                                               w.ka), 1e-3)
+        middle = float(np.median(seen))
+        return (seen <= POINT_SPREAD * middle) & (seen >= middle / POINT_SPREAD)
+    return np.ones(len(rows), dtype=bool)
 
 
 def _predict(w: Window, kind: str, params: np.ndarray, idx: np.ndarray
@@ -225,7 +242,7 @@ def _inliers(w: Window, kind: str, params: np.ndarray, free: np.ndarray) -> np.n
     """The rows of ``free`` the model predicts within their tolerance, in both beams."""
     path, q = _predict(w, kind, params, free)
     ok = (np.abs(path - w.paths[free]) <= _tolerance(w, kind, free)) & np.isfinite(path)
-    ok &= _valid(w, kind, params, free, q)
+    ok &= _valid(w, kind, params, free, q) & _strong(w, kind, free, q)
     return free[ok]
 
 
@@ -379,7 +396,8 @@ def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
         if grown is None:
             continue
         members, fit = grown
-        if seed not in members:
+        members = members[_strong(w, kind, members, _predict(w, kind, fit.params, members)[1])]
+        if seed not in members or len(members) < _least(kind):
             continue
         if (best is None or len(members) > len(best[0])
                 or (len(members) == len(best[0]) and fit.rms < best[1].rms)):
@@ -412,8 +430,8 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
         path, q = _predict(w, name, f.params, members)
         if not np.all(np.abs(path - w.paths[members]) <= _tolerance(w, name, members)):
             continue
-        if name == "plane":  # echoes weaker than a mirror's past the face's end: the edge's
-            strong = _mirror_strong(w, members, q)
+        if name in ("plane", "point"):  # a face's echoes and its edge's apart
+            strong = _strong(w, name, members, q)
             if np.count_nonzero(strong) < MIN_FAMILY:
                 continue
             members, q = members[strong], q[strong]

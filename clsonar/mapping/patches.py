@@ -30,7 +30,7 @@ import numpy as np
 from ..scene import Scene
 from ..sensors import SensorArray
 from .envelope import in_beams
-from .families import Family, mirror_strong
+from .families import Family, mirror_strong, towards
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2
 
@@ -162,7 +162,9 @@ def patch_of(f: Family, loci: Loci) -> Patch:
 
 def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
                       lo: float, hi: float) -> tuple[float, float]:
-    """The span ``(lo, hi)`` cut where the array heard nothing (module docstring)."""
+    """The span ``(lo, hi)`` cut where the array heard nothing (module docstring): pairs
+    whose beams point at the surface beyond the span at least as well as the weakest of the
+    patch's own detections (:func:`_two_way`) and that have no echo there."""
     c = scene.medium.c
     cut_sin2, _ = scene.transducer.beam(c)
     pairs = _group_pairs(sensors, int(p.tx[0]))
@@ -170,10 +172,13 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
     path, q = curve_paths(p.params, p.x0, T, R)
     ok = (in_beams(q, T, sensors.axes[pairs[:, 0]], cut_sin2)
           & in_beams(q, R, sensors.axes[pairs[:, 1]], cut_sin2) & np.isfinite(path))
-    widest = _beam_angle(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
-                         sensors.axes[p.rx]).max()
-    ok &= _beam_angle(q, T, sensors.axes[pairs[:, 0]], R, sensors.axes[pairs[:, 1]]) <= widest
-    heard = _heard(loci, pairs, path, c, _mirror(scene, sensors, pairs, q))
+    ka = scene.transducer.beam(c)[1]
+    weakest = _two_way(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
+                       sensors.axes[p.rx], ka).min()
+    ok &= _two_way(q, T, sensors.axes[pairs[:, 0]], R, sensors.axes[pairs[:, 1]],
+                   ka) >= weakest * (1.0 - 1e-9)
+    heard = _heard(loci, pairs, path, c,
+                   _mirror(scene, sensors, pairs, q) if p.straight else _any_echo)
     silent = ok & ~heard
     if not silent.any():
         return lo, hi
@@ -187,15 +192,12 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
     return lo, hi
 
 
-def _beam_angle(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
-                axR: np.ndarray) -> np.ndarray:
-    """The larger of the angles between each transducer's axis and its ray to ``q``."""
-    out = []
-    for X, ax in ((T, axT), (R, axR)):
-        d = q - X
-        cos = np.sum(d * ax, axis=-1) / np.maximum(np.hypot(*d.T), 1e-300)
-        out.append(np.arccos(np.clip(cos, -1.0, 1.0)))
-    return np.maximum(*out)
+def _two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
+             axR: np.ndarray, ka: float) -> np.ndarray:
+    """The two-way beam b(θ_T)·b(θ_R) towards ``q`` (the piston's, without the cut): a pair
+    is expected to hear the surface where its beams are no weaker there than for the
+    weakest of the patch's own detections."""
+    return towards(q - T, axT, ka) * towards(q - R, axR, ka)
 
 
 def _group_pairs(sensors: SensorArray, sensor: int) -> np.ndarray:
@@ -225,6 +227,11 @@ def _mirror(scene: Scene, sensors: SensorArray, pairs: np.ndarray, q: np.ndarray
                              pos[r] * one, axes[r] * one, mirror, ka,
                              scene.signal.noise_std)
     return strong
+
+
+def _any_echo(k: int, amplitude: np.ndarray) -> np.ndarray:
+    """Every echo is the surface's (a curved one: weaker than a mirror's, or stronger)."""
+    return np.ones(len(amplitude), dtype=bool)
 
 
 def _heard(loci: Loci, pairs: np.ndarray, path: np.ndarray, c: float,
