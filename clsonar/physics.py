@@ -239,9 +239,9 @@ def edge_gain(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarr
         for x in (math.pi + beta, math.pi - beta):
             eps = x - 2.0 * math.pi * n * np.floor(x / (2.0 * math.pi * n) + 0.5)
             half = np.abs(np.sin(0.5 * eps))
-            tiny = np.abs(np.sin(eps / (2.0 * n))) < 1e-12
-            q = np.where(tiny, n, np.cos(eps / (2.0 * n)) * half
-                         / np.where(tiny, 1.0, np.sin(eps / (2.0 * n))))
+            sn = np.sin(eps / (2.0 * n))
+            tiny = np.abs(sn) < 1e-12
+            q = np.where(tiny, n, np.cos(eps / (2.0 * n)) * half / np.where(tiny, 1.0, sn))
             f, g = fresnel_auxiliary(2.0 * half * np.sqrt(kl / math.pi))
             re = re + q * f
             im = im + q * g

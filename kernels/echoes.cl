@@ -8,8 +8,8 @@
 // size), so items with element ≥ width do nothing.
 //
 // Compile-time constants from the host: MAX_ORDER (longest wall sequence), EPS_M (occlusion
-// tolerance), BEAM_TERMS and BEAM_SERIES (beam series), MAX_FOCUS_GAIN, and REAL_DOUBLE for
-// float64.
+// tolerance), BEAM_TERMS and BEAM_SERIES (beam series), MAX_FOCUS_GAIN, FRESNEL_SWITCH
+// (physics.fresnel_auxiliary), and REAL_DOUBLE for float64.
 
 #include "common.h"
 
@@ -192,7 +192,8 @@ inline real wedge_angle(real2 x, real2 v, real2 va, real s) {
 
 // One term q·(f(z) + i·g(z)) of the diffraction coefficient for π ± β (physics.edge_gain):
 // ε the distance of x from its nearest multiple of 2πn, f and g the Fresnel auxiliary
-// functions (A&S 7.3.32–33 below z = 3, the asymptotic series 7.3.27–28 above).
+// functions (A&S 7.3.32–33 below z = FRESNEL_SWITCH, from the host, the asymptotic series
+// 7.3.27–28 above).
 inline real2 edge_term(real x, real n, real kl) {
     real eps = x - R(2.0) * M_PI_R * n * floor(x / (R(2.0) * M_PI_R * n) + R(0.5));
     real sh = fabs(sin(R(0.5) * eps));  // |sin(ε/2)|
@@ -200,7 +201,7 @@ inline real2 edge_term(real x, real n, real kl) {
     real q = fabs(sn) < R(1e-12) ? n : cos(eps / (R(2.0) * n)) * sh / sn;
     real z = R(2.0) * sh * sqrt(kl / M_PI_R);
     real f, g;
-    if (z >= R(3.0)) {
+    if (z >= R(FRESNEL_SWITCH)) {
         real x2 = R(1.0) / (M_PI_R * z * z * M_PI_R * z * z);
         f = (R(1.0) - R(3.0) * x2 + R(105.0) * x2 * x2) / (M_PI_R * z);
         g = (R(1.0) - R(15.0) * x2 + R(945.0) * x2 * x2) / (M_PI_R * M_PI_R * z * z * z);

@@ -39,6 +39,7 @@ def _program(context, precision: str, max_order: int):
         "MAX_ORDER": max(1, max_order),
         "EPS_M": float(OCCLUSION_EPS_M),
         "MAX_FOCUS_GAIN": float(physics.MAX_FOCUS_GAIN),
+        "FRESNEL_SWITCH": float(physics.FRESNEL_SWITCH),
         "BISECT_ITERATIONS": BISECT_ITERATIONS[precision],
         **beam_series_defines(),
         **precision_defines(precision),

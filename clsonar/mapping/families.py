@@ -113,7 +113,7 @@ class Window:
     curve_tolerance: float = 0.0  # least path residual a free curve's rows may have
     max_failed: int = 24  # seeds in a row that grow nothing before the search stops
     #: a flat mirror's echo on both axes (A0·ρ), the beam's k·a and the noise σ, for the
-    #: amplitude a plane's echo has (:func:`mirror_strong`); mirror 0: not checked
+    #: amplitude a plane's echo has (:func:`mirror_floor`); mirror 0: not checked
     mirror: float = 0.0
     ka: float = 0.0
     noise_std: float = 0.0
@@ -158,22 +158,35 @@ def window_tolerance(amplitude: np.ndarray, noise_std: float, c: float,
 MIRROR_SHARE = 0.6
 
 
+def mirror_floor(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
+                 axR: np.ndarray, mirror: float, ka: float, noise_std: float) -> np.ndarray:
+    """The least amplitude the pairs (T, R) hear from a flat mirror with reflection points
+    ``q``: :data:`MIRROR_SHARE` of ``mirror``·b(θ_T)·b(θ_R), less three noise σ; −inf
+    (anything) when ``mirror`` is 0."""
+    if mirror <= 0:
+        return np.full(len(q), -np.inf)
+    return MIRROR_SHARE * mirror * two_way(q, T, axT, R, axR, ka) - 3.0 * noise_std
+
+
 def mirror_strong(amplitude: np.ndarray, q: np.ndarray, T: np.ndarray, axT: np.ndarray,
                   R: np.ndarray, axR: np.ndarray, mirror: float, ka: float,
                   noise_std: float) -> np.ndarray:
     """Whether echoes of ``amplitude`` are as strong as a flat mirror's with reflection
-    points ``q`` for the pairs (T, R) (:data:`MIRROR_SHARE` of ``mirror``·b(θ_T)·b(θ_R),
-    the piston patterns towards q); all, when ``mirror`` is 0."""
-    if mirror <= 0:
-        return np.ones(len(amplitude), dtype=bool)
-    expected = mirror * towards(q - T, axT, ka) * towards(q - R, axR, ka)
-    return amplitude >= MIRROR_SHARE * expected - 3.0 * noise_std
+    points ``q`` for the pairs (T, R) (:func:`mirror_floor`); all, when ``mirror`` is 0."""
+    return amplitude >= mirror_floor(q, T, axT, R, axR, mirror, ka, noise_std)
 
 
-def towards(d: np.ndarray, axis: np.ndarray, ka: float) -> np.ndarray:
-    """The piston pattern towards ``d`` of transducers with unit ``axis`` (no cut)."""
-    dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
-    return piston_pattern(ka * np.abs(axis[:, 0] * d[:, 1] - axis[:, 1] * d[:, 0]) / dist)
+def two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray, axR: np.ndarray,
+            ka: float) -> np.ndarray:
+    """The two-way beam b(θ_T)·b(θ_R) of the pairs (T, R) with unit axes towards ``q``:
+    the piston's patterns, without the hard cut."""
+    out = np.ones(len(q))
+    for X, axis in ((T, axT), (R, axR)):
+        d = q - X
+        dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
+        out = out * piston_pattern(ka * np.abs(axis[:, 0] * d[:, 1] - axis[:, 1] * d[:, 0])
+                                   / dist)
+    return out
 
 
 #: The echoes of one point reflector, each over its two-way beam, agree within this factor.
@@ -184,15 +197,13 @@ def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray) -> np.ndarray
     """Whether the detections ``rows`` are as strong as a ``kind`` reflector's echoes can
     be (planes: :func:`mirror_strong`; a point's, within :data:`POINT_SPREAD` of each
     other over their beams); all, for corners and curves, or a window without a mirror."""
+    beams = (q, w.T[rows], w.axT[rows], w.R[rows], w.axR[rows])
     if kind == "plane":
-        return mirror_strong(w.amplitude[rows], q, w.T[rows], w.axT[rows], w.R[rows],
-                             w.axR[rows], w.mirror, w.ka, w.noise_std)
+        return mirror_strong(w.amplitude[rows], *beams, w.mirror, w.ka, w.noise_std)
     if kind == "point" and w.mirror > 0 and len(rows):
         # one point reflector's echoes differ by their beams only: not by 20 dB (a face's
         # specular echo beside its edge's diffraction, 40 dB weaker, fits a point too)
-        seen = w.amplitude[rows] / np.maximum(
-            towards(q - w.T[rows], w.axT[rows], w.ka) * towards(q - w.R[rows], w.axR[rows],
-                                                               w.ka), 1e-3)
+        seen = w.amplitude[rows] / np.maximum(two_way(*beams, w.ka), 1e-3)
         middle = float(np.median(seen))
         return (seen <= POINT_SPREAD * middle) & (seen >= middle / POINT_SPREAD)
     return np.ones(len(rows), dtype=bool)

@@ -22,7 +22,6 @@ is nearest (the line-of-sight check asks which pair saw it).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -30,7 +29,7 @@ import numpy as np
 from ..scene import Scene
 from ..sensors import SensorArray
 from .envelope import in_beams
-from .families import Family, mirror_strong, towards
+from .families import Family, mirror_floor, two_way
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2
 
@@ -163,8 +162,9 @@ def patch_of(f: Family, loci: Loci) -> Patch:
 def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
                       lo: float, hi: float) -> tuple[float, float]:
     """The span ``(lo, hi)`` cut where the array heard nothing (module docstring): pairs
-    whose beams point at the surface beyond the span at least as well as the weakest of the
-    patch's own detections (:func:`_two_way`) and that have no echo there."""
+    whose two-way beam (:func:`~.families.two_way`) points at the surface beyond the span
+    at least as well as for the weakest of the patch's own detections, and that have no
+    echo there."""
     c = scene.medium.c
     cut_sin2, _ = scene.transducer.beam(c)
     pairs = _group_pairs(sensors, int(p.tx[0]))
@@ -173,12 +173,14 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
     ok = (in_beams(q, T, sensors.axes[pairs[:, 0]], cut_sin2)
           & in_beams(q, R, sensors.axes[pairs[:, 1]], cut_sin2) & np.isfinite(path))
     ka = scene.transducer.beam(c)[1]
-    weakest = _two_way(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
-                       sensors.axes[p.rx], ka).min()
-    ok &= _two_way(q, T, sensors.axes[pairs[:, 0]], R, sensors.axes[pairs[:, 1]],
-                   ka) >= weakest * (1.0 - 1e-9)
-    heard = _heard(loci, pairs, path, c,
-                   _mirror(scene, sensors, pairs, q) if p.straight else _any_echo)
+    beams = (q, T, sensors.axes[pairs[:, 0]], R, sensors.axes[pairs[:, 1]])
+    weakest = two_way(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
+                      sensors.axes[p.rx], ka).min()
+    ok &= two_way(*beams, ka) >= weakest * (1.0 - 1e-9)
+    # a plane is heard at a mirror's strength; a curve's echo may be weaker or stronger
+    least = (mirror_floor(*beams, mirror_echo(scene), ka, scene.signal.noise_std)
+             if p.straight else np.full(len(pairs), -np.inf))
+    heard = _heard(loci, pairs, path, c, least)
     silent = ok & ~heard
     if not silent.any():
         return lo, hi
@@ -190,14 +192,6 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
     if len(above):
         hi = min(hi, last)
     return lo, hi
-
-
-def _two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
-             axR: np.ndarray, ka: float) -> np.ndarray:
-    """The two-way beam b(θ_T)·b(θ_R) towards ``q`` (the piston's, without the cut): a pair
-    is expected to hear the surface where its beams are no weaker there than for the
-    weakest of the patch's own detections."""
-    return towards(q - T, axT, ka) * towards(q - R, axR, ka)
 
 
 def _group_pairs(sensors: SensorArray, sensor: int) -> np.ndarray:
@@ -212,32 +206,15 @@ def _group_pairs(sensors: SensorArray, sensor: int) -> np.ndarray:
 HEARD_TOL_M = 0.003
 
 
-def _mirror(scene: Scene, sensors: SensorArray, pairs: np.ndarray, q: np.ndarray
-            ) -> Callable[[int, np.ndarray], np.ndarray]:
-    """``(k, amplitudes) → strong``: whether detections of pair k are as strong as a flat
-    mirror's echo with reflection point ``q[k]`` (:func:`~.families.mirror_strong`)."""
-    mirror = scene.transducer.amplitude * scene.echo.reflection_coefficient
-    ka = scene.transducer.beam(scene.medium.c)[1]
-    pos, axes = sensors.positions, sensors.axes
-
-    def strong(k: int, amplitude: np.ndarray) -> np.ndarray:
-        t, r = int(pairs[k, 0]), int(pairs[k, 1])
-        one = np.ones((len(amplitude), 1))
-        return mirror_strong(amplitude, q[k] * one, pos[t] * one, axes[t] * one,
-                             pos[r] * one, axes[r] * one, mirror, ka,
-                             scene.signal.noise_std)
-    return strong
-
-
-def _any_echo(k: int, amplitude: np.ndarray) -> np.ndarray:
-    """Every echo is the surface's (a curved one: weaker than a mirror's, or stronger)."""
-    return np.ones(len(amplitude), dtype=bool)
+def mirror_echo(scene: Scene) -> float:
+    """A flat mirror's echo on both transducers' axes, A0·ρ (units)."""
+    return scene.transducer.amplitude * scene.echo.reflection_coefficient
 
 
 def _heard(loci: Loci, pairs: np.ndarray, path: np.ndarray, c: float,
-           strong: Callable[[int, np.ndarray], np.ndarray]) -> np.ndarray:
+           least: np.ndarray) -> np.ndarray:
     """Whether each pair has a detection (either direction) within :data:`HEARD_TOL_M` of
-    ``path`` and as strong as the surface's echo would be (``strong``)."""
+    ``path`` and of at least ``least`` amplitude (the surface's echo)."""
     lo_ix = np.minimum(loci.tx, loci.rx)
     hi_ix = np.maximum(loci.tx, loci.rx)
     key = lo_ix * (int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1) + hi_ix
@@ -249,7 +226,7 @@ def _heard(loci: Loci, pairs: np.ndarray, path: np.ndarray, c: float,
     heard = np.zeros(len(pairs), dtype=bool)
     for k in np.flatnonzero(stop > start):
         near = np.abs(detected[start[k]:stop[k]] - path[k]) <= HEARD_TOL_M
-        heard[k] = bool(np.any(near & strong(int(k), amplitude[start[k]:stop[k]])))
+        heard[k] = bool(np.any(near & (amplitude[start[k]:stop[k]] >= least[k])))
     return heard
 
 

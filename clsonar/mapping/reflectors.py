@@ -32,7 +32,7 @@ from .families import MIN_FAMILY, Family, Window, find_families, window_toleranc
 from .joins import draw_families
 from .loci import Loci, _subset
 from .models import dot2
-from .patches import Patches
+from .patches import Patches, mirror_echo
 from .tangents import tangent_points
 
 #: Longest stretch of an array whose detections are fitted together, metres.
@@ -83,7 +83,7 @@ def _window(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
                   axT=axes[loci.tx[rows]], axR=axes[loci.rx[rows]],
                   paths=c * loci.tof_s[rows], amplitude=amp, tolerance=tol, x0=x0,
                   cut_sin2=cut_sin2, neighbour_m=neighbour_m,
-                  mirror=scene.transducer.amplitude * scene.echo.reflection_coefficient,
+                  mirror=mirror_echo(scene),
                   ka=scene.transducer.beam(c)[1], noise_std=scene.signal.noise_std)
 
 
@@ -117,8 +117,7 @@ def strongest_echo(scene: Scene) -> float:
     a focusing one, physics.MAX_FOCUS_GAIN), with 5 % and three noise σ to spare: a
     detection above it is two or more echoes overlapping."""
     focus = MAX_FOCUS_GAIN if scene.echo.curvature_gain else 1.0
-    return (1.05 * scene.transducer.amplitude * scene.echo.reflection_coefficient * focus
-            + 3.0 * scene.signal.noise_std)
+    return 1.05 * mirror_echo(scene) * focus + 3.0 * scene.signal.noise_std
 
 
 def _families(scene: Scene, sensors: SensorArray, loci: Loci,

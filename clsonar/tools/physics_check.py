@@ -86,15 +86,15 @@ def model_gain(scene: Scene, kind: str, tx: int = 0, rx: int = 0,
     return float(table.amplitude[pick].max() / scene.transducer.amplitude)
 
 
-def _polar(d: float, angle_deg: float, origin=(0.0, 0.0)) -> np.ndarray:
+def _polar(d: float, angle_deg: float) -> np.ndarray:
     a = math.radians(angle_deg)
-    return np.array([origin[0] + d * math.cos(a), origin[1] + d * math.sin(a)])
+    return np.array([d * math.cos(a), d * math.sin(a)])
 
 
 def plane_rows(ranges=RANGES) -> Iterator[Row]:
     """A wall along y = 0 seen square on (T = R) and at 20° incidence (T ≠ R)."""
     wall = [{"type": "polyline", "points": [[-20.0, 0.0], [20.0, 0.0]]}]
-    curve = np.array([[-20.0, 0.0], [20.0, 0.0]])
+    curve = np.array(wall[0]["points"])
     for d in ranges:
         for inc in (0.0, 20.0):
             t, r = _polar(d, 90.0 + inc), _polar(d, 90.0 - inc)

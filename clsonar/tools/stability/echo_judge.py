@@ -13,7 +13,8 @@ import numpy as np
 from ... import echoes as echoes_mod
 from ...echoes import EchoTable
 from ...echoes import host as echo_host
-from ...scene import Circle, Polyline, Scene
+from ...geometry import build_geometry
+from ...scene import Circle, Scene
 from ...scene import Transducer as SceneTransducer
 from .echo_cases import echo_scene
 from .findings import BOUNDS, EPS32, Findings, Matches, finite
@@ -74,9 +75,7 @@ def _edge_echo_keys(scene: Scene, jitters: int = 6) -> set[tuple]:
     """Keys (tx, rx, kind, order, element) of echoes whose existence in the float64
     reference changes when the transducers move by a few float32 roundings of the scene's
     local coordinates: knife-edge decisions that float32 may take either way."""
-    x0, y0, x1, y1 = scene.extent
-    local = 0.5 * math.hypot(x1 - x0, y1 - y0)
-    delta = BOUNDS["edge_roundings"] * EPS32 * max(local, 1e-3)
+    delta = _roundings_m(scene)
     base = set(_keys(echoes_mod.reference_echoes(scene)))
     rng = np.random.default_rng(0)
     unstable: set[tuple] = set()
@@ -85,21 +84,19 @@ def _edge_echo_keys(scene: Scene, jitters: int = 6) -> set[tuple]:
     return unstable
 
 
-def _polyline_points(scene: Scene) -> np.ndarray:
-    """[k, 2] every polyline point of ``scene`` (wall ends and vertices)."""
-    pts = [p for surface in scene.surfaces if isinstance(surface, Polyline)
-           for p in surface.points]
-    return np.asarray(pts, dtype=np.float64).reshape(-1, 2)
-
-
-def _on_a_vertex(point: np.ndarray, ends: np.ndarray, scene: Scene) -> bool:
-    """Whether an echo's reflection point lies within ``edge_roundings`` float32 roundings
-    of a wall's end or vertex: whether it exists there hangs on the strict tests of the
-    vertex (on the wall, in front of it, a leg not blocked by the next wall), which moving
-    the transducers does not always flip (:func:`_edge_echo_keys`)."""
+def _roundings_m(scene: Scene) -> float:
+    """``edge_roundings`` float32 roundings of the scene's local coordinates, metres."""
     x0, y0, x1, y1 = scene.extent
-    delta = BOUNDS["edge_roundings"] * EPS32 * max(0.5 * math.hypot(x1 - x0, y1 - y0), 1e-3)
-    return bool(len(ends)) and float(np.min(np.hypot(*(ends - point).T))) <= delta
+    return BOUNDS["edge_roundings"] * EPS32 * max(0.5 * math.hypot(x1 - x0, y1 - y0), 1e-3)
+
+
+def _on_a_vertex(point: np.ndarray, vertices: np.ndarray, scene: Scene) -> bool:
+    """Whether an echo's reflection point lies within :func:`_roundings_m` of a polyline's
+    vertex or end: whether it exists there hangs on the strict tests of the vertex (on the
+    wall, in front of it, a leg not blocked by the next wall), which moving the transducers
+    does not always flip (:func:`_edge_echo_keys`)."""
+    return (bool(len(vertices))
+            and float(np.min(np.hypot(*(vertices - point).T))) <= _roundings_m(scene))
 
 
 def _table_arrays(t: EchoTable) -> tuple:
@@ -160,10 +157,10 @@ def check_echo_case(family: str, seed: int, context, *, many: int = 40,
         weak = BOUNDS["weak_echo"] * scene.transducer.amplitude
         lonely = ([(keys_ref[i], ref.amplitude[i], ref.point[i]) for i in ref_only]
                   + [(keys_got[j], got.amplitude[j], got.point[j]) for j in got_only])
-        ends = _polyline_points(scene)
+        vertices = build_geometry(scene).vertices
         for key, amp, point in lonely:
             if (any(k in edge for k in _near_keys(key, n_circles))
-                    or _on_a_vertex(point, ends, scene)):
+                    or _on_a_vertex(point, vertices, scene)):
                 f.unmatched_edge += 1
             elif amp < weak:
                 f.unmatched_weak += 1
