@@ -54,16 +54,29 @@ PATH = "ring poses along a path"
 RINGS = "rings in an open scene"
 OPEN = "an open scene"
 
+#: The envelope threshold's floor (units) where rings scan or transducers stand in a room:
+#: the walls they face square on return ρ·A0 ≈ 4.5, and the diffraction of every convex
+#: corner they pass (a few hundredths) would only add stubs to the tangent points' map.
+DEFAULT_MIN_ENVELOPE = 1.0
+
+#: The floor in an open scene (arrays facing reflectors): a convex edge's diffraction 2–4 m
+#: away is 0.003–0.03 units for a 5-unit pulse (docs/physics.md), which a Polaroid-type
+#: sensor detects (Kleeman & Kuc 1995; the thesis' edges out to 3–4 m), and the reflector
+#: families tell it from the faces' echoes by its strength (mapping.families).
+OPEN_MIN_ENVELOPE = 0.01
+
 #: The settings chosen for each kind of scan where the scene file leaves them out (null).
-_SCANNED_WALLS = {"mapping.isolated_bias_m": 0.005, "post.fit": "walls",
+_SCANNED_WALLS = {"detection.min_envelope": DEFAULT_MIN_ENVELOPE,
+                  "mapping.isolated_bias_m": 0.005, "post.fit": "walls",
                   "post.max_gap_m": 1.0, "post.join_m": 1.0}
-_OPEN = {"mapping.isolated_bias_m": 0.0, "post.fit": "spline", "post.max_gap_m": 0.3,
-         "post.join_m": 0.5}
+_OPEN = {"detection.min_envelope": OPEN_MIN_ENVELOPE, "mapping.isolated_bias_m": 0.0,
+         "post.fit": "spline", "post.max_gap_m": 0.3, "post.join_m": 0.5}
 CHOICES: dict[str, dict[str, object]] = {
     ROOM_RINGS: _SCANNED_WALLS,
     ROOM: _SCANNED_WALLS,
     PATH: _SCANNED_WALLS,
-    RINGS: {**_OPEN, "mapping.isolated_bias_m": 0.005},
+    RINGS: {**_OPEN, "detection.min_envelope": DEFAULT_MIN_ENVELOPE,
+            "mapping.isolated_bias_m": 0.005},
     OPEN: _OPEN,
 }
 
@@ -182,7 +195,8 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file",
                     changes[name] = CHOICES[found.kind][key]
         return dataclasses.replace(settings, **changes)
 
-    scene = dataclasses.replace(scene, mapping=filled(scene.mapping, "mapping"),
+    scene = dataclasses.replace(scene, detection=filled(scene.detection, "detection"),
+                                mapping=filled(scene.mapping, "mapping"),
                                 post=filled(scene.post, "post"))
     placement = scene.sensors.placement
     if isinstance(placement, WallFollowing):
@@ -194,3 +208,13 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file",
             scene = dataclasses.replace(scene, sensors=dataclasses.replace(
                 scene.sensors, placement=dataclasses.replace(placement, start_deg=start)))
     return scene, why
+
+
+def with_detection_chosen(scene: Scene, sensors: SensorArray) -> Scene:
+    """``scene`` with the detection settings it leaves out chosen as :func:`choose_settings`
+    would (for callers of the signal stage outside the pipeline)."""
+    if scene.detection.min_envelope is not None:
+        return scene
+    floor = float(CHOICES[survey(scene, sensors).kind]["detection.min_envelope"])  # type: ignore[arg-type]
+    return dataclasses.replace(scene, detection=dataclasses.replace(
+        scene.detection, min_envelope=floor))

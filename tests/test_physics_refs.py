@@ -1,8 +1,12 @@
 """clsonar's echo amplitudes against the independent references of
 clsonar/tools/references.py (issue 18): within 1 dB wherever the model applies."""
 
+import math
+
 import pytest
 
+from clsonar.survey import DEFAULT_MIN_ENVELOPE, OPEN_MIN_ENVELOPE
+from clsonar.tools import detection_ranges
 from clsonar.tools import physics_check as pc
 
 RANGES = (0.3, 2.0, 10.0)
@@ -33,3 +37,23 @@ def test_the_report_has_a_table_per_kind(tmp_path):
     rows = [r for k in ("corner", "plane") for r in pc.KINDS[k](ranges=(1.0,))]
     text = pc.markdown(rows)
     assert text.count("### ") == 2 and "| seen at 45° | 1 | 1 | 1 | +0.00 |  |" in text
+
+
+def test_detection_ranges_with_the_default_floors_and_with_air_absorption():
+    """Issue 18: each kind's detection range with the default settings beside the
+    literature's (docs/physics/ranges.md). An open scene's floor hears a 90° edge well past
+    the thesis' 3–4 m; with air's absorption at 50 kHz (ISO 9613-1: 1.66 dB/m) the edge
+    stops at 2.5–3.3 m and a plane at 16 m (the Polaroid 6500: 10.7 m)."""
+    kinds = {k.name.split(" (")[0] + (" utd" if "utd" in k.name else ""): k
+             for k in detection_ranges.kinds()}
+    open_floor, room_floor = OPEN_MIN_ENVELOPE, DEFAULT_MIN_ENVELOPE
+    air = detection_ranges.AIR_ABSORPTION_DB_PER_M
+    assert detection_ranges.max_range(kinds["convex edge, 90°"].echo, open_floor) > 4.0
+    assert detection_ranges.max_range(kinds["convex edge, 90°"].echo, room_floor) == 0.0
+    assert 2.0 < detection_ranges.max_range(kinds["convex edge, 90°"].echo, open_floor,
+                                            air) < 3.0
+    assert 3.0 < detection_ranges.max_range(kinds["convex edge, 90° utd"].echo, open_floor,
+                                            air) < 4.0
+    assert math.isinf(detection_ranges.max_range(kinds["plane"].echo, room_floor))
+    assert 15.0 < detection_ranges.max_range(kinds["plane"].echo, open_floor, air) < 17.0
+    assert 0.9 < detection_ranges.max_range(kinds["post r 5 cm"].echo, room_floor) < 1.1

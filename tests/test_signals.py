@@ -52,6 +52,7 @@ def table(rows) -> EchoTable:
 
 
 def scene(mode="envelope", noise=0.0, *, seed=1, threshold=4.0, size=1.0, **detection) -> Scene:
+    detection.setdefault("min_envelope", 1.0)  # the floor of a room's scan (clsonar.survey)
     return Scene(name="signals", extent=(0.0, 0.0, size, size),
                  signal=Signal(noise_std=noise, threshold=threshold, seed=seed),
                  detection=DetectionSettings(mode=mode, **detection))

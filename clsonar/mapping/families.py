@@ -69,6 +69,11 @@ START_TOLERANCE_M = 0.005
 #: Detections in a seed's first fit.
 SEED_SIZE = 10
 
+#: A seed's first fit takes rows whose echoes are within this factor of its own: one
+#: reflector's neighbouring echoes differ by their beams only, and a face's specular echo
+#: is 30–60 dB above its edge's diffraction.
+SEED_SPREAD = 10.0
+
 #: How much a path may change per metre its transducers move: at most 1 (the triangle
 #: inequality).
 MAX_PATH_SLOPE = 1.0
@@ -314,7 +319,8 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
     step = w.neighbour_m
     members = [seed]
     frontier = [seed]
-    left = free[free != seed]
+    ratio = w.amplitude[free] / max(float(w.amplitude[seed]), 1e-300)
+    left = free[(free != seed) & (ratio <= SEED_SPREAD) & (ratio >= 1.0 / SEED_SPREAD)]
     while frontier and len(members) < 4 * SEED_SIZE and len(left):
         reached = np.zeros(len(left), dtype=bool)
         for a in frontier:
@@ -500,27 +506,33 @@ def shadowed(w: Window, families: list[Family], rows: np.ndarray,
     return out
 
 
-def _candidates(w: Window, rows: np.ndarray) -> list[Family]:
+def _candidates(w: Window, rows: np.ndarray, resolution: float) -> list[Family]:
     """A family of ``rows`` grown from each seed among them that no earlier candidate
     explains, strongest echo first, until the window's ``max_failed`` seeds in a row grew
-    none."""
-    covered = np.ones(len(w.paths), dtype=bool)
-    covered[rows] = False
+    none; the echoes an earlier candidate :func:`shadowed` (within ``resolution``: most
+    are that reflector's, which :func:`_select` gives it anyway) seed last, when every
+    other seed has been tried."""
+    everything = np.arange(len(w.paths))
+    tried = np.ones(len(w.paths), dtype=bool)
+    tried[rows] = False
+    deferred = np.zeros(len(w.paths), dtype=bool)
     found: list[Family] = []
-    failed = 0
-    for seed in np.argsort(-w.amplitude, kind="stable"):
-        if covered[seed]:
-            continue
-        if failed >= w.max_failed:
-            break
-        covered[seed] = True
-        family = _best_family(w, int(seed), rows)
-        if family is None:
-            failed += 1
-            continue
+    for last in (False, True):
         failed = 0
-        found.append(family)
-        covered[family.rows] = True
+        for seed in np.argsort(-w.amplitude, kind="stable"):
+            if tried[seed] or deferred[seed] != last:
+                continue
+            if failed >= w.max_failed:
+                break
+            tried[seed] = True
+            family = _best_family(w, int(seed), rows)
+            if family is None:
+                failed += 1
+                continue
+            failed = failed if last else 0  # the shadowed seeds: max_failed in all
+            found.append(family)
+            tried[family.rows] = True
+            deferred |= shadowed(w, [family], everything, resolution)
     return found
 
 
@@ -531,7 +543,7 @@ def _select(w: Window, rows: np.ndarray, taken: np.ndarray, resolution: float
     rest and named again, or dropped with too few."""
     everything = np.arange(len(w.paths))
     families: list[Family] = []
-    for cand in sorted(_candidates(w, rows), key=lambda f: -len(f.rows)):
+    for cand in sorted(_candidates(w, rows, resolution), key=lambda f: -len(f.rows)):
         keep = cand.rows[~taken[cand.rows]]
         v = cand.window
         if len(keep) < _least(cand.kind):

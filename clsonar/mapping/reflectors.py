@@ -27,7 +27,7 @@ from ..physics import MAX_FOCUS_GAIN
 from ..scene import Scene
 from ..scene.settings import chosen
 from ..sensors import SensorArray
-from ..survey import in_a_room
+from ..survey import DEFAULT_MIN_ENVELOPE, in_a_room
 from .families import MIN_FAMILY, Family, Window, find_families, window_tolerance
 from .joins import draw_families
 from .loci import Loci, _subset
@@ -161,12 +161,15 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
 def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
     """The points, their loci and the located vertices (:class:`~.patches.Patches`) of
     every linear array's families, and the tangent points of the other groups' detections
-    and of those no family explains."""
+    and of those no family explains, where they are as strong as a room scan's floor
+    (:data:`~clsonar.survey.DEFAULT_MIN_ENVELOPE`): a tangent point is a specular echo's,
+    and a weak echo no reflector explains is a diffraction's or a multipath's."""
     arrays = {} if in_a_room(scene, sensors.positions) else linear_groups(sensors)
     families, left = _families(scene, sensors, loci, arrays)
     drawn = draw_families(scene, sensors, loci, families)
     others = np.flatnonzero(~np.isin(sensors.groups[loci.tx], list(arrays)))
     rest = np.sort(np.concatenate([others, left]))
+    rest = rest[loci.amplitude[rest] >= DEFAULT_MIN_ENVELOPE]
     if len(rest) == 0:
         return drawn
     points, source = tangent_points(scene, sensors, _subset(loci, rest),

@@ -131,7 +131,7 @@ def _read_detection(r: JsonReader, d: Any) -> DetectionSettings:
         mode=r.literal(d, "mode", k, DetectionMode, ds.mode),
         sample_rate_hz=r.number(d, "sample_rate_hz", k, ds.sample_rate_hz, gt=0),
         false_alarm_sigmas=r.number(d, "false_alarm_sigmas", k, ds.false_alarm_sigmas, gt=0),
-        min_envelope=r.number(d, "min_envelope", k, ds.min_envelope, ge=0),
+        min_envelope=r.optional_number(d, "min_envelope", k, ge=0),
     )
 
 

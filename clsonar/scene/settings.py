@@ -131,12 +131,13 @@ class DetectionSettings:
     demodulation and a matched low-pass give the envelope, whose peaks above a
     noise-adaptive threshold (``false_alarm_sigmas`` times the estimated envelope noise, at
     least ``min_envelope`` units) give the time of flight as peak − 3σ (no threshold bias).
+    ``min_envelope`` null: chosen from the scene (:mod:`clsonar.survey`).
     """
 
     mode: DetectionMode = "envelope"
     sample_rate_hz: float = 1.0e6
     false_alarm_sigmas: float = 6.0
-    min_envelope: float = 1.0
+    min_envelope: float | None = None
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import physics
 from ..scene import DetectionMode, Scene
+from ..scene.settings import chosen
 from .dsp import envelope_sq_raw, refine
 from .philox import philox_key
 
@@ -109,7 +110,8 @@ def signal_model(scene: Scene, window_s: float | None = None) -> SignalModel:
         seed=int(scene.signal.seed), amplitude=float(t.amplitude), mode=d.mode,
         holdoff=math.ceil(pulse_len - 1e-9),
         box=box, span=span, calibration=1.0, peak_bias=0.0, n_env=n_env,
-        false_alarm_sigmas=float(d.false_alarm_sigmas), min_envelope=float(d.min_envelope),
+        false_alarm_sigmas=float(d.false_alarm_sigmas),
+        min_envelope=float(chosen(d.min_envelope, "detection.min_envelope")),
         demod_period=_demod_period(ratio))
     return _with_calibration(model)
 

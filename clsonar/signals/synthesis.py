@@ -13,6 +13,7 @@ from .. import physics
 from ..echoes import EchoTable
 from ..scene import Scene
 from ..sensors import SensorArray, pairs, place_sensors
+from ..survey import with_detection_chosen
 from .dsp import envelope_sq_raw
 from .model import SignalModel, signal_model
 from .philox import noise
@@ -58,8 +59,10 @@ def pair_echoes(model: SignalModel, sensors: SensorArray, echoes: EchoTable,
 
 def inputs(scene: Scene, sensors: SensorArray | None, echoes: EchoTable,
            window_s: float | None, pair_list: np.ndarray | None = None):
+    """The signal model of ``scene`` (its detection settings chosen from the scene where
+    the file leaves them out, as the pipeline does) and the echoes of each pair."""
     sensors = sensors if sensors is not None else place_sensors(scene)
-    model = signal_model(scene, window_s)
+    model = signal_model(with_detection_chosen(scene, sensors), window_s)
     return model, pair_echoes(model, sensors, echoes, pair_list)
 
 

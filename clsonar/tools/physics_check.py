@@ -17,7 +17,8 @@ amplitude of the echo of that kind compared with the reference of
 Transducers face the reflection point, with a uniform beam, a reflection coefficient of 1
 and no absorption, so an echo's amplitude over A0 is the reflector's gain over a flat
 mirror at the same path (physics.py). ``python -m clsonar.tools.physics_check --out DIR``
-writes ``physics.md`` (the tables) and one plot per kind into DIR.
+writes ``tables.md``, one plot per kind and ``ranges.md`` (each kind's detection range with
+the default settings, :mod:`clsonar.tools.detection_ranges`) into DIR.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ import numpy as np
 
 from ..echoes import reference_echoes
 from ..scene import Scene, scene_from_dict
+from . import detection_ranges
 from . import references as ref
 
 #: Ranges (m) of every kind, and the extra ones of the plots.
@@ -262,7 +264,9 @@ def main(argv: list[str] | None = None) -> int:
     curves = all_rows(plot_ranges=True)
     for kind in dict.fromkeys(r.kind for r in curves):
         plot(curves, kind, args.out / f"{kind}.png")
-    print(f"wrote {args.out}/tables.md and {len(set(r.kind for r in curves))} plots")
+    write_atomic(args.out / "ranges.md", detection_ranges.markdown().encode())
+    print(f"wrote {args.out}/tables.md, ranges.md and {len(set(r.kind for r in curves))} "
+          "plots")
     return 0
 
 

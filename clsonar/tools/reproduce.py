@@ -250,9 +250,10 @@ def table_markdown(trials: list[Trial], seeds: int) -> str:
                  "only what the map supports (docs/scene-format.md, `post`): the polynomial "
                  "within its data's span, no point beyond 3 cells of the occupied map but "
                  "to bridge a gap between supported stretches. At the edge's 5 m the "
-                 "array sees neither wall specularly and the diffracted echo (≈0.02 units "
-                 "for a 5-unit pulse) stays below any threshold, so nothing is mapped; the "
-                 "thesis found one wall there.")
+                 "array sees neither wall specularly (no completeness to measure); its "
+                 "diffracted echoes (≈0.02 units for a 5-unit pulse) are above an open "
+                 "scene's envelope floor of 0.01 units, so the edge is located as a point; "
+                 "the thesis found one wall there.")
     return "\n".join(lines)
 
 

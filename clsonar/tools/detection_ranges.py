@@ -1,0 +1,122 @@
+"""How far each reflector kind is detected with the default settings (issue 18,
+docs/physics.md): the largest distance at which a transducer facing the reflector hears
+its echo above the envelope floor chosen for the scene (:mod:`clsonar.survey`: 0.01
+units in an open scene, 1.0 where rings scan or transducers stand in a room), beside the
+ranges the literature reports.
+
+The echo of each kind, monostatic and on both beams' axes, is A0·ρⁿ·G (physics.py): a
+plane's and a corner's do not fall with range (the receiver's time-varying gain
+compensates spherical spreading), so they are heard as far as the ranging window reaches
+(the Polaroid 6500's 10.7 m); a convex edge's diffraction falls as 1/sqrt(k·d)
+(:func:`~clsonar.physics.edge_gain`, the uniform theory, and the default
+:func:`~clsonar.physics.edge_gain_estimate`); a cylinder's and a post's as
+sqrt(r/(r + d)) (:func:`~clsonar.physics.curved_gain`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import physics
+from ..scene import EchoModel, Medium, TransducerModel
+from ..survey import DEFAULT_MIN_ENVELOPE, OPEN_MIN_ENVELOPE
+
+#: Distances searched (m); a kind still heard at the last is reported as beyond it.
+DISTANCES = np.geomspace(0.1, 100.0, 4001)
+
+#: The Polaroid 6500 ranging module's window: 6 in to 35 ft (its data sheet).
+POLAROID_MAX_RANGE_M = 10.7
+
+#: Air's absorption at 50 kHz, 20 °C and 50 % relative humidity (ISO 9613-1), dB/m: what
+#: ``echo.absorption_db_per_m`` (default 0: the time-varying gain compensates it too) adds
+#: where the receiver's gain compensates spreading only.
+AIR_ABSORPTION_DB_PER_M = 1.66
+
+
+@dataclass(frozen=True)
+class Kind:
+    """One reflector: its name, the echo amplitude over distance, what the literature
+    reports."""
+
+    name: str
+    echo: Callable[[np.ndarray], np.ndarray]
+    literature: str
+
+
+def _defaults() -> tuple[float, float, float]:
+    """A0·ρ, ρ and k of the default transducer, medium and echo model."""
+    t, e = TransducerModel(), EchoModel()
+    c = Medium().c
+    return t.amplitude * e.reflection_coefficient, e.reflection_coefficient, \
+        physics.wavenumber(t.frequency_hz, c)
+
+
+def kinds() -> list[Kind]:
+    """The kinds of the table, each with its default echo over distance."""
+    mirror, rho, k = _defaults()
+    bisector = np.full(1, 0.75 * math.pi)  # a 90° box corner seen along its bisector
+
+    def utd(d: np.ndarray) -> np.ndarray:
+        return mirror * physics.edge_gain(d, d, bisector, bisector, np.full(1, 1.5), k, 1.0)
+
+    def estimate(d: np.ndarray) -> np.ndarray:
+        return mirror * physics.edge_gain_estimate(d, d, k, EchoModel().edge_coefficient)
+
+    def circle(radius: float) -> Callable[[np.ndarray], np.ndarray]:
+        return lambda d: mirror * physics.curved_gain(d, d, np.full(1, 1.0 / radius),
+                                                      np.ones(1))
+
+    return [
+        Kind("plane", lambda d: np.full(d.shape, mirror),
+             "10.7 m (Polaroid 6500 data sheet: 6 in to 35 ft); the thesis: to 9 m"),
+        Kind("corner (double bounce)", lambda d: np.full(d.shape, mirror * rho),
+             "the thesis: to 9 m"),
+        Kind("convex edge, 90° (default model)", estimate, "the thesis: to 3–4 m"),
+        Kind("convex edge, 90° (`edge_model` utd)", utd, "the thesis: to 3–4 m"),
+        Kind("cylinder r 1 m", circle(1.0), "–"),
+        Kind("cylinder r 0.3 m", circle(0.3), "–"),
+        Kind("post r 5 cm", circle(0.05), "–"),
+    ]
+
+
+def max_range(echo: Callable[[np.ndarray], np.ndarray], floor: float,
+              absorption_db_per_m: float = 0.0) -> float:
+    """The largest of :data:`DISTANCES` whose echo, after ``absorption_db_per_m`` over
+    its two-way path, is at least ``floor`` (0: none; inf: the last)."""
+    heard = np.flatnonzero(echo(DISTANCES) * physics.absorption_factor(
+        2.0 * DISTANCES, absorption_db_per_m) >= floor)
+    if len(heard) == 0:
+        return 0.0
+    return math.inf if heard[-1] == len(DISTANCES) - 1 else float(DISTANCES[heard[-1]])
+
+
+def _metres(r: float) -> str:
+    if math.isinf(r):
+        return f"beyond {DISTANCES[-1]:g} m (the ranging window's end)"
+    return "never" if r == 0 else f"{r:.1f} m"
+
+
+def markdown() -> str:
+    """The table: each kind's echo at 1 m and its maximum range at either floor, and in
+    an open scene with air's absorption."""
+    lines = ["| reflector | echo at 1 m (units) | open scene (floor "
+             f"{OPEN_MIN_ENVELOPE:g}) | room or rings (floor {DEFAULT_MIN_ENVELOPE:g}) | "
+             f"open scene, absorption {AIR_ABSORPTION_DB_PER_M:g} dB/m | literature |",
+             "| --- | ---: | --- | --- | --- | --- |"]
+    air = AIR_ABSORPTION_DB_PER_M
+    for kind in kinds():
+        at_1m = float(kind.echo(np.ones(1))[0])
+        lines.append(f"| {kind.name} | {at_1m:.3g} | "
+                     f"{_metres(max_range(kind.echo, OPEN_MIN_ENVELOPE))} | "
+                     f"{_metres(max_range(kind.echo, DEFAULT_MIN_ENVELOPE))} | "
+                     f"{_metres(max_range(kind.echo, OPEN_MIN_ENVELOPE, air))} | "
+                     f"{kind.literature} |")
+    return "\n".join(lines) + "\n"
+
+
+__all__ = ["AIR_ABSORPTION_DB_PER_M", "DISTANCES", "POLAROID_MAX_RANGE_M", "Kind", "kinds",
+           "markdown", "max_range"]
