@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
 from .errors import ClsonarError
+from .files import PNG_CHOICES
 from .opencl import PRECISIONS
 from .presets import PRESETS
 from .skips import SKIP_NAMES, Skips
@@ -80,6 +81,10 @@ def _add_run(sub: Subparsers) -> None:
                         f"saves; the output is the same): {', '.join(SKIP_NAMES)} "
                         "or all; "
                         "repeatable")
+    p.add_argument("--png", choices=PNG_CHOICES, default="all",
+                   help="pictures to write: none; stages (raw, filtered, thin, drawn from "
+                        "the maps); all (and scene.png, profile.png: needs matplotlib). "
+                        "Default: all")
     _quiet_arg(p)
     p.set_defaults(func=_cmd_run)
 
@@ -239,11 +244,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
                               progress=line.stage, skips=skips)
     finally:
         line.done()
-    pngs = outputs.plots_available()
-    paths = outputs.write_outputs(result, args.out, pngs=pngs)
-    if not pngs:
-        print("clsonar: warning: matplotlib is not installed: no PNGs written "
-              f"({outputs.PLOTS_INSTALL})", file=sys.stderr)
+    paths = outputs.write_outputs(result, args.out, png=args.png)
+    if args.png == "all" and not outputs.plots_available():
+        print("clsonar: warning: matplotlib is not installed: scene.png and profile.png "
+              f"not written ({outputs.PLOTS_INSTALL})", file=sys.stderr)
     for warning in result.warnings:  # report.json's "warnings", also with --quiet
         print(f"clsonar: warning: {args.scene}: {warning}", file=sys.stderr)
     if not args.quiet:

@@ -14,6 +14,11 @@ from .errors import SceneError
 MAX_FILE_BYTES = 64 * 1024 * 1024
 
 
+#: What ``clsonar run --png`` draws: nothing; the map stages (raw, filtered, thin: drawn
+#: straight from the arrays, clsonar.pictures); or those and the plots with axes and
+#: legends (scene, profile: matplotlib, when installed).
+PNG_CHOICES = ("none", "stages", "all")
+
 def read_text(path: str | os.PathLike[str], error: type[SceneError] = SceneError,
               max_bytes: int = MAX_FILE_BYTES) -> str:
     """The UTF-8 text of the file ``path`` (a BOM allowed); any problem — unreadable, larger

@@ -4,11 +4,14 @@ contract").
 ``report.json`` (scene, device, settings, counts, per-stage seconds, metrics),
 ``stages.npz`` (``raw``, ``filtered``, ``thin`` ``[iy, ix]`` with ``extent`` and ``cell``),
 ``profile.csv`` (``x,y``), ``echoes.csv`` (``tx,rx,tof_s,amplitude,kind,order``) and one PNG
-per stage with the true geometry drawn over it. Every file is built in memory first and
-written atomically (temporary name, then rename); a new DIR appears all at once.
+per stage with the true geometry drawn over it (``--png``,
+:data:`~clsonar.files.PNG_CHOICES`). Every file is built in memory first and written
+atomically (temporary name, then rename); a new DIR appears all at once.
 
-The PNGs need matplotlib (``clsonar[plots]``): :mod:`clsonar.plots` is imported only when
-they are drawn, so every other output is written without it (:func:`plots_available`).
+The map stages' PNGs are drawn straight from the arrays (:mod:`clsonar.pictures`); the
+scene and profile plots need matplotlib (``clsonar[plots]``): :mod:`clsonar.plots` is
+imported only when they are drawn, so every other output is written without it
+(:func:`plots_available`).
 """
 
 from __future__ import annotations
@@ -108,20 +111,27 @@ def profile_png(result: RunResult) -> bytes:
                              result.profile, result.sensors)
 
 
-def stage_pngs(result: RunResult) -> dict[str, bytes]:
-    """One PNG per stage of ``result``, by file name (needs matplotlib)."""
-    from . import plots
+#: The plots that need matplotlib.
+PLOTTED = ("scene.png", "profile.png")
 
+
+def stage_pngs(result: RunResult, png: str = "all") -> dict[str, bytes]:
+    """The PNGs of ``result`` that ``png`` (:data:`~clsonar.files.PNG_CHOICES`) asks
+    for, by file name; :data:`PLOTTED` only where matplotlib is installed."""
+    from . import pictures
+
+    if png == "none":
+        return {}
     s, g = result.scene, result.geometry
-    return {
-        "scene.png": plots.scene_png(s, g, result.sensors, result.echoes.point),
-        "raw.png": plots.map_png(s, g, result.raw, f"{s.name}: accumulated loci (raw)"),
-        "filtered.png": plots.map_png(s, g, result.filtered,
-                                      f"{s.name}: low-pass filtered (eq. 2.4)"),
-        "thin.png": plots.map_png(s, g, result.thin, f"{s.name}: thinned ({s.post.thinning})",
-                                  binary=True),
-        "profile.png": profile_png(result),
-    }
+    out = {"raw.png": pictures.map_picture(s, g, result.raw),
+           "filtered.png": pictures.map_picture(s, g, result.filtered),
+           "thin.png": pictures.map_picture(s, g, result.thin, binary=True)}
+    if png == "all" and plots_available():
+        from . import plots
+
+        out["scene.png"] = plots.scene_png(s, g, result.sensors, result.echoes.point)
+        out["profile.png"] = profile_png(result)
+    return out
 
 
 def check_out(out: str | os.PathLike[str]) -> Path:
@@ -140,24 +150,23 @@ def check_out(out: str | os.PathLike[str]) -> Path:
 
 
 def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
-                  pngs: bool = True) -> list[Path]:
-    """Write every output of ``result`` into folder ``out`` (the PNGs only if ``pngs``);
-    returns the paths written.
+                  png: str = "all") -> list[Path]:
+    """Write every output of ``result`` into folder ``out``, with the PNGs ``png`` asks
+    for (:func:`stage_pngs`); returns the paths written.
 
     A new folder is filled under a temporary name and renamed into place; in an existing
     folder each file is replaced atomically. A folder that cannot be written (or a full
     disk) is one :class:`ClsonarError` line; nothing half-written is left.
     """
     try:
-        return _write_files(result, check_out(out), pngs)
+        return _write_files(result, check_out(out), png)
     except OSError as e:
         raise ClsonarError(f"{out}: cannot write the outputs: {e.strerror or e}") from None
 
 
-def _write_files(result: RunResult, out: Path, pngs: bool) -> list[Path]:
+def _write_files(result: RunResult, out: Path, png: str) -> list[Path]:
     files = data_files(result)
-    if pngs:
-        files.update(stage_pngs(result))
+    files.update(stage_pngs(result, png))
     if not out.exists():
         out.parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))

@@ -1,4 +1,5 @@
-"""PNG pictures of a run's stages with the true geometry drawn over them (matplotlib, Agg).
+"""The plots of a run where axes and legends matter (scene.png, profile.png; matplotlib, Agg);
+the map stages' pictures are drawn from the arrays by :mod:`clsonar.pictures`.
 
 Uses matplotlib's object API (``Figure`` + Agg canvas, :func:`figure`), never ``pyplot``, so
 it keeps no global state and needs no display. This is the one module that imports
@@ -80,13 +81,6 @@ def _map_axes(scene: Scene, geom: Geometry, image: np.ndarray, title: str, binar
         fig.colorbar(im, ax=ax, shrink=0.8, label="votes")
     draw_truth(ax, scene, geom)
     return fig, ax
-
-
-def map_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str, *,
-            binary: bool = False) -> bytes:
-    """A map stage (``[iy, ix]``) as a PNG, the true geometry in red over it."""
-    fig, _ = _map_axes(scene, geom, image, title, binary)
-    return png_bytes(fig)
 
 
 def profile_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str,

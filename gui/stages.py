@@ -42,7 +42,7 @@ def stage_image(result: RunResult, key: str) -> np.ndarray:
 def block_max(image: np.ndarray, k: int) -> np.ndarray:
     """``image`` reduced by maxima of ``k`` × ``k`` blocks (zero-padded at the far edges),
     so that one-cell curves and single votes stay visible when a map cell is smaller than
-    a screen pixel (as plots.map_png does)."""
+    a screen pixel (as pictures.map_picture does)."""
     k = min(k, max(image.shape))
     if k <= 1:
         return image

@@ -113,21 +113,39 @@ def test_device_that_cannot_build_is_reported_not_used(monkeypatch, capsys):
         ocl.choose_device()
 
 
-def test_run_without_matplotlib_writes_all_but_the_pngs(tmp_path):
-    """Without matplotlib (the ``clsonar[plots]`` extra) ``clsonar run`` writes every other
-    output and says so in one warning line."""
-    out = tmp_path / "out"
+def _run_without_matplotlib(out: Path, *flags: str) -> subprocess.CompletedProcess:
     code = ("import sys; sys.modules['matplotlib'] = None\n"
             "from clsonar.cli import main\n"
             f"raise SystemExit(main(['run', {str(ROOT / 'scenes' / 'plane-2m.json')!r}, "
-            f"'--out', {str(out)!r}, '-q']))")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                       timeout=300)
+            f"'--out', {str(out)!r}, '-q', *{list(flags)!r}]))")
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+
+
+DATA_FILES = ["echoes.csv", "profile.csv", "report.json", "stages.npz"]
+STAGE_PNGS = ["filtered.png", "raw.png", "thin.png"]
+
+
+def test_run_without_matplotlib_writes_all_but_the_plots(tmp_path):
+    """Without matplotlib (the ``clsonar[plots]`` extra) ``clsonar run`` writes every other
+    output, the map stages' pictures among them (drawn from the arrays), and says so in one
+    warning line."""
+    out = tmp_path / "out"
+    r = _run_without_matplotlib(out)
     assert r.returncode == 0, r.stderr
-    assert r.stderr == ("clsonar: warning: matplotlib is not installed: no PNGs written "
-                        "(pip install 'clsonar[plots]')\n")
-    assert sorted(p.name for p in out.iterdir()) == ["echoes.csv", "profile.csv",
-                                                     "report.json", "stages.npz"]
+    assert r.stderr == ("clsonar: warning: matplotlib is not installed: scene.png and "
+                        "profile.png not written (pip install 'clsonar[plots]')\n")
+    assert sorted(p.name for p in out.iterdir()) == sorted(DATA_FILES + STAGE_PNGS)
+
+
+@pytest.mark.parametrize("png, pictures", [("none", []), ("stages", STAGE_PNGS)])
+def test_run_png_none_and_stages_need_no_matplotlib(tmp_path, png, pictures):
+    """Issue 16: ``--png none`` writes no picture and ``--png stages`` the map stages only,
+    neither importing matplotlib nor warning."""
+    out = tmp_path / "out"
+    r = _run_without_matplotlib(out, "--png", png)
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    assert sorted(p.name for p in out.iterdir()) == sorted(DATA_FILES + pictures)
 
 
 @pytest.mark.parametrize("command", [["plot", "DIR"], ["reproduce", "--out", "DIR"]])
