@@ -16,10 +16,12 @@ class Skips:
 
     #: echoes: pairs whose beams meet no surface are not evaluated (echoes.pairs_in_view)
     empty_pairs: bool = True
-    #: detection: noise-free pairs without an echo are not scanned (signals.scanned_slots)
+    #: detection: pairs without an echo are not scanned (signals.scanned_slots), where no
+    #: threshold can be reached by the noise (signals.noise_stays_quiet: noise-free, or
+    #: every threshold 10 noise scales up)
     silent_pairs: bool = True
-    #: detection: in a noise-free scene only the chunks of samples an echo reaches are
-    #: synthesised and scanned (the rest of every signal is exactly 0)
+    #: detection: there, only the chunks of samples an echo reaches are synthesised and
+    #: scanned (the rest of every signal is 0, or noise that reaches no threshold)
     quiet_samples: bool = True
     #: accumulation: loci drawn tile by tile, empty tiles skipped (mapping.accumulate)
     tiles: bool = True

@@ -23,6 +23,7 @@ from clsonar.signals import dsp as sig_dsp
 from clsonar.signals import host as sig_host
 from clsonar.signals import reference as sig_reference
 from clsonar.signals import synthesis as sig_synthesis
+from clsonar.survey import with_detection_chosen
 
 FS = 1.0e6
 SIGMA = physics.DEFAULT_PULSE_SIGMA_S
@@ -401,10 +402,13 @@ def test_skipping_silent_pairs_changes_no_detection(name, preset):
 
 @pytest.mark.parametrize("name", ["plane-2m", "sinusoid-1m", "room-l"])
 @pytest.mark.parametrize("mode", ["threshold", "envelope"])
-@pytest.mark.parametrize("noise", [0.0, 0.5])
+@pytest.mark.parametrize("noise", [0.0, 0.3, 0.5])
 def test_quiet_samples_skipped_change_no_detection(name, mode, noise):
-    """Noise-free, only the chunks an echo reaches are synthesised: same detections (and,
-    in envelope mode, the same noise histogram: the left-out E² are all 0)."""
+    """Where noise cannot reach a threshold (noise-free, or every threshold 10 noise scales
+    up: the room's floor of 1 unit up to σn ≈ 0.69, the thesis' threshold of 4 up to 0.4),
+    only the chunks an echo reaches are synthesised: the same detections, value for value;
+    elsewhere (an open scene's floor of 0.01, or σn = 0.5 against the threshold of 4)
+    every sample is."""
     import dataclasses
     from pathlib import Path
 
@@ -428,7 +432,23 @@ def test_quiet_samples_skipped_change_no_detection(name, mode, noise):
     for column in ("tx", "rx", "tof_s", "amplitude"):
         assert np.array_equal(getattr(a, column), getattr(b, column)), column
     assert full["samples_skipped_quiet"] == 0
-    if noise == 0:
+    quiet = noise == 0 or (name == "room-l" and mode == "envelope") or (
+        mode == "threshold" and noise == 0.3)
+    assert sig.noise_stays_quiet(sig.signal_model(with_detection_chosen(scene, sensors))) \
+        == quiet
+    if quiet:
         assert quick["samples_skipped_quiet"] > 2 * quick["samples_scanned"]
     else:
         assert quick["samples_skipped_quiet"] == 0
+
+
+def test_noise_stays_quiet_ten_noise_scales_below_every_threshold():
+    """The envelope's noise scale is 0.145·σn (docs/detection.md); the floor must be 10 of
+    them, the thesis' threshold 10 σn."""
+    for noise, floor, quiet in ((0.0, 0.01, True), (0.68, 1.0, True), (0.7, 1.0, False),
+                                (0.006, 0.01, True), (0.007, 0.01, False)):
+        model = sig.signal_model(scene("envelope", noise, min_envelope=floor))
+        assert 0.144 < sig.envelope_noise_scale(model) / max(noise, 1e-300) < 0.146 or noise == 0
+        assert sig.noise_stays_quiet(model) == quiet, (noise, floor)
+    for noise, quiet in ((0.4, True), (0.41, False)):
+        assert sig.noise_stays_quiet(sig.signal_model(scene("threshold", noise))) == quiet

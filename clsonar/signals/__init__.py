@@ -50,7 +50,14 @@ The package: :mod:`.model` (the signal model and the envelope's calibration), :m
 histogram, peak refinement), :mod:`.detection`, :mod:`.reference` and :mod:`.host`.
 """
 
-from .detection import ENVELOPE_FLOOR, Detections, envelope_thresholds
+from .detection import (
+    ENVELOPE_FLOOR,
+    QUIET_SIGMAS,
+    Detections,
+    envelope_noise_scale,
+    envelope_thresholds,
+    noise_stays_quiet,
+)
 from .dsp import HIST_BASE, HIST_BINS, HIST_LOW_LOG2, HIST_STRIDE, RAYLEIGH_MEDIAN
 from .host import (
     DEFAULT_CAPACITY,
@@ -66,9 +73,38 @@ from .model import MAX_BOX, SignalModel, default_window_s, envelope_offset, sign
 from .philox import PHILOX_M, PHILOX_ROUNDS, PHILOX_W, box_muller, noise, philox4x32
 from .reference import a_scan, detect_reference, envelopes_reference
 
-__all__ = ["DEFAULT_CAPACITY", "DEFAULT_CHUNK", "ENVELOPE_FLOOR", "HIST_BASE", "HIST_BINS",
-           "HIST_LOW_LOG2", "HIST_STRIDE", "ITEMS_PER_LAUNCH", "MAX_BOX", "PHILOX_M",
-           "PHILOX_ROUNDS", "PHILOX_W", "RAYLEIGH_MEDIAN", "SLOTS_PER_LAUNCH", "WORK_GROUP",
-           "Detections", "SignalModel", "a_scan", "box_muller", "default_window_s", "detect",
-           "detect_reference", "envelope_offset", "envelope_thresholds", "envelopes",
-           "envelopes_reference", "noise", "philox4x32", "scanned_slots", "signal_model"]
+__all__ = [
+    "DEFAULT_CAPACITY",
+    "DEFAULT_CHUNK",
+    "ENVELOPE_FLOOR",
+    "HIST_BASE",
+    "HIST_BINS",
+    "HIST_LOW_LOG2",
+    "HIST_STRIDE",
+    "ITEMS_PER_LAUNCH",
+    "MAX_BOX",
+    "PHILOX_M",
+    "PHILOX_ROUNDS",
+    "PHILOX_W",
+    "QUIET_SIGMAS",
+    "RAYLEIGH_MEDIAN",
+    "SLOTS_PER_LAUNCH",
+    "WORK_GROUP",
+    "Detections",
+    "SignalModel",
+    "a_scan",
+    "box_muller",
+    "default_window_s",
+    "detect",
+    "detect_reference",
+    "envelope_noise_scale",
+    "envelope_offset",
+    "envelope_thresholds",
+    "envelopes",
+    "envelopes_reference",
+    "noise",
+    "noise_stays_quiet",
+    "philox4x32",
+    "scanned_slots",
+    "signal_model",
+]

@@ -4,6 +4,7 @@ noise-adaptive threshold, refined)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,6 +59,32 @@ def join_candidates(mode: DetectionMode, parts: list[Candidates]) -> Candidates:
 def envelope_floor(model: SignalModel) -> float:
     """The lowest envelope threshold: ``min_envelope``, and at least :data:`ENVELOPE_FLOOR`·A0."""
     return max(model.min_envelope, ENVELOPE_FLOOR * model.amplitude)
+
+
+#: Noise cannot reach a threshold this many of its standard scales away (σn for the
+#: threshold detector's signal, the Rayleigh scale for the envelope's): the chance is
+#: e^(−50) ≈ 2e-22 per sample, below 1e-12 for a run of 10⁹ samples.
+QUIET_SIGMAS = 10.0
+
+
+def envelope_noise_scale(model: SignalModel) -> float:
+    """The Rayleigh scale of a noise-only envelope, in units: the two boxes' triangle h
+    gives each quadrature σn·calibration·sqrt(Σh²/2) (docs/detection.md: 0.145·σn)."""
+    tri = np.convolve(np.ones(model.box), np.ones(model.box))
+    return model.noise_std * model.calibration * math.sqrt(float(np.sum(tri**2)) / 2.0)
+
+
+def noise_stays_quiet(model: SignalModel) -> bool:
+    """Whether the noise alone cannot be detected: the lowest threshold is at least
+    :data:`QUIET_SIGMAS` of the noise's scale (always, noise-free). Then only the samples an
+    echo reaches can hold a detection, and every threshold is the floor (the noise's
+    estimate, 6·ŝ, stays far below it), so scanning only those samples gives the full
+    scan's detections bit for bit, but with a chance below 1e-12 per run."""
+    if model.noise_std == 0:
+        return True
+    if model.mode == "threshold":
+        return model.threshold >= QUIET_SIGMAS * model.noise_std
+    return envelope_floor(model) >= QUIET_SIGMAS * envelope_noise_scale(model)
 
 
 def envelope_thresholds(model: SignalModel, hist: np.ndarray) -> np.ndarray:

@@ -32,6 +32,7 @@ from .detection import (
     finish_threshold,
     join_candidates,
     merge_candidates,
+    noise_stays_quiet,
 )
 from .dsp import HIST_BASE, HIST_BINS, HIST_STRIDE
 from .model import SignalModel, envelope_grid, envelope_offset
@@ -69,9 +70,10 @@ class Runner:
                  chunk: int | None, work_group: int | None, skip_quiet: bool = True):
         import pyopencl as cl
 
-        #: noise-free: chunks of samples no echo reaches are not synthesised (their signal,
-        #: envelope and candidates are exactly 0; their histogram counts go to bin 0)
-        self.skip_quiet = skip_quiet and model.noise_std == 0
+        #: chunks of samples no echo reaches are not synthesised where noise cannot be
+        #: detected (noise_stays_quiet: noise-free, their signal, envelope and candidates
+        #: are exactly 0); their histogram counts go to bin 0
+        self.skip_quiet = skip_quiet and noise_stays_quiet(model)
         self.samples = {"scanned": 0, "skipped": 0}
 
         context_for(context, None, precision)  # checks the precision against the device
@@ -257,11 +259,12 @@ def _context(context, device):
 
 
 def scanned_slots(model: SignalModel, pe: PairEchoes) -> np.ndarray:
-    """The pair slots whose signal must be scanned: all of them when there is noise, else
-    only those with an echo — a noise-free pair without one receives nothing, crosses no
-    threshold and has no envelope peak, so skipping it changes no detection."""
+    """The pair slots whose signal must be scanned: all of them when the noise can be
+    detected, else only those with an echo — a pair without one receives nothing (or noise
+    no threshold reaches, :func:`~.detection.noise_stays_quiet`), so skipping it changes no
+    detection."""
     slots = np.arange(len(pe.pairs), dtype=np.int64)
-    return slots if model.noise_std > 0 else slots[pe.hi > pe.lo]
+    return slots[pe.hi > pe.lo] if noise_stays_quiet(model) else slots
 
 
 def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, context=None,
@@ -278,9 +281,11 @@ def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, cont
     result by float32 rounding only), ``work_group`` and ``capacity`` (first-pass candidates
     per pair) tune the launch; the last two never change the result; nor does
     ``skip_silent``, which leaves out
-    the noise-free pairs without an echo (:func:`scanned_slots`), nor does ``skip_quiet``,
-    which in a noise-free scene synthesises only the chunks of samples an echo reaches (the
-    rest is exactly 0). ``stats``, if given, receives ``pairs_scanned``,
+    the pairs without an echo (:func:`scanned_slots`), nor does ``skip_quiet``, which
+    synthesises only the chunks of samples an echo reaches — both where noise cannot be
+    detected (:func:`~.detection.noise_stays_quiet`: noise-free, or every threshold at
+    least 10 noise scales up; then the rest of every signal holds no detection, but with a
+    chance below 1e-12 per run). ``stats``, if given, receives ``pairs_scanned``,
     ``pairs_skipped_silent``, ``samples_scanned`` and ``samples_skipped_quiet``. Same model
     as :func:`detect_reference`.
     """

@@ -14,6 +14,7 @@ from typing import Any, TextIO
 from ...errors import ClsonarError
 from ...files import write_atomic
 from ...opencl import get_context
+from ...pipeline import StageCache
 from ...pipeline import run as run_pipeline
 from ..progress import ProgressLine
 from .plan import Run, plan
@@ -36,11 +37,17 @@ def worker_context(device: str | None = None):
     return CONTEXTS[device]
 
 
+#: The front stages this process computed, reused by the runs whose inputs to them are
+#: unchanged (a wall-following ring's poses and echoes across noise seeds).
+CACHE = StageCache()
+
+
 def run_one(run: Run, metrics: Sequence[str], device: str | None = None,
             context=None) -> dict[str, Any]:
-    """Run the pipeline on ``run`` and return its row (the task a Dask worker executes)."""
+    """Run the pipeline on ``run`` and return its row (the task a Dask worker executes);
+    the front stages come from this process' :data:`CACHE` where they can."""
     ctx = context if context is not None else worker_context(device)
-    result = run_pipeline(run.scene, context=ctx, preset=run.preset)
+    result = run_pipeline(run.scene, context=ctx, preset=run.preset, cache=CACHE)
     return row_of(run, result, metrics)
 
 
