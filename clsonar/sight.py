@@ -57,9 +57,10 @@ def first_hits(origin: np.ndarray, occluders: np.ndarray, cell: float,
         start = lo % bins
         use = count[start + width + 1] - count[start] > 0
         dist, lo, width = dist[use], lo[use], width[use]
-    for off in range(int(width.max(initial=-1)) + 1):
-        sel = width >= off
-        np.minimum.at(hits, (lo[sel] + off) % bins, dist[sel])
+    count = width + 1  # every bin lo .. lo + width of every cell, in one scatter
+    first = np.cumsum(count) - count
+    offset = np.arange(int(count.sum())) - np.repeat(first, count)
+    np.minimum.at(hits, (np.repeat(lo, count) + offset) % bins, np.repeat(dist, count))
     return hits
 
 

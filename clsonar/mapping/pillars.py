@@ -45,7 +45,12 @@ def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray,
     def residual(x: np.ndarray) -> np.ndarray:
         return np.hypot(*(x[:2] - T).T) - rho - x[2]
 
-    x = least_squares(residual, np.r_[start, 0.1]).x
+    def jacobian(x: np.ndarray) -> np.ndarray:
+        d = x[:2] - T
+        return np.column_stack([d / np.maximum(np.hypot(*d.T), 1e-300)[:, None],
+                                -np.ones(len(T))])
+
+    x = least_squares(residual, np.r_[start, 0.1], jac=jacobian).x
     return x[:2], float(x[2]), residual(x)
 
 
@@ -77,7 +82,11 @@ def _a_point(T: np.ndarray, rho: np.ndarray, centre: np.ndarray, tol: np.ndarray
     def residual(v: np.ndarray) -> np.ndarray:
         return np.hypot(*(v - T).T) - rho
 
-    v = least_squares(residual, centre).x
+    def jacobian(v: np.ndarray) -> np.ndarray:
+        d = v - T
+        return d / np.maximum(np.hypot(*d.T), 1e-300)[:, None]
+
+    v = least_squares(residual, centre, jac=jacobian).x
     return bool(np.all(np.abs(residual(v)) <= tol))
 
 
