@@ -100,3 +100,20 @@ def test_bench_times_echoes_and_detection_against_numpy(report):
     assert r.echoes_matched == 1.0 and r.unmatched_max_amplitude == 0.0 and r.detections_same
     assert r.echoes_speedup == pytest.approx(r.echoes_numpy_s / r.echoes_opencl_s)
     assert "## Echoes and detection: OpenCL against NumPy float64" in (out / "bench.md").read_text()
+
+
+def test_throughput_section_counts_the_sweeps_runs_and_every_png_choice(tmp_path):
+    """Issue 16: the sweep's runs per second (its runs counted, not timed) and the whole
+    command as a process with each ``--png``, written into bench.md."""
+    from clsonar.files import PNG_CHOICES
+    from clsonar.opencl import get_context
+    from clsonar.tools.throughput import bench_process, bench_sweep, throughput_markdown
+
+    scene = load_scene(bundled_scenes() / "plane-2m.json")
+    sweep = bench_sweep(scene, get_context(), seeds=2, noises=(0.0, 0.6))
+    assert [(r.noise_std, r.runs) for r in sweep] == [(0.0, 2), (0.6, 2)]
+    assert all(r.runs_per_s == pytest.approx(r.runs / r.seconds) for r in sweep)
+    process = bench_process(bundled_scenes() / "plane-2m.json", repeat=1)
+    assert [r.png for r in process] == list(PNG_CHOICES)
+    text = "\n".join(throughput_markdown("plane-2m", sweep, process))
+    assert "## End to end: `plane-2m`" in text and "| stages |" in text

@@ -14,7 +14,6 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from scipy.optimize import least_squares
 
 #: Candidate loci whose middle-of-arc points lie within this of each other are fitted
 #: together, metres.
@@ -49,6 +48,8 @@ def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray,
         d = x[:2] - T
         return np.column_stack([d / np.maximum(np.hypot(*d.T), 1e-300)[:, None],
                                 -np.ones(len(T))])
+
+    from scipy.optimize import least_squares  # imported when a pillar is first fitted
 
     x = least_squares(residual, np.r_[start, 0.1], jac=jacobian).x
     return x[:2], float(x[2]), residual(x)
@@ -85,6 +86,8 @@ def _a_point(T: np.ndarray, rho: np.ndarray, centre: np.ndarray, tol: np.ndarray
     def jacobian(v: np.ndarray) -> np.ndarray:
         d = v - T
         return d / np.maximum(np.hypot(*d.T), 1e-300)[:, None]
+
+    from scipy.optimize import least_squares
 
     v = least_squares(residual, centre, jac=jacobian).x
     return bool(np.all(np.abs(residual(v)) <= tol))

@@ -46,6 +46,7 @@ from .defaults import BENCH_FLOORS, BENCH_REPEAT, BENCH_SCENES
 from .floors import FloorRow, bench_floor
 from .markdown import NONE, cm, percent
 from .progress import Progress
+from .throughput import ProcessRow, SweepRow, bench_process, bench_sweep, throughput_markdown
 from .tradeoff import (
     SkipRow,
     TradeoffRow,
@@ -316,7 +317,12 @@ class BenchReport:
     beats_thesis: list[str]
     floors: list[FloorRow]
     zoo: list[dict[str, Any]] = dataclasses.field(default_factory=list)
+    sweep: list[SweepRow] = dataclasses.field(default_factory=list)  # of THROUGHPUT_SCENE
+    process: list[ProcessRow] = dataclasses.field(default_factory=list)
 
+
+#: The scene whose sweep throughput and process time are measured (when benchmarked).
+THROUGHPUT_SCENE = "room"
 
 #: The thesis' shapes (the trade-off table runs every knob on these).
 THESIS_SCENES = ("plane-2m", "corner-4m", "edge-1m", "cylinder-2.1m", "sinusoid-1m")
@@ -423,6 +429,8 @@ def report_markdown(report: BenchReport, command: str) -> str:
         (stages_markdown(report.stages) if report.stages else [])
         + skips_markdown(report.skips)
         + (tradeoff_markdown(report.tradeoff, report.beats_thesis) if report.tradeoff else [])
+        + (throughput_markdown(THROUGHPUT_SCENE, report.sweep, report.process)
+           if report.sweep else [])
         + (floors_markdown(report.floors) if report.floors else [])
         + (zoo_markdown(report.zoo) if report.zoo else [])) + "\n"
 
@@ -446,8 +454,9 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     if shapes:
         require_plots("clsonar bench (tradeoff.png)")
     context = get_context(device)
+    ends = THROUGHPUT_SCENE in names
     tell = _stepper(progress, len(scenes) * (2 * len(SETTINGS) + 1 + numpy) + len(shapes)
-                    + len(floors) + zoo)
+                    + len(floors) + zoo + 2 * ends)
     pipeline, skips, accumulation, stage_rows = [], [], [], []
     for scene in scenes:
         rows, skipped, accumulated, stages = bench_scene(scene, context, repeat, numpy, tell)
@@ -459,6 +468,12 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
     for scene in shapes:
         tell(f"{scene.name}: run time against error")
         trade += bench_tradeoff(scene, context, repeat)
+    sweep, process = [], []
+    if ends:
+        tell(f"{THROUGHPUT_SCENE}: a sweep over seeds and noise")
+        sweep = bench_sweep(scenes[names.index(THROUGHPUT_SCENE)], context)
+        tell(f"{THROUGHPUT_SCENE}: clsonar run as a process")
+        process = bench_process(folder / f"{THROUGHPUT_SCENE}.json", repeat, device)
     floor_rows = []
     for size in floors:
         tell(f"floor {size:g} m × {size:g} m (a separate process)")
@@ -469,7 +484,7 @@ def bench(out: Path, scenes_dir: Path | None = None, names: tuple[str, ...] = DE
         zoo_rows = zoo_report(out, context=context, command=command)
     report = BenchReport(device_name(context), pipeline,
                          accumulation, stage_rows, skips, trade, beats_thesis(trade),
-                         floor_rows, zoo_rows)
+                         floor_rows, zoo_rows, sweep, process)
     out.mkdir(parents=True, exist_ok=True)
     write_atomic(out / "bench.md", report_markdown(report, command).encode())
     if trade:
