@@ -33,8 +33,8 @@ from .opencl import PRECISIONS
 from .presets import PRESETS
 from .skips import SKIP_NAMES, Skips
 from .tools import defaults
+from .tools.defaults import ZOO_KINDS
 from .tools.progress import ProgressLine
-from .tools.zoo.thresholds import KINDS as ZOO_KINDS
 from .version import __version__
 
 if TYPE_CHECKING:

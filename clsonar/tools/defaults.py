@@ -14,3 +14,6 @@ BENCH_FLOORS = (50.0,)
 
 #: Runs per experiment of ``clsonar reproduce`` (placement and noise seeds 0, 1, … added).
 REPRODUCE_SEEDS = 5
+
+#: The kinds of scene of ``clsonar zoo``, in the order its report lists them.
+ZOO_KINDS = ("room", "corridor", "wall", "corner", "edge", "cylinder", "sinusoid", "post")

@@ -16,8 +16,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..defaults import ZOO_KINDS
+
 #: The kinds of zoo scene, in the order the report lists them.
-KINDS = ("room", "corridor", "wall", "corner", "edge", "cylinder", "sinusoid", "post")
+KINDS = ZOO_KINDS  # tools/defaults.py
 
 #: How a zoo scene is scanned: the ``wall-following`` placement; rings written by hand as
 #: explicit transducers, one group per pose; ``per-wall`` arrays; linear arrays written by
