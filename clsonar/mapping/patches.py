@@ -222,12 +222,12 @@ def _heard(loci: Loci, pairs: np.ndarray, path: np.ndarray, c: float,
     key, detected, amplitude = key[order], c * loci.tof_s[order], loci.amplitude[order]
     want = pairs[:, 0] * (int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1) + pairs[:, 1]
     start = np.searchsorted(key, want, side="left")
-    stop = np.searchsorted(key, want, side="right")
-    heard = np.zeros(len(pairs), dtype=bool)
-    for k in np.flatnonzero(stop > start):
-        near = np.abs(detected[start[k]:stop[k]] - path[k]) <= HEARD_TOL_M
-        heard[k] = bool(np.any(near & (amplitude[start[k]:stop[k]] >= least[k])))
-    return heard
+    count = np.searchsorted(key, want, side="right") - start
+    pair = np.repeat(np.arange(len(pairs)), count)  # each of the pairs' detections
+    row = np.arange(len(pair)) - np.repeat(np.cumsum(count) - count, count) \
+        + np.repeat(start, count)
+    near = (np.abs(detected[row] - path[pair]) <= HEARD_TOL_M) & (amplitude[row] >= least[pair])
+    return np.bincount(pair[near], minlength=len(pairs)) > 0
 
 
 def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci) -> Patch:
@@ -263,8 +263,23 @@ def draw_patch(p: Patch, step: float) -> tuple[np.ndarray, np.ndarray]:
     scale = 1.0 if p.straight else abs(curve_geometry(p.params, p.x0)[1])
     du = step / max(scale, 1e-9)
     u = np.arange(p.lo, p.hi + 0.5 * du, du)
-    nearest = np.abs(u[:, None] - p.u[None]).argmin(axis=1)
-    return carrier_points(p.params, p.x0, u), p.loci[nearest]
+    return carrier_points(p.params, p.x0, u), p.loci[nearest_index(p.u, u)]
+
+
+def nearest_index(values: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """For each of ``queries``, the index of the nearest of ``values`` (ties: the lowest
+    index), as ``np.abs(queries[:, None] - values).argmin(axis=1)`` gives it, by binary
+    search instead of the [queries × values] matrix (a joined wall seen by a 1000-element
+    array: 2400 × 10⁵ distances, 2 GB)."""
+    order = np.argsort(values, kind="stable")
+    v = np.asarray(values, dtype=np.float64)[order]
+    k = np.searchsorted(v, queries, side="left")  # v[k] is the first ≥ the query
+    right = np.minimum(k, len(v) - 1)
+    left = np.searchsorted(v, v[np.maximum(k - 1, 0)], side="left")  # its run's first
+    d_right = np.where(k < len(v), np.abs(v[right] - queries), np.inf)
+    d_left = np.where(k > 0, np.abs(queries - v[left]), np.inf)
+    take_left = (d_left < d_right) | ((d_left == d_right) & (order[left] < order[right]))
+    return np.where(take_left, order[left], order[right])
 
 
 __all__ = [
@@ -278,6 +293,7 @@ __all__ = [
     "coordinates",
     "draw_patch",
     "extents",
+    "nearest_index",
     "patch_of",
     "spread_patch",
 ]

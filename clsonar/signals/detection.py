@@ -90,7 +90,12 @@ def noise_stays_quiet(model: SignalModel) -> bool:
 def envelope_thresholds(model: SignalModel, hist: np.ndarray) -> np.ndarray:
     """Per-pair envelope threshold max(min_envelope, false_alarm_sigmas·ŝ) from histograms,
     never below :data:`ENVELOPE_FLOOR`·A0 (float32 round-off of the running sums)."""
-    return np.maximum(envelope_floor(model), model.false_alarm_sigmas * noise_scale(hist))
+    return thresholds_of(model, noise_scale(hist))
+
+
+def thresholds_of(model: SignalModel, scales: np.ndarray) -> np.ndarray:
+    """:func:`envelope_thresholds` from the pairs' noise scales ŝ."""
+    return np.maximum(envelope_floor(model), model.false_alarm_sigmas * scales)
 
 
 def finish_threshold(model: SignalModel, pe: PairEchoes, cand: Candidates) -> Detections:

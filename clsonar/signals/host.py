@@ -27,14 +27,14 @@ from .detection import (
     Detections,
     empty_detections,
     envelope_floor,
-    envelope_thresholds,
     finish_envelope,
     finish_threshold,
     join_candidates,
     merge_candidates,
     noise_stays_quiet,
+    thresholds_of,
 )
-from .dsp import HIST_BASE, HIST_BINS, HIST_STRIDE
+from .dsp import HIST_BASE, HIST_BINS, HIST_STRIDE, noise_scale
 from .model import SignalModel, envelope_grid, envelope_offset
 from .philox import philox_key
 from .synthesis import PairEchoes, inputs
@@ -166,23 +166,24 @@ class Runner:
     def scan(self, slots: np.ndarray, capacity: int, floor: np.ndarray | None,
              histogram: bool) -> tuple[np.ndarray, Candidates, np.ndarray]:
         """Candidates of pair slots ``slots``, at most ``capacity`` per slot (the envelope's
-        at least ``floor[slot]``), and if ``histogram`` the envelope histograms; returns
-        (candidates found per slot, candidates, histograms [slots, HIST_BINS])."""
+        at least ``floor[slot]``), and if ``histogram`` each slot's envelope noise scale ŝ
+        (:func:`~.dsp.noise_scale` of its histogram, taken block by block: 10⁶ pairs'
+        histograms would be 1 GB); returns (candidates found per slot, candidates, ŝ)."""
         mode = self.model.mode
         chunk = self.chunk_for(mode)
         total = self.model.n_samples if mode == "threshold" else self.model.n_env
         n_chunks = -(-total // chunk)
-        counts, found, hists = [], [], []
+        counts, found, scales = [], [], []
         for block in self.blocks(slots, n_chunks, capacity):
             count, cand, hist = self.scan_block(block, chunk, n_chunks, capacity, floor,
                                                 histogram)
             counts.append(count)
             found.append(cand)
             if hist is not None:
-                hists.append(hist)
+                scales.append(noise_scale(hist))
         return (np.concatenate(counts) if counts else np.zeros(0, np.int32),
                 join_candidates(mode, found),
-                np.concatenate(hists) if hists else np.zeros((0, HIST_BINS), np.int32))
+                np.concatenate(scales) if scales else np.zeros(0))
 
     def scan_block(self, block: np.ndarray, chunk: int, n_chunks: int, capacity: int,
                    floor: np.ndarray | None, histogram: bool
@@ -319,9 +320,9 @@ def _detect(model: SignalModel, pe: PairEchoes, run: Runner, capacity: int | Non
             cand = merge_candidates(cand, extra, slots[over])
         return finish_threshold(model, pe, cand)
     floor = np.full(len(pe.pairs), envelope_floor(model))
-    counts, cand, hist = run.scan(slots, cap, floor, histogram=True)
+    counts, cand, scales = run.scan(slots, cap, floor, histogram=True)
     thresholds = np.full(len(pe.pairs), np.inf)  # indexed by slot; unscanned slots: none
-    thresholds[slots] = envelope_thresholds(model, hist)
+    thresholds[slots] = thresholds_of(model, scales)
     over = counts > cap
     if over.any():
         # the same local maxima, now only those above the final threshold (a hair lower, so
