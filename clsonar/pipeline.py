@@ -209,6 +209,7 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
         return value
 
     geom, sensors = stage("sensors", lambda: (_sensors(scene), {}))
+    mapping.check_pair_memory(scene, sensors)  # refused in one line before any echo
     asked = scene
     found = survey(scene, sensors)
     scene, why = choose_settings(scene, found, given, geom)

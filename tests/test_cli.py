@@ -173,3 +173,24 @@ def test_an_out_that_cannot_be_a_folder_is_one_line(tmp_path, capsys, where):
     assert len(err) == 1 and err[0].startswith("clsonar: error: ") and "folder" in err[0]
     assert (tmp_path / "a-file").read_text() == "keep me"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a-file"]
+
+
+def test_a_scene_whose_pairs_cannot_be_held_is_refused_in_one_line(tmp_path, capsys,
+                                                                   monkeypatch):
+    """Issue 19: the fired pairs' memory is judged before any echo is computed: a
+    100-element array (10⁴ pairs, about 2 MB) on a machine with 1 MB free is one line and
+    exit 2, nothing written."""
+    from clsonar.mapping import grid
+
+    n = 100
+    scene = {"clsonar": 1, "name": "crowd", "extent": [-0.5, -1.0, 1.5, 1.0], "cell": 0.02,
+             "surfaces": [{"type": "polyline", "points": [[1.0, -1.0], [1.0, 1.0]]}],
+             "sensors": {"transducers": [{"position": [0.0, -0.5 + i / (n - 1)],
+                                          "heading_deg": 0.0} for i in range(n)]}}
+    path = tmp_path / "crowd.json"
+    path.write_text(json.dumps(scene))
+    monkeypatch.setattr(grid, "_host_available_bytes", lambda: 1 << 20)
+    assert main(["run", str(path), "--out", str(tmp_path / "out"), "-q"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "10,000 fired pairs (100 transducers)" in err[0], err
+    assert not (tmp_path / "out").exists()

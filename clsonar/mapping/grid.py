@@ -106,6 +106,33 @@ def _host_available_bytes() -> int | None:
         return None
 
 
+#: Host memory a fired pair takes at the pipeline's peak, bytes: its echoes, its
+#: detections and their loci (measured: 160 B a pair for 9·10⁶ pairs, 424 B for 10⁶ with
+#: the fixed costs; a 3000-element array peaks at 1.6 GB).
+PAIR_BYTES = 200
+
+
+def fired_pair_count(sensors) -> int:
+    """How many (T, R) pairs fire: the square of each pair group's size (T = R and both
+    directions), counted without listing them."""
+    _, sizes = np.unique(np.asarray(sensors.groups), return_counts=True)
+    return int(np.sum(sizes.astype(np.int64) ** 2))
+
+
+def check_pair_memory(scene: Scene, sensors) -> None:
+    """Raise :class:`~clsonar.errors.ClsonarError` (one line, before any echo is computed)
+    when the fired pairs of ``sensors`` would take more memory than this machine has
+    available (:data:`PAIR_BYTES` a pair)."""
+    count = fired_pair_count(sensors)
+    needed = float(count) * PAIR_BYTES
+    available = _host_available_bytes()
+    if available is not None and needed > available:
+        raise ClsonarError(
+            f"{scene.name}: {count:,} fired pairs ({len(sensors.groups):,} transducers) need "
+            f"about {_bytes(needed)} of memory, more than this machine has available "
+            f"({_bytes(available)}): use fewer transducers or smaller pair groups")
+
+
 def work_items(nx: int, ny: int, vec: int, wgx: int, wgy: int) -> tuple[int, int]:
     """Work items along x and y covering nx × ny pixels, in whole work-groups."""
     def ceil_div(a: int, b: int) -> int:
