@@ -14,7 +14,9 @@ never cross and the tangent-point method keeps nothing unless an isolated locus 
 stretch around its tangent (``mapping.isolated_bias_m``); a room or a path is straight walls
 meeting at corners and edges, which the ``walls`` fit recovers (thesis §3.6), with the gaps
 between poses' patches (up to about the scan step and beyond) bridged and walls joined at
-their vertices (``post.max_gap_m``, ``post.join_m``).
+their vertices (``post.max_gap_m``, ``post.join_m``). The envelope's floor
+(``detection.min_envelope``) is low in an open scene, where arrays face reflectors whose
+echoes are weak (a convex edge's diffraction), and 1 unit where rings scan walls square on.
 """
 
 from __future__ import annotations
@@ -215,6 +217,7 @@ def with_detection_chosen(scene: Scene, sensors: SensorArray) -> Scene:
     would (for callers of the signal stage outside the pipeline)."""
     if scene.detection.min_envelope is not None:
         return scene
-    floor = float(CHOICES[survey(scene, sensors).kind]["detection.min_envelope"])  # type: ignore[arg-type]
+    floor = CHOICES[survey(scene, sensors).kind]["detection.min_envelope"]
+    assert isinstance(floor, float)
     return dataclasses.replace(scene, detection=dataclasses.replace(
         scene.detection, min_envelope=floor))
