@@ -81,6 +81,9 @@ def _add_run(sub: Subparsers) -> None:
                         f"saves; the output is the same): {', '.join(SKIP_NAMES)} "
                         "or all; "
                         "repeatable")
+    p.add_argument("--dry-run", action="store_true",
+                   help="place the transducers and print what the run would cost (pairs, "
+                        "samples, cells, memory) without running it or writing anything")
     p.add_argument("--png", choices=PNG_CHOICES, default="all",
                    help="pictures to write: none; stages (raw, filtered, thin, drawn from "
                         "the maps); all (and scene.png, profile.png: needs matplotlib). "
@@ -234,6 +237,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from .scene import load_scene
 
     scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
+    if args.dry_run:
+        from . import cost
+
+        print("\n".join(f"{scene.name}: {line}"
+                        for line in cost.lines(cost.estimate(scene, args.preset))))
+        return 0
     outputs.check_out(args.out)  # and so does an --out that cannot be written
     names = SKIP_NAMES
     off = names if "all" in args.no_skip else args.no_skip

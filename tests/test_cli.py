@@ -189,8 +189,25 @@ def test_a_scene_whose_pairs_cannot_be_held_is_refused_in_one_line(tmp_path, cap
                                           "heading_deg": 0.0} for i in range(n)]}}
     path = tmp_path / "crowd.json"
     path.write_text(json.dumps(scene))
-    monkeypatch.setattr(grid, "_host_available_bytes", lambda: 1 << 20)
+    monkeypatch.setattr(grid, "host_available_bytes", lambda: 1 << 20)
     assert main(["run", str(path), "--out", str(tmp_path / "out"), "-q"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "10,000 fired pairs (100 transducers)" in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
+def test_dry_run_prints_the_cost_and_writes_nothing(tmp_path, capsys, monkeypatch):
+    """Issue 19: ``clsonar run --dry-run`` places the transducers and prints the pairs,
+    samples, cells and memory; with too little memory it says the run would be refused."""
+    from clsonar.mapping import grid
+
+    room = ROOT / "scenes" / "room.json"
+    assert main(["run", str(room), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "room: transducers 512, fired pairs 4,096"
+    assert "82,364 samples a pair" in out[1] and "map 1,000,000 cells" in out[2]
+    assert out[3].endswith("fits")
+    monkeypatch.setattr(grid, "host_available_bytes", lambda: 1 << 20)
+    assert main(["run", str(room), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
+    assert capsys.readouterr().out.rstrip().endswith("does not fit: the run would be refused")
     assert not (tmp_path / "out").exists()

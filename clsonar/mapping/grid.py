@@ -91,7 +91,7 @@ def _bytes(n: float) -> str:
     return f"{n:.0f} B"
 
 
-def _host_available_bytes() -> int | None:
+def host_available_bytes() -> int | None:
     """Memory this machine can still give (MemAvailable), None if unknown."""
     try:
         with open("/proc/meminfo", encoding="ascii") as f:
@@ -125,7 +125,7 @@ def check_pair_memory(scene: Scene, sensors) -> None:
     available (:data:`PAIR_BYTES` a pair)."""
     count = fired_pair_count(sensors)
     needed = float(count) * PAIR_BYTES
-    available = _host_available_bytes()
+    available = host_available_bytes()
     if available is not None and needed > available:
         raise ClsonarError(
             f"{scene.name}: {count:,} fired pairs ({len(sensors.groups):,} transducers) need "
@@ -184,7 +184,7 @@ def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
         needed = float(ny) * nx * 8 * REFERENCE_TEMPORARIES
     else:  # padded transfer copy, result, its caller
         needed = float(ny) * nx * np.dtype(PRECISIONS[precision]).itemsize * 3
-    available = _host_available_bytes()
+    available = host_available_bytes()
     if available is not None and needed > available:
         raise _grid_error(scene, f"needs {_bytes(needed)} of memory, more than this machine "
                                  f"has available ({_bytes(available)})")

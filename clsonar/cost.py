@@ -1,0 +1,77 @@
+"""What a run of a scene will cost, from the scene alone, before any kernel runs (issue 19:
+``clsonar run --dry-run``): the transducers placed and the pairs they fire, the samples of
+each pair's received signal, the map's cells, and the memory the pairs and the map take at
+the pipeline's peak against what this machine has available — the same figures the run
+itself refuses on (:func:`~clsonar.mapping.check_pair_memory`,
+:func:`~clsonar.mapping.check_map_memory`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from . import regions
+from .geometry import build_geometry
+from .mapping import PAIR_BYTES, fired_pair_count, grid
+from .pipeline import MOSAIC_BYTES_PER_CELL, PIPELINE_BYTES_PER_CELL, apply_preset
+from .scene import Scene
+from .sensors import place_sensors
+from .signals import signal_model
+from .survey import choose_settings, survey
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A run's cost before it starts (module docstring)."""
+
+    transducers: int
+    pairs: int
+    samples_per_pair: int
+    cells: int
+    rooms: int  # mapped one by one (0: the scene is mapped whole)
+    pair_bytes: float
+    map_bytes: float
+    available_bytes: int | None
+
+    @property
+    def fits(self) -> bool:
+        """Whether the pairs and the map fit this machine's available memory."""
+        return self.available_bytes is None or (
+            max(self.pair_bytes, self.map_bytes) <= self.available_bytes)
+
+
+def estimate(scene: Scene, preset: str | None = None) -> Estimate:
+    """The cost of running ``scene`` (with ``preset``): its transducers are placed (a
+    wall-following trace included) and its settings chosen, nothing else is computed."""
+    scene = apply_preset(scene, preset)
+    geom = build_geometry(scene)
+    sensors = place_sensors(scene, geom)
+    scene, _ = choose_settings(scene, survey(scene, sensors), geom=geom)
+    ny, nx = scene.grid_shape
+    rooms = regions.split_rooms(scene)
+    per_cell = MOSAIC_BYTES_PER_CELL if rooms else PIPELINE_BYTES_PER_CELL
+    pairs = fired_pair_count(sensors)
+    return Estimate(transducers=len(sensors), pairs=pairs,
+                    samples_per_pair=signal_model(scene).n_samples, cells=ny * nx,
+                    rooms=len(rooms) if rooms else 0, pair_bytes=float(pairs) * PAIR_BYTES,
+                    map_bytes=float(ny) * nx * per_cell,
+                    available_bytes=grid.host_available_bytes())
+
+
+def _mb(n: float) -> str:
+    return f"{n / 2**20:,.0f} MB"
+
+
+def lines(e: Estimate) -> list[str]:
+    """The estimate as the lines ``clsonar run --dry-run`` prints."""
+    mapped = f"room by room ({e.rooms} rooms)" if e.rooms else "whole"
+    free = "unknown" if e.available_bytes is None else _mb(e.available_bytes)
+    return [f"transducers {e.transducers:,}, fired pairs {e.pairs:,}",
+            f"received signal {e.samples_per_pair:,} samples a pair "
+            f"({float(e.pairs) * e.samples_per_pair:.3g} at most in all)",
+            f"map {e.cells:,} cells, mapped {mapped}",
+            f"memory: pairs about {_mb(e.pair_bytes)} ({PAIR_BYTES} B a pair), maps about "
+            f"{_mb(e.map_bytes)}; available {free}: "
+            + ("fits" if e.fits else "does not fit: the run would be refused")]
+
+
+__all__ = ["Estimate", "estimate", "lines"]
