@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from . import regions
 from .geometry import build_geometry
-from .mapping import PAIR_BYTES, fired_pair_count, grid
+from .mapping import PAIR_BYTES, grid
 from .pipeline import MOSAIC_BYTES_PER_CELL, PIPELINE_BYTES_PER_CELL, apply_preset
 from .scene import Scene
 from .sensors import place_sensors
@@ -49,7 +49,7 @@ def estimate(scene: Scene, preset: str | None = None) -> Estimate:
     ny, nx = scene.grid_shape
     rooms = regions.split_rooms(scene)
     per_cell = MOSAIC_BYTES_PER_CELL if rooms else PIPELINE_BYTES_PER_CELL
-    pairs = fired_pair_count(sensors)
+    pairs = sensors.pair_count
     return Estimate(transducers=len(sensors), pairs=pairs,
                     samples_per_pair=signal_model(scene).n_samples, cells=ny * nx,
                     rooms=len(rooms) if rooms else 0, pair_bytes=float(pairs) * PAIR_BYTES,
@@ -57,20 +57,17 @@ def estimate(scene: Scene, preset: str | None = None) -> Estimate:
                     available_bytes=grid.host_available_bytes())
 
 
-def _mb(n: float) -> str:
-    return f"{n / 2**20:,.0f} MB"
-
-
 def lines(e: Estimate) -> list[str]:
     """The estimate as the lines ``clsonar run --dry-run`` prints."""
     mapped = f"room by room ({e.rooms} rooms)" if e.rooms else "whole"
-    free = "unknown" if e.available_bytes is None else _mb(e.available_bytes)
+    size = grid.format_bytes
+    free = "unknown" if e.available_bytes is None else size(e.available_bytes)
     return [f"transducers {e.transducers:,}, fired pairs {e.pairs:,}",
             f"received signal {e.samples_per_pair:,} samples a pair "
             f"({float(e.pairs) * e.samples_per_pair:.3g} at most in all)",
             f"map {e.cells:,} cells, mapped {mapped}",
-            f"memory: pairs about {_mb(e.pair_bytes)} ({PAIR_BYTES} B a pair), maps about "
-            f"{_mb(e.map_bytes)}; available {free}: "
+            f"memory: pairs about {size(e.pair_bytes)} ({PAIR_BYTES} B a pair), maps about "
+            f"{size(e.map_bytes)}; available {free}: "
             + ("fits" if e.fits else "does not fit: the run would be refused")]
 
 

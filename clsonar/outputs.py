@@ -111,13 +111,9 @@ def profile_png(result: RunResult) -> bytes:
                              result.profile, result.sensors)
 
 
-#: The plots that need matplotlib.
-PLOTTED = ("scene.png", "profile.png")
-
-
 def stage_pngs(result: RunResult, png: str = "all") -> dict[str, bytes]:
     """The PNGs of ``result`` that ``png`` (:data:`~clsonar.files.PNG_CHOICES`) asks
-    for, by file name; :data:`PLOTTED` only where matplotlib is installed."""
+    for, by file name; scene.png and profile.png only where matplotlib is installed."""
     from . import pictures
 
     if png == "none":

@@ -104,7 +104,6 @@ __all__ = [
     "check_pair_memory",
     "count_viewpoints",
     "envelope_links",
-    "fired_pair_count",
     "in_beams",
     "loci_votes",
     "map_grid",
@@ -132,7 +131,6 @@ from .grid import (
     cell_centres,
     check_map_memory,
     check_pair_memory,
-    fired_pair_count,
     map_grid,
     work_items,
 )

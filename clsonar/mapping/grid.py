@@ -18,6 +18,7 @@ from .. import geometry
 from ..errors import ClsonarError
 from ..opencl import PRECISIONS, device_kind
 from ..scene import MappingSettings, Scene
+from ..sensors import SensorArray
 
 #: (pixels along x per work item, i.e. the ``realN`` vector width; work-group shape in work
 #: items) by device kind and precision. A CPU gets one AVX2 register per work item (8 floats
@@ -84,7 +85,8 @@ def band_m(scene: Scene, settings: MappingSettings | None = None) -> float:
 # --------------------------------------------------------------------------- memory
 
 
-def _bytes(n: float) -> str:
+def format_bytes(n: float) -> str:
+    """``n`` bytes in decimal units, three significant digits (``1.6 GB``)."""
     for unit, size in (("PB", 1e15), ("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if n >= size:
             return f"{n / size:.3g} {unit}"
@@ -112,25 +114,18 @@ def host_available_bytes() -> int | None:
 PAIR_BYTES = 200
 
 
-def fired_pair_count(sensors) -> int:
-    """How many (T, R) pairs fire: the square of each pair group's size (T = R and both
-    directions), counted without listing them."""
-    _, sizes = np.unique(np.asarray(sensors.groups), return_counts=True)
-    return int(np.sum(sizes.astype(np.int64) ** 2))
-
-
-def check_pair_memory(scene: Scene, sensors) -> None:
+def check_pair_memory(scene: Scene, sensors: SensorArray) -> None:
     """Raise :class:`~clsonar.errors.ClsonarError` (one line, before any echo is computed)
     when the fired pairs of ``sensors`` would take more memory than this machine has
     available (:data:`PAIR_BYTES` a pair)."""
-    count = fired_pair_count(sensors)
+    count = sensors.pair_count
     needed = float(count) * PAIR_BYTES
     available = host_available_bytes()
     if available is not None and needed > available:
         raise ClsonarError(
             f"{scene.name}: {count:,} fired pairs ({len(sensors.groups):,} transducers) need "
-            f"about {_bytes(needed)} of memory, more than this machine has available "
-            f"({_bytes(available)}): use fewer transducers or smaller pair groups")
+            f"about {format_bytes(needed)} of memory, more than this machine has available "
+            f"({format_bytes(available)}): use fewer transducers or smaller pair groups")
 
 
 def work_items(nx: int, ny: int, vec: int, wgx: int, wgy: int) -> tuple[int, int]:
@@ -158,9 +153,9 @@ def _check_device_memory(scene: Scene, precision: str, device) -> None:
     padded = float(items_x * vec) * items_y * np.dtype(PRECISIONS[precision]).itemsize
     limit = min(int(device.max_mem_alloc_size), int(device.global_mem_size))
     if padded > limit:
-        raise _grid_error(scene, f"needs {_bytes(padded)} as a {precision} map, more than "
-                                 f"one buffer on {device.name.strip()} can hold "
-                                 f"({_bytes(limit)})")
+        raise _grid_error(scene, f"needs {format_bytes(padded)} as a {precision} map, more "
+                                 f"than one buffer on {device.name.strip()} can hold "
+                                 f"({format_bytes(limit)})")
 
 
 def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
@@ -186,5 +181,5 @@ def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
         needed = float(ny) * nx * np.dtype(PRECISIONS[precision]).itemsize * 3
     available = host_available_bytes()
     if available is not None and needed > available:
-        raise _grid_error(scene, f"needs {_bytes(needed)} of memory, more than this machine "
-                                 f"has available ({_bytes(available)})")
+        raise _grid_error(scene, f"needs {format_bytes(needed)} of memory, more than this machine "
+                                 f"has available ({format_bytes(available)})")

@@ -217,10 +217,11 @@ def _heard(loci: Loci, pairs: np.ndarray, path: np.ndarray, c: float,
     ``path`` and of at least ``least`` amplitude (the surface's echo)."""
     lo_ix = np.minimum(loci.tx, loci.rx)
     hi_ix = np.maximum(loci.tx, loci.rx)
-    key = lo_ix * (int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1) + hi_ix
+    base = int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1
+    key = lo_ix * base + hi_ix
     order = np.argsort(key, kind="stable")
     key, detected, amplitude = key[order], c * loci.tof_s[order], loci.amplitude[order]
-    want = pairs[:, 0] * (int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1) + pairs[:, 1]
+    want = pairs[:, 0] * base + pairs[:, 1]
     start = np.searchsorted(key, want, side="left")
     count = np.searchsorted(key, want, side="right") - start
     pair = np.repeat(np.arange(len(pairs)), count)  # each of the pairs' detections

@@ -38,6 +38,12 @@ def _clusters(points: np.ndarray) -> list[np.ndarray]:
     return [np.flatnonzero(label == k) for k in np.unique(label)]
 
 
+def _directions(x: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """[k, 2] unit vectors from each of ``T`` to ``x``: the gradient of |x − T_k| in x."""
+    d = x - T
+    return d / np.maximum(np.hypot(*d.T), 1e-300)[:, None]
+
+
 def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
     """Least-squares circle ``(C, R)`` with |C − T_k| = ρ_k + R, and the residuals."""
 
@@ -45,9 +51,7 @@ def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray,
         return np.hypot(*(x[:2] - T).T) - rho - x[2]
 
     def jacobian(x: np.ndarray) -> np.ndarray:
-        d = x[:2] - T
-        return np.column_stack([d / np.maximum(np.hypot(*d.T), 1e-300)[:, None],
-                                -np.ones(len(T))])
+        return np.column_stack([_directions(x[:2], T), -np.ones(len(T))])
 
     from scipy.optimize import least_squares  # imported when a pillar is first fitted
 
@@ -83,13 +87,9 @@ def _a_point(T: np.ndarray, rho: np.ndarray, centre: np.ndarray, tol: np.ndarray
     def residual(v: np.ndarray) -> np.ndarray:
         return np.hypot(*(v - T).T) - rho
 
-    def jacobian(v: np.ndarray) -> np.ndarray:
-        d = v - T
-        return d / np.maximum(np.hypot(*d.T), 1e-300)[:, None]
-
     from scipy.optimize import least_squares
 
-    v = least_squares(residual, centre, jac=jacobian).x
+    v = least_squares(residual, centre, jac=lambda v: _directions(v, T)).x
     return bool(np.all(np.abs(residual(v)) <= tol))
 
 

@@ -34,6 +34,13 @@ class SensorArray:
         return out
 
     @property
+    def pair_count(self) -> int:
+        """How many pairs fire (:func:`pairs`): the square of each pair group's size (T = R
+        and both directions), counted without listing them."""
+        _, sizes = np.unique(self.groups, return_counts=True)
+        return int(np.sum(sizes.astype(np.int64) ** 2))
+
+    @property
     def axes(self) -> np.ndarray:
         """[N, 2] unit vectors along each transducer's axis."""
         h = np.radians(self.headings_deg)

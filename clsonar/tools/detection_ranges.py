@@ -72,7 +72,8 @@ def kinds() -> list[Kind]:
 
     return [
         Kind("plane", lambda d: np.full(d.shape, mirror),
-             "10.7 m (Polaroid 6500 data sheet: 6 in to 35 ft); the thesis: to 9 m"),
+             f"{POLAROID_MAX_RANGE_M:g} m (Polaroid 6500 data sheet: 6 in to 35 ft); the "
+             "thesis: to 9 m"),
         Kind("corner (double bounce)", lambda d: np.full(d.shape, mirror * rho),
              "the thesis: to 9 m"),
         Kind("convex edge, 90° (default model)", estimate, "the thesis: to 3–4 m"),
