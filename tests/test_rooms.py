@@ -20,6 +20,7 @@ from clsonar.geometry import EDGE, build_geometry, true_vertices
 from clsonar.mapping import Loci, envelope_links, scan_envelope, tangent_points
 from clsonar.metrics import VERTEX_FOUND_M, cylinder_coverage, evaluate, vertex_errors
 from clsonar.post.walls import Arc, Wall, find_circles, join_walls, merge_collinear, split_straight
+from clsonar.scene import scene_from_dict
 from clsonar.sensors import SensorArray
 from clsonar.sight import SIGHT_BIN_RAD, SIGHT_MARGIN_CELLS, first_hits, line_of_sight
 
@@ -609,6 +610,32 @@ def test_l_room_locates_its_convex_edge(room_l):
     assert max(errors.values()) <= 0.03
     assert room_l.metrics["vertices_found"] == "6/6"
 
+
+
+def _ring(cx: float, cy: float, group: int) -> list[dict]:
+    return [{"position": [cx + 0.065 * math.cos(math.radians(45 * e)),
+                          cy + 0.065 * math.sin(math.radians(45 * e))],
+             "heading_deg": 45.0 * e, "group": group} for e in range(8)]
+
+
+def test_rings_written_by_hand_a_metre_apart_map_the_whole_room():
+    """A robot's ring poses 1 m apart and 1 m from the walls of a 6 × 4 m room, with the
+    defaults: where the ring turns at a corner of its path, the element facing the wall
+    ahead closes in on it by exactly the step, |Δρ| = |ΔT| (a rounding decided whether
+    the poses were neighbours on the scan envelope; the far wall was mapped in stubs
+    around three poses, its corner not at all)."""
+    path = [(1, 1), (2, 1), (3, 1), (4, 1), (5, 1), (5, 2), (5, 3), (4, 3), (3, 3), (2, 3),
+            (1, 3), (1, 2)]
+    scene = scene_from_dict({
+        "clsonar": 1, "extent": [-0.5, -0.5, 6.5, 4.5],
+        "surfaces": [{"type": "polyline", "closed": True,
+                      "points": [[0, 0], [6, 0], [6, 4], [0, 4]]}],
+        "sensors": {"transducers": [t for g, (x, y) in enumerate(path)
+                                    for t in _ring(x, y, g)]}})
+    m = clsonar.run(scene).metrics
+    assert m["accuracy_m"]["rms"] <= 0.005
+    assert m["completeness"]["3cm"] >= 0.95
+    assert m["vertices_found"] == "4/4"
 
 # --------------------------------------------------------------------------- pillars
 

@@ -74,13 +74,15 @@ def _first_echoes(sensors: SensorArray, loci: Loci,
 
 def _partner(s: _Scan, i: int, others: list[int] | None) -> int | None:
     """The locus of ``others`` (one element at a neighbouring pose) nearest in range to
-    locus ``i``, if their ranges differ by at most the distance between the poses."""
+    locus ``i``, if their ranges differ by at most the distance between the poses (and
+    :data:`ENVELOPE_TOL_M` of rounding: a ring moving straight at a wall ahead of an
+    element changes its range by exactly its step)."""
     if others is None:
         return None
     gap = np.hypot(*(s.pos[s.loci.tx[others[0]]] - s.pos[s.loci.tx[i]]))
     diff = np.abs(s.ranges[others] - s.ranges[i])
     k = int(np.argmin(diff))
-    return others[k] if diff[k] <= gap else None
+    return others[k] if diff[k] <= gap + ENVELOPE_TOL_M else None
 
 
 def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: np.ndarray,
