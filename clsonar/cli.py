@@ -12,8 +12,10 @@
 - ``clsonar devices`` lists the OpenCL devices, whether each can build kernels, and which one
   would be used.
 
-Errors a user can fix (a bad scene file, no usable OpenCL device) print one line on stderr
-and exit with status 2; nothing is written to an output file that is not complete.
+Errors a user can fix (a bad scene file, an --out that cannot be written, a full disk, no
+usable OpenCL device, a Dask scheduler out of reach) print one line on stderr and exit with
+status 2; an internal fault prints one line naming the file its traceback was saved in and
+exits with status 1. Nothing is written to an output file that is not complete.
 """
 
 from __future__ import annotations
@@ -27,9 +29,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
-from .errors import ClsonarError
+from .errors import ClsonarError, DeviceError, one_line, save_traceback
 from .files import PNG_CHOICES
-from .opencl import PRECISIONS
+from .opencl import INSTALL_HINT, PRECISIONS
 from .presets import PRESETS
 from .skips import SKIP_NAMES, Skips
 from .tools import defaults
@@ -43,6 +45,10 @@ if TYPE_CHECKING:
     Subparsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
 
 EXIT_USAGE = 2
+EXIT_FAULT = 1
+
+#: What to do when the OpenCL device cannot build or run clsonar's kernels.
+DEVICE_FIX = f"choose another device with --device ('clsonar devices' lists them) or {INSTALL_HINT}"
 
 
 def _device_args(p: argparse.ArgumentParser) -> None:
@@ -504,13 +510,52 @@ def _cmd_devices(args: argparse.Namespace) -> int:
     return 0
 
 
+def error_line(error: ClsonarError) -> str:
+    """``clsonar: error: …``: the error on one line; a device error that does not say what
+    to do (a kernel that failed to build) gets :data:`DEVICE_FIX`."""
+    text = one_line(str(error))
+    if isinstance(error, DeviceError) and not any(
+            hint in text for hint in ("install", "clsonar devices", "precision=")):
+        text += f"; {DEVICE_FIX}"
+    return f"clsonar: error: {text}"
+
+
+def _device_label(device: str | None) -> str:
+    """The name of the device ``--device`` chooses, for a line about an OpenCL failure."""
+    from .opencl import choose_device
+
+    try:
+        return choose_device(device).name.strip()
+    except Exception:  # the failure being reported comes first
+        return f"device {device!r}" if device else "the OpenCL device"
+
+
+def fault_line(error: Exception, device: str | None = None) -> tuple[str, int]:
+    """The one line and exit status of an exception no command turned into a
+    :class:`ClsonarError`: a file system error naming its file is the user's to fix
+    (status 2); anything else is a fault (status 1) whose traceback is saved to a file the
+    line names, an OpenCL failure naming the device and what to do."""
+    cl = sys.modules.get("pyopencl")
+    if cl is not None and isinstance(error, cl.Error):
+        what = (f"OpenCL failed on {_device_label(device)}: {one_line(str(error))[:200]}; "
+                f"{DEVICE_FIX}")
+    elif isinstance(error, OSError) and error.filename is not None:
+        return f"clsonar: error: {error.filename}: {error.strerror or error}", EXIT_USAGE
+    else:
+        what = f"internal error: {type(error).__name__}: {one_line(str(error))[:200]}"
+    saved = save_traceback(error)
+    where = f"traceback in {saved}" if saved else "the traceback could not be saved"
+    return f"clsonar: {what} ({where}; please report it)", EXIT_FAULT
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status."""
+    """Run the command line; returns the exit status (0; 2: an error the user can fix; 1:
+    an internal fault; 130: interrupted). Every failure is one line on stderr."""
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
     except ClsonarError as e:
-        print(f"clsonar: error: {e}", file=sys.stderr)
+        print(error_line(e), file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("clsonar: interrupted", file=sys.stderr)
@@ -519,3 +564,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+    except Exception as e:  # an internal fault: one line, its traceback saved
+        line, status = fault_line(e, getattr(args, "device", None))
+        print(line, file=sys.stderr)
+        return status

@@ -1,6 +1,13 @@
-"""Errors a user can act on: each prints as one line, and the CLI exits with status 2."""
+"""Errors a user can act on: each prints as one line, and the CLI exits with status 2; and
+how an internal fault becomes one line with its traceback saved to a file (exit status 1)."""
 
 from __future__ import annotations
+
+import os
+import tempfile
+import time
+import traceback
+from pathlib import Path
 
 
 class ClsonarError(Exception):
@@ -27,3 +34,37 @@ class SceneError(ClsonarError, ValueError):
 
 class DeviceError(ClsonarError, RuntimeError):
     """No OpenCL device can be used; the message says what to install or set."""
+
+
+class WriteError(ClsonarError, OSError):
+    """A file or folder that cannot be written (a full disk, no permission): ``"PATH:
+    cannot write: No space left on device"``. Also an :class:`OSError` (``errno``,
+    ``filename``), so callers that catch those still do."""
+
+    def __init__(self, path: str | os.PathLike[str], error: OSError) -> None:
+        super().__init__(error.errno, error.strerror or str(error), os.fspath(path))
+
+    def __str__(self) -> str:
+        return f"{self.filename}: cannot write: {self.strerror}"
+
+
+def one_line(text: str) -> str:
+    """``text`` on one line: its lines joined with spaces, blank ones dropped."""
+    return " ".join(line.strip() for line in text.splitlines() if line.strip())
+
+
+def save_traceback(error: BaseException, folder: str | os.PathLike[str] | None = None
+                   ) -> Path | None:
+    """Write ``error``'s traceback to a new file ``clsonar-traceback-TIME-PID.txt`` in
+    ``folder`` (default: the temporary folder) and return its path; None when it cannot
+    be written."""
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    text = "".join(traceback.format_exception(error))
+    try:
+        fd, name = tempfile.mkstemp(prefix=f"clsonar-traceback-{stamp}-{os.getpid()}-",
+                                    suffix=".txt", dir=folder)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+    except OSError:
+        return None
+    return Path(name)

@@ -5,8 +5,9 @@ contract").
 ``stages.npz`` (``raw``, ``filtered``, ``thin`` ``[iy, ix]`` with ``extent`` and ``cell``),
 ``profile.csv`` (``x,y``), ``echoes.csv`` (``tx,rx,tof_s,amplitude,kind,order``) and one PNG
 per stage with the true geometry drawn over it (``--png``,
-:data:`~clsonar.files.PNG_CHOICES`). Every file is built in memory first and written
-atomically (temporary name, then rename); a new DIR appears all at once.
+:data:`~clsonar.files.PNG_CHOICES`). Every file is built in memory first, then the whole set
+is written as one folder (:func:`clsonar.files.write_folder`): a run's outputs appear whole
+or not at all, and two runs writing the same DIR leave one run's outputs, never a mix.
 
 The map stages' PNGs are drawn straight from the arrays (:mod:`clsonar.pictures`); the
 scene and profile plots need matplotlib (``clsonar[plots]``): :mod:`clsonar.plots` is
@@ -20,8 +21,6 @@ import importlib.util
 import io
 import json
 import os
-import shutil
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -29,8 +28,15 @@ from typing import Any
 import numpy as np
 
 from .errors import ClsonarError
-from .files import write_atomic
+from .files import write_folder
 from .pipeline import RunResult
+
+#: The data files of a run, and every picture it may draw (:func:`stage_pngs`).
+DATA_NAMES = ("report.json", "stages.npz", "profile.csv", "echoes.csv")
+PNG_NAMES = ("raw.png", "filtered.png", "thin.png", "scene.png", "profile.png")
+#: Every file ``clsonar run`` may write: a folder holding only these is a run's outputs,
+#: replaced whole by the next run's.
+OUTPUT_NAMES = frozenset(DATA_NAMES + PNG_NAMES)
 
 #: How to install what the pictures need.
 PLOTS_INSTALL = "pip install 'clsonar[plots]'"
@@ -150,30 +156,14 @@ def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
     """Write every output of ``result`` into folder ``out``, with the PNGs ``png`` asks
     for (:func:`stage_pngs`); returns the paths written.
 
-    A new folder is filled under a temporary name and renamed into place; in an existing
-    folder each file is replaced atomically. A folder that cannot be written (or a full
-    disk) is one :class:`ClsonarError` line; nothing half-written is left.
+    The folder is written whole or not at all (:func:`clsonar.files.write_folder`): a new
+    one, or one holding only an earlier run's outputs, is replaced in one step; in a folder
+    with other files too, the outputs are replaced one by one. A folder that cannot be
+    written (or a full disk) is one :class:`~clsonar.errors.WriteError` line; nothing
+    half-written is left.
     """
-    try:
-        return _write_files(result, check_out(out), png)
-    except OSError as e:
-        raise ClsonarError(f"{out}: cannot write the outputs: {e.strerror or e}") from None
-
-
-def _write_files(result: RunResult, out: Path, png: str) -> list[Path]:
+    path = check_out(out)
     files = data_files(result)
     files.update(stage_pngs(result, png))
-    if not out.exists():
-        out.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-        try:
-            for name, data in files.items():
-                (tmp / name).write_bytes(data)
-            os.replace(tmp, out)
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
-            raise
-    else:
-        for name, data in files.items():
-            write_atomic(out / name, data)
-    return [out / name for name in files]
+    write_folder(path, files, OUTPUT_NAMES)
+    return [path / name for name in files]

@@ -17,15 +17,17 @@ The statistics are those the thesis plots against distance and noise (chapter 3,
 - Seed ``k`` advances the placement and noise seeds by ``k``
   (:func:`clsonar.tools.variants.with_seed`), as ``clsonar reproduce`` does.
 - Every run has a stable id, a hash of its final scene, preset, parameters and seed. Rows go
-  to ``DIR/runs.jsonl`` as they finish: one line each, written with a single ``O_APPEND``
-  write and ``fsync``; a line without its newline (a write cut short) is dropped when the
-  table is read. So an interrupted sweep, run again, skips every finished run and redoes
-  only the missing ones; ``DIR/table.csv`` (one row per planned run, in plan order) is
-  rewritten atomically when a sweep stops, finished or not.
+  to ``DIR/runs.jsonl`` as they finish: one line each, written with ``O_APPEND`` and
+  ``fsync``, and cut back when the write fails (a full disk: one line, exit 2); a line
+  without its newline (a write cut short by a kill) is dropped when the table is read. So
+  an interrupted sweep, run again, skips every finished run and redoes only the missing
+  ones; ``DIR/table.csv`` (one row per planned run, in plan order) is rewritten atomically
+  when a sweep stops, finished or not.
 - Locally every run shares one OpenCL context (:func:`run_local`). With a Dask cluster
   (:func:`run_dask`) each worker builds its context once (:func:`worker_context`) and reuses
   it; rows stream back into the same table as runs finish; a worker that dies loses only its
-  in-flight runs, which the scheduler gives to another worker.
+  in-flight runs, which the scheduler gives to another worker (one that dies on every try,
+  or a cluster that goes away, ends the sweep in one line, the finished rows kept).
 
 The package: :mod:`.spec` reads and validates a spec, :mod:`.plan` expands it into runs,
 :mod:`.table` keeps their rows, :mod:`.runners` runs them.

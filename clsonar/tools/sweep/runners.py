@@ -11,8 +11,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TextIO
 
-from ...errors import ClsonarError
-from ...files import write_atomic
+from ...errors import ClsonarError, one_line
+from ...files import write_atomic, writing
 from ...opencl import get_context
 from ...pipeline import StageCache
 from ...pipeline import run as run_pipeline
@@ -70,7 +70,8 @@ def sweep(spec: Spec, out: str | os.PathLike[str], *, device: str | None = None,
     """
     runs = plan(spec)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
+    with writing(out):
+        out.mkdir(parents=True, exist_ok=True)
     with SweepLock(out):
         table = RunTable(out)
         table.repair()
@@ -132,7 +133,7 @@ def run_dask(runs: list[Run], table: RunTable, metrics: Sequence[str], client, *
     new = []
     try:
         for future in as_completed(futures):
-            row = future.result()
+            row = _result(future, futures[future], finished)
             table.append(row)
             new.append(row)
             finished += 1
@@ -145,6 +146,27 @@ def run_dask(runs: list[Run], table: RunTable, metrics: Sequence[str], client, *
     return new
 
 
+def _result(future, run: Run, finished: int) -> dict[str, Any]:
+    """The row ``future`` computed; a worker that died too often (``KilledWorker``) or a
+    cluster that went away is one :class:`ClsonarError` line saying that the rows finished
+    are kept."""
+    from concurrent.futures import CancelledError
+
+    from distributed import KilledWorker
+
+    try:
+        return future.result()
+    except (KilledWorker, CancelledError, OSError) as e:
+        raise ClsonarError(
+            f"the Dask cluster lost run {run.index} ({run.label}, seed {run.seed}): "
+            f"{type(e).__name__}: {one_line(str(e))}; the {finished} rows finished are kept: "
+            "run the sweep again to resume") from None
+
+
+#: How long :func:`connect` tries to reach a scheduler.
+CONNECT_TIMEOUT_S = 10.0
+
+
 def connect(scheduler: str):
     """A ``dask.distributed.Client`` of the cluster at ``scheduler`` (``tcp://HOST:PORT``)."""
     try:
@@ -153,10 +175,11 @@ def connect(scheduler: str):
         raise ClsonarError("--scheduler needs dask.distributed: pip install "
                            "'clsonar[dask]'") from None
     try:
-        return Client(scheduler, timeout="10s")
+        return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
     except (OSError, TimeoutError, ValueError) as e:
         raise ClsonarError(f"--scheduler {scheduler}: cannot reach the Dask scheduler "
-                           f"({type(e).__name__}: {e})".replace("\n", " ")) from None
+                           f"({type(e).__name__}: {one_line(str(e))}); start it "
+                           "(dask scheduler) or check the address") from None
 
 
 class ProgressBar:

@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ...errors import ClsonarError
+from ...files import append_whole, writing
 from ...outputs import metric
 from ...pipeline import STAGES, RunResult
 from .plan import Run
@@ -27,9 +28,10 @@ SWEEP_JSON = "sweep.json"
 class RunTable:
     """The rows of a sweep, one JSON line per finished run in ``DIR/runs.jsonl``.
 
-    :meth:`append` writes a whole line with one ``O_APPEND`` write and ``fsync``s it;
-    :meth:`rows` drops a last line cut short (no newline), so a row is either there whole
-    or not at all.
+    :meth:`append` writes a whole line with ``O_APPEND`` and ``fsync``s it, or cuts the
+    file back when the write fails (:func:`~clsonar.files.append_whole`); :meth:`rows`
+    drops a last line cut short by a kill (no newline), so a row is either there whole or
+    not at all.
     """
 
     def __init__(self, folder: str | os.PathLike[str]) -> None:
@@ -68,14 +70,9 @@ class RunTable:
                 os.fsync(f.fileno())
 
     def append(self, row: dict[str, Any]) -> None:
-        """Add one finished run's row, durably."""
-        line = (json.dumps(row, allow_nan=False) + "\n").encode()
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-        try:
-            os.write(fd, line)
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+        """Add one finished run's row, durably and whole: a write cut short (a full disk)
+        leaves the table as it was and is one :class:`~clsonar.errors.WriteError` line."""
+        append_whole(self.path, (json.dumps(row, allow_nan=False) + "\n").encode())
 
 
 def columns(parameters: Sequence[str], metrics: Sequence[str]) -> list[str]:
@@ -114,7 +111,8 @@ class SweepLock:
     def __enter__(self) -> SweepLock:
         import fcntl
 
-        self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        with writing(self.path):
+            self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
         try:
             fcntl.flock(self.fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
