@@ -20,19 +20,30 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .geometry import enclosing, inside_polygon, segment_distance
+from .geometry import enclosing, in_the_open, inside_polygon, segment_distance, sensor_anchors
 from .scene import Polyline, Scene, WallFollowing
 
 
 def scene_warnings(scene: Scene) -> list[str]:
     """One line per closed polyline of ``scene`` that is read as solid only because it lies
-    inside another closed polyline (its ``solid`` is null)."""
+    inside another closed polyline, or because every transducer stands outside it (its
+    ``solid`` is null)."""
     inside = enclosing(scene.surfaces)
-    return [f"surfaces[{i}], a closed polyline inside surfaces[{j}], is read as a solid "
-            "obstacle that reflects on its outside (set its \"solid\" to false for a room, "
-            "true to say so)"
-            for i, (s, j) in enumerate(zip(scene.surfaces, inside, strict=True))
-            if isinstance(s, Polyline) and s.closed and s.solid is None and j is not None]
+    open_scene = in_the_open(scene.surfaces, sensor_anchors(scene))
+    out = []
+    for i, (s, j) in enumerate(zip(scene.surfaces, inside, strict=True)):
+        if not (isinstance(s, Polyline) and s.closed and s.solid is None):
+            continue
+        if j is not None:
+            where = f"inside surfaces[{j}]"
+        elif open_scene:
+            where = "with every transducer outside it"
+        else:
+            continue
+        out.append(f"surfaces[{i}], a closed polyline {where}, is read as a solid obstacle "
+                   "that reflects on its outside (set its \"solid\" to false for a room, "
+                   "true to say so)")
+    return out
 
 
 def result_warnings(counts: Mapping[str, int]) -> list[str]:

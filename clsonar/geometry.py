@@ -106,7 +106,7 @@ class _PolylineParts:
 def build_geometry(scene: Scene) -> Geometry:
     """Derive the :class:`Geometry` of ``scene`` (see the module docstring)."""
     parts = _PolylineParts()
-    solid = solid_surfaces(scene.surfaces)
+    solid = solid_surfaces(scene.surfaces, sensor_anchors(scene))
     for si, surface in enumerate(scene.surfaces):
         if isinstance(surface, Polyline):
             _add_polyline(surface, si, parts, solid[si])
@@ -273,14 +273,48 @@ def enclosing(surfaces: tuple[Surface, ...]) -> list[int | None]:
     return out
 
 
-def solid_surfaces(surfaces: tuple[Surface, ...]) -> tuple[bool, ...]:
+def sensor_anchors(scene: Scene) -> np.ndarray | None:
+    """[k, 2] where ``scene``'s transducers are known to stand before they are placed: the
+    explicit transducers and each placement's start or centre; None where a placement's
+    may be anywhere (``random-lines`` without a start) or scans a room's walls
+    (``per-wall``)."""
+    points = [t.position for t in scene.sensors.transducers]
+    for p in (scene.sensors.placement, *scene.sensors.placements):
+        if p is None:
+            continue
+        anchor = getattr(p, "start", None) or getattr(p, "center", None)
+        if anchor is None:
+            return None
+        points.append(anchor)
+    return np.asarray(points, dtype=np.float64).reshape(-1, 2)
+
+
+def in_the_open(surfaces: tuple[Surface, ...], anchors: np.ndarray | None) -> bool:
+    """Whether transducers at ``anchors`` (:func:`sensor_anchors`) all stand outside every
+    closed polyline not marked solid: an open scene, whose closed polylines are objects
+    (boxes, pillars) since a room around none of them would echo to no one."""
+    if anchors is None or len(anchors) == 0:
+        return False
+    for s in surfaces:
+        if isinstance(s, Polyline) and s.closed and s.solid is not True:
+            poly = np.asarray(s.points, dtype=np.float64)
+            if np.any(inside_polygon(poly, anchors) | on_outline(poly, anchors)):
+                return False
+    return True
+
+
+def solid_surfaces(surfaces: tuple[Surface, ...], anchors: np.ndarray | None = None
+                   ) -> tuple[bool, ...]:
     """Which surfaces are closed polylines read as solid obstacles (free space outside,
     walls reflecting outwards): those whose ``solid`` says so, and, where ``solid`` is null
     (automatic), those enclosed by another closed polyline (:func:`enclosing`) — a box or a
-    pillar drawn inside a room."""
+    pillar drawn inside a room — and every one in an open scene (:func:`in_the_open`,
+    transducers at ``anchors``)."""
     inside = enclosing(surfaces)
+    open_scene = in_the_open(surfaces, anchors)
     return tuple(isinstance(s, Polyline) and s.closed
-                 and (s.solid if s.solid is not None else inside[i] is not None)
+                 and (s.solid if s.solid is not None
+                      else (inside[i] is not None or open_scene))
                  for i, s in enumerate(surfaces))
 
 

@@ -211,7 +211,7 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
     geom, sensors = stage("sensors", lambda: (_sensors(scene), {}))
     mapping.check_pair_memory(scene, sensors)  # refused in one line before any echo
     asked = scene
-    found = survey(scene, sensors)
+    found = survey(scene, sensors, geom)
     scene, why = choose_settings(scene, found, given, geom)
     echoes = stage("echoes", lambda: _echoes(scene, sensors, ctx, skips))
     detections = stage("detection", lambda: _detect(scene, sensors, echoes, ctx, skips))

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import inside_polygon, solid_surfaces
+from .geometry import inside_polygon, sensor_anchors, solid_surfaces
 from .scene import (
     Circle,
     Circular,
@@ -75,7 +75,8 @@ def split_rooms(scene: Scene) -> list[Region] | None:
     """The rooms of ``scene`` as :class:`Region`s, or None when the scene is not several
     separate closed rooms, each holding all of the transducers it maps (then it is mapped
     whole)."""
-    solid = solid_surfaces(scene.surfaces)  # obstacles, not rooms: they go with their room
+    # obstacles, not rooms: they go with their room
+    solid = solid_surfaces(scene.surfaces, sensor_anchors(scene))
     rooms = [s for i, s in enumerate(scene.surfaces)
              if isinstance(s, Polyline) and s.closed and not solid[i]]
     placements = [p for p in (scene.sensors.placement, *scene.sensors.placements)

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from .geometry import Geometry, build_geometry, inside_polygon
+from .geometry import Geometry, build_geometry, inside_polygon, nearest_surface_point
 from .scene import Polyline, Scene, WallFollowing
 from .sensors import SensorArray, square_to_walls
 
@@ -97,6 +97,10 @@ class Survey:
     arrays: int
     in_room: bool
     ring_path: bool
+    #: ring scans: the median distance of the ring poses from the nearest surface and the
+    #: median step between consecutive poses, metres (None: no ring path)
+    clearance_m: float | None = None
+    step_m: float | None = None
 
 
 def group_centres(sensors: SensorArray) -> tuple[np.ndarray, list[np.ndarray]]:
@@ -159,21 +163,39 @@ def in_a_room(scene: Scene, positions: np.ndarray) -> bool:
     return bool(inside.all())
 
 
-def survey(scene: Scene, sensors: SensorArray) -> Survey:
-    """What ``scene`` is and how ``sensors`` scan it (:class:`Survey`)."""
+def survey(scene: Scene, sensors: SensorArray, geom: Geometry | None = None) -> Survey:
+    """What ``scene`` is and how ``sensors`` scan it (:class:`Survey`; ``geom``: the
+    scene's geometry, if the caller has built it)."""
     centres, members = group_centres(sensors)
     rings = [is_ring(sensors.positions[m], sensors.headings_deg[m]) for m in members]
     arrays = sum(is_linear_array(sensors.positions[m], sensors.headings_deg[m])
                  for m in members)
     room = in_a_room(scene, sensors.positions)
-    path = follows_a_path(centres[np.asarray(rings, dtype=bool)]) if any(rings) else False
+    poses = centres[np.asarray(rings, dtype=bool)]
+    path = follows_a_path(poses) if any(rings) else False
     if room:
         kind = ROOM_RINGS if any(rings) else ROOM
     elif path:
         kind = PATH
     else:
         kind = RINGS if any(rings) else OPEN
-    return Survey(kind, len(members), sum(rings), int(arrays), room, path)
+    clearance = step = None
+    if path:
+        geom = build_geometry(scene) if geom is None else geom
+        clearance = float(np.median(nearest_surface_point(geom, poses)[0]))
+        step = float(np.median(np.hypot(*np.diff(poses, axis=0).T)))
+    return Survey(kind, len(members), sum(rings), int(arrays), room, path, clearance, step)
+
+
+def join_reach(found: Survey) -> float | None:
+    """How far from a corner a ring path's walls may end, metres: the ring keeps its
+    clearance from both walls as it turns there and maps each wall from where its beams
+    first meet it square on, up to a step later — clearance + step (None: no ring
+    path). ``post.join_m`` is at least this, so the walls of a scan far from them still
+    meet at their corners."""
+    if found.clearance_m is None or found.step_m is None:
+        return None
+    return round(found.clearance_m + found.step_m, 2)
 
 
 def choose_settings(scene: Scene, found: Survey, given: str = "file",
@@ -186,6 +208,11 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file",
     why: dict[str, str] = {}
     auto = f"auto: {found.kind}"
 
+    choices = dict(CHOICES[found.kind])
+    reach = join_reach(found)
+    if reach is not None and reach > float(choices["post.join_m"]):  # type: ignore[arg-type]
+        choices["post.join_m"] = reach
+
     def filled(settings: Any, block: str) -> Any:
         changes: dict[str, Any] = {}
         for key in AUTO_KEYS:
@@ -194,7 +221,10 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file",
                 unset = getattr(settings, name) is None
                 why[key] = auto if unset else given
                 if unset:
-                    changes[name] = CHOICES[found.kind][key]
+                    changes[name] = choices[key]
+                    if key == "post.join_m" and choices[key] == reach:
+                        why[key] = (f"{auto}, {found.clearance_m:.2f} m from the walls every "
+                                    f"{found.step_m:.2f} m")
         return dataclasses.replace(settings, **changes)
 
     scene = dataclasses.replace(scene, detection=filled(scene.detection, "detection"),

@@ -83,6 +83,25 @@ def test_a_box_inside_a_room_is_seen_from_outside_and_warned_about():
     assert np.array_equal(said.profile.points, points)
 
 
+def test_a_closed_polyline_with_every_transducer_outside_it_is_a_box():
+    """A box drawn as a closed polyline in front of an array, in an open scene: a room
+    outline would reflect only inside, where no transducer stands, and the run would hear
+    nothing; read as solid (and warned about), its convex edge facing the array is
+    located."""
+    data = {"clsonar": 1, "extent": [0, 0, 6, 6],
+            "surfaces": [{"type": "polyline", "closed": True,
+                          "points": [[4, 3], [5, 2], [6, 3], [5, 4]]}],
+            "sensors": {"transducers": [{"position": [2, 2.775 + 0.05 * k], "heading_deg": 0}
+                                        for k in range(10)]}}
+    result = clsonar.run(scene_from_dict(data), context=get_context())
+    assert result.geometry.surface_solid.tolist() == [True]
+    assert len(result.warnings) == 1 and "with every transducer outside it" in result.warnings[0]
+    (edge,) = [v for v in result.metrics["vertices"] if (v["x"], v["y"]) == (4.0, 3.0)]
+    assert edge["found"] and edge["error_m"] < 0.005
+    data["surfaces"][0]["solid"] = False  # the file says it is a room: heard by no one
+    assert len(clsonar.run(scene_from_dict(data), context=get_context()).detections) == 0
+
+
 def test_cli_prints_each_warning_on_one_line_and_report_lists_them(tmp_path, capsys):
     """A map that is empty although echoes were detected (the wall heard lies beyond the
     extent) and a nested outline: two lines on stderr, exit 0, both in report.json."""
@@ -101,13 +120,16 @@ def test_cli_prints_each_warning_on_one_line_and_report_lists_them(tmp_path, cap
         assert main(["run", str(path), "--out", str(out), "-q", *preset]) == 0
         err = capsys.readouterr().err.splitlines()
         report = json.loads((out / "report.json").read_text())
-        assert len(err) == len(report["warnings"]) == 2
+        assert len(err) == len(report["warnings"]) == 3
         assert err == [f"clsonar: warning: {path}: {w}" for w in report["warnings"]]
-        assert report["warnings"][0].startswith("surfaces[2], a closed polyline inside "
+        assert report["warnings"][0].startswith(
+            "surfaces[1], a closed polyline with every transducer outside it, is read as a "
+            "solid obstacle")
+        assert report["warnings"][1].startswith("surfaces[2], a closed polyline inside "
                                                 "surfaces[1], is read as a solid obstacle")
         detected = report["counts"]["detections"]
         assert detected > 0 and report["counts"]["profile_points"] == 0
-        assert report["warnings"][1].startswith(
+        assert report["warnings"][2].startswith(
             f"the map is empty although {detected} echoes were detected (")
 
 

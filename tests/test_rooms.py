@@ -612,10 +612,10 @@ def test_l_room_locates_its_convex_edge(room_l):
 
 
 
-def _ring(cx: float, cy: float, group: int) -> list[dict]:
-    return [{"position": [cx + 0.065 * math.cos(math.radians(45 * e)),
-                          cy + 0.065 * math.sin(math.radians(45 * e))],
-             "heading_deg": 45.0 * e, "group": group} for e in range(8)]
+def _ring(cx: float, cy: float, group: int, start: float = 0.0) -> list[dict]:
+    return [{"position": [cx + 0.065 * math.cos(math.radians(start + 45 * e)),
+                          cy + 0.065 * math.sin(math.radians(start + 45 * e))],
+             "heading_deg": start + 45.0 * e, "group": group} for e in range(8)]
 
 
 def test_rings_written_by_hand_a_metre_apart_map_the_whole_room():
@@ -669,3 +669,84 @@ def test_a_corner_seen_from_a_narrow_spread_is_no_pillar():
     T = np.stack([np.linspace(-0.5, 0.5, 5), np.zeros(5)], axis=-1)
     rho = np.hypot(*(vertex - T).T)
     assert fit_pillar(T, rho, np.tile(vertex, (5, 1)), np.full(5, 0.003)) is None
+
+
+# --------------------------------------------------------------------------- point reflectors
+
+
+@settings(max_examples=40, deadline=None)
+@given(vx=st.floats(-2.0, 2.0), vy=st.floats(1.0, 6.0), n=st.integers(3, 8),
+       baseline=st.floats(0.0, 0.2), spread=st.floats(1.0, 4.0))
+def test_a_point_reflector_is_located_where_its_loci_cross(vx, vy, n, baseline, spread):
+    """Loci (|V − T| + |V − R|)/2 = a from transducers spread along a line below a corner
+    (T ≠ R pairs too) cross at V: every one is explained and drawn as V, to the fit's
+    precision; a plane would need the loci tangent to one line."""
+    from clsonar.mapping.pillars import point_reflectors
+
+    vertex = np.array([vx, vy])
+    T = np.stack([np.linspace(-spread, spread, n), np.zeros(n)], axis=-1)
+    R = T + np.array([baseline, 0.0])
+    a = 0.5 * (np.hypot(*(vertex - T).T) + np.hypot(*(vertex - R).T))
+    middles = vertex + 0.05 * np.random.default_rng(n).standard_normal((n, 2))
+    found = point_reflectors(T, R, a, middles, np.full(n, 0.003),
+                             lambda v: np.ones(n, dtype=bool))
+    assert sorted(found) == list(range(n))
+    assert all(np.hypot(*(v - vertex)) < 1e-4 for v in found.values())
+
+
+def test_a_ring_moving_straight_at_a_wall_hears_a_plane_not_a_point():
+    """One element's loci from poses on a line square to a wall are all tangent to it at
+    its foot, where they also cross: one plane explains them, so no point is drawn
+    (Kleeman & Kuc 1995's plane / point test)."""
+    from clsonar.mapping.pillars import point_reflectors
+
+    T = np.stack([np.full(5, 1.0), np.linspace(1.0, 3.0, 5)], axis=-1)
+    rho = T[:, 1].copy()  # the wall y = 0
+    found = point_reflectors(T, T, rho, np.tile([1.0, 0.0], (5, 1)), np.full(5, 0.003),
+                             lambda v: np.ones(5, dtype=bool))
+    assert found == {}
+
+
+#: A robot's ring poses 1.25 m apart, 1.25 m from the walls of a 6.25 × 5 m room.
+_LOOP = [(1.25, 1.25), (2.5, 1.25), (3.75, 1.25), (5.0, 1.25), (5.0, 2.5), (5.0, 3.75),
+         (3.75, 3.75), (2.5, 3.75), (1.25, 3.75), (1.25, 2.5)]
+
+
+def test_rings_turned_from_the_walls_map_the_corners_they_hear():
+    """Rings turned 22.5° from a room's walls hear no wall square on, only the corners'
+    double bounce (a retro-reflector): the corners are located as points from the poses
+    that hear them, not drawn as stubs across them (they were 5 cm RMS off the walls)."""
+    scene = scene_from_dict({
+        "clsonar": 1, "extent": [-0.5, -0.5, 6.75, 5.5],
+        "surfaces": [{"type": "polyline", "closed": True,
+                      "points": [[0, 0], [6.25, 0], [6.25, 5], [0, 5]]}],
+        "sensors": {"transducers": [t for g, (x, y) in enumerate(_LOOP)
+                                    for t in _ring(x, y, g, start=22.5)]}})
+    result = clsonar.run(scene)
+    m = result.metrics
+    assert m["accuracy_m"]["rms"] <= 0.002
+    found = [v for v in m["vertices"] if v["found"]]
+    assert len(found) >= 2 and max(v["error_m"] for v in found) <= 0.002
+    assert len(result.votes.vertices) >= 2
+
+
+def test_rings_far_from_the_walls_join_them_at_the_corners():
+    """Rings 1.25 m from the walls every 1.25 m see each wall end about a step and a
+    clearance short of the corner, beyond the room's 1 m join: ``post.join_m`` is chosen
+    as clearance + step, and every corner is located."""
+    from clsonar.survey import survey
+
+    scene = scene_from_dict({
+        "clsonar": 1, "extent": [-0.5, -0.5, 6.75, 5.5],
+        "surfaces": [{"type": "polyline", "closed": True,
+                      "points": [[0, 0], [6.25, 0], [6.25, 5], [0, 5]]}],
+        "sensors": {"transducers": [t for g, (x, y) in enumerate(_LOOP)
+                                    for t in _ring(x, y, g)]}})
+    result = clsonar.run(scene)
+    found = survey(scene, result.sensors)
+    assert found.clearance_m == pytest.approx(1.25, abs=0.07)
+    assert found.step_m == pytest.approx(1.25)
+    assert result.scene.post.join_m == round(found.clearance_m + found.step_m, 2)
+    assert "every 1.25 m" in result.settings_why["post.join_m"]
+    assert result.metrics["vertices_found"] == "4/4"
+    assert result.metrics["accuracy_m"]["rms"] <= 0.005

@@ -117,6 +117,7 @@ __all__ = [
     "reflector_points",
     "reflector_votes",
     "scan_envelope",
+    "tangent_map",
     "tangent_points",
     "tangent_votes",
     "work_items",
@@ -158,5 +159,5 @@ from .methods import (
 from .points import point_map, points_window
 from .reference import accumulate_reference, backproject_reference, reference_beam
 from .reflectors import reflector_points
-from .tangents import LOCUS_SAMPLES, tangent_points
+from .tangents import LOCUS_SAMPLES, tangent_map, tangent_points
 from .tiles import TileBins, bin_loci

@@ -21,7 +21,7 @@ from ..signals import Detections
 from .launch import AccumulationStats, accumulate_with_stats, backproject
 from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
 from .reflectors import reflector_points
-from .tangents import tangent_points
+from .tangents import tangent_map
 
 if TYPE_CHECKING:
     import pyopencl as cl
@@ -91,12 +91,14 @@ def loci_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
 def tangent_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
                   detections: Detections, context: cl.Context, tiles: bool) -> Votes:
     """``"tangents"`` (the default): the tangent points of the loci
-    (:func:`~clsonar.mapping.tangent_points`) and the pair of the locus each came from."""
+    (:func:`~clsonar.mapping.tangent_map`), the pair of the locus each came from, and the
+    point reflectors located from a moving ring's isolated loci as vertices."""
     loci = _loci(scene, detections)
-    points, source = tangent_points(scene, sensors, loci,
-                                    isolated_bias_m=chosen(scene.mapping.isolated_bias_m,
-                                                           "mapping.isolated_bias_m"))
-    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source])
+    points, source, vertices = tangent_map(scene, sensors, loci,
+                                           isolated_bias_m=chosen(scene.mapping.isolated_bias_m,
+                                                                  "mapping.isolated_bias_m"))
+    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source],
+                 vertices=vertices if len(vertices) else None)
 
 
 def reflector_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,

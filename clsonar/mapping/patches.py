@@ -51,11 +51,13 @@ class Patches:
     vertices: np.ndarray  # [k, 2]
     ends: np.ndarray  # [m] exclusive end of each patch's points
 
-    def plus(self, points: np.ndarray, source: np.ndarray) -> Patches:
-        """These patches and more points (not a patch's) after them."""
+    def plus(self, points: np.ndarray, source: np.ndarray,
+             vertices: np.ndarray | None = None) -> Patches:
+        """These patches and more points (not a patch's) after them, and more vertices."""
+        more = np.zeros((0, 2)) if vertices is None else vertices
         return Patches(np.concatenate([self.points, points]),
-                       np.concatenate([self.source, source]).astype(np.int64), self.vertices,
-                       self.ends)
+                       np.concatenate([self.source, source]).astype(np.int64),
+                       np.concatenate([self.vertices.reshape(-1, 2), more]), self.ends)
 
 
 @dataclass(frozen=True, eq=False)

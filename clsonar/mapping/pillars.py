@@ -84,13 +84,8 @@ def _a_point(T: np.ndarray, rho: np.ndarray, centre: np.ndarray, tol: np.ndarray
     seen over a narrow spread of directions a pillar and a point cannot be told apart, and
     a room's corners are far more common than pillars."""
 
-    def residual(v: np.ndarray) -> np.ndarray:
-        return np.hypot(*(v - T).T) - rho
-
-    from scipy.optimize import least_squares
-
-    v = least_squares(residual, centre, jac=lambda v: _directions(v, T)).x
-    return bool(np.all(np.abs(residual(v)) <= tol))
+    _, off = _point_from(T, T, rho, centre)
+    return bool(np.all(np.abs(off) <= tol))
 
 
 def pillar_arc(centre: np.ndarray, radius: float, T: np.ndarray, rho: float, bias: float,
@@ -114,6 +109,9 @@ SEED_M = 0.5
 #: from the circle had its echo from beyond the circle's point nearest it, inside its beam
 #: (it would have heard the circle first, as the loci that touch it did from as far).
 SeenThrough = Callable[[np.ndarray, float, float], bool]
+
+#: ``in_beam(point)``: [k] whether ``point`` lies in the beam of each locus' transducer.
+InBeam = Callable[[np.ndarray], np.ndarray]
 
 
 def _plausible(T: np.ndarray, rho: np.ndarray, tol: np.ndarray) -> bool:
@@ -158,6 +156,97 @@ def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nd
     return centre, radius, np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
 
 
+def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares point V on the loci (|V − T_k| + |V − R_k|)/2 = a_k (a corner or an
+    edge seen from several positions; T = R: |V − T_k| = ρ_k), and the residuals."""
+    from scipy.optimize import least_squares
+
+    def residual(v: np.ndarray) -> np.ndarray:
+        return 0.5 * (np.hypot(*(v - T).T) + np.hypot(*(v - R).T)) - a
+
+    v = least_squares(residual, start,
+                      jac=lambda v: 0.5 * (_directions(v, T) + _directions(v, R))).x
+    return v, residual(v)
+
+
+def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,
+                tol: np.ndarray, in_beam: InBeam) -> tuple[np.ndarray, np.ndarray] | None:
+    """The point reflector that explains the most of the loci within ``tol``, from
+    :data:`MIN_PILLAR_LOCI` transmitter positions or more, inside each explaining locus'
+    beams (``in_beam``): fitted from the neighbourhood (:data:`SEED_M`) of each locus'
+    middle-of-arc point in turn, then again to every locus it explains."""
+
+    def explains(v: np.ndarray) -> np.ndarray:
+        off = 0.5 * (np.hypot(*(v - T).T) + np.hypot(*(v - R).T)) - a
+        return (np.abs(off) <= tol) & in_beam(v)
+
+    best = None
+    tried: set[bytes] = set()
+    for k in range(len(T)):
+        near = np.flatnonzero(np.hypot(*(middles - middles[k]).T) <= SEED_M)
+        if len(near) < MIN_PILLAR_LOCI or near.tobytes() in tried:
+            continue
+        tried.add(near.tobytes())
+        v, off = _point_from(T[near], R[near], a[near], middles[near].mean(axis=0))
+        if np.count_nonzero(np.abs(off) <= tol[near]) < MIN_PILLAR_LOCI:
+            continue
+        explained = explains(v)
+        if best is None or explained.sum() > best[1].sum():
+            best = (v, explained)
+    if best is None:
+        return None
+    v, _ = _point_from(T[best[1]], R[best[1]], a[best[1]], best[0])
+    explained = explains(v)
+    if (len(np.unique(np.round(T[explained], 6), axis=0)) < MIN_PILLAR_LOCI
+            or _a_plane(0.5 * (T + R)[explained], a[explained], tol[explained])):
+        return None
+    return v, explained
+
+
+def _a_plane(centres: np.ndarray, a: np.ndarray, tol: np.ndarray) -> bool:
+    """Whether one plane explains the loci (centres, a) as well — n·c_k + a_k = d for a
+    unit normal n, each locus tangent to it: the loci of a ring moving straight at a wall,
+    or stepping little for its range, all pass through the foot of the wall as a point
+    reflector's would (Kleeman & Kuc 1995 tell the two apart by the same test). The
+    normal is scanned every degree, then refined."""
+    from scipy.optimize import minimize_scalar
+
+    def spread(theta: np.ndarray) -> np.ndarray:
+        r = a[:, None] + centres @ np.stack([np.cos(theta), np.sin(theta)])
+        return np.abs(r - r.mean(axis=0)).max(axis=0)
+
+    grid = np.radians(np.arange(360.0))
+    best = grid[int(np.argmin(spread(grid)))]
+    found = minimize_scalar(lambda t: float(spread(np.array([t]))[0]),
+                            bounds=(best - 0.02, best + 0.02), method="bounded")
+    return bool(spread(np.array([found.x]))[0] <= 2.0 * float(np.max(tol)))
+
+
+
+def point_reflectors(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,
+                     tol: np.ndarray, in_beam: InBeam) -> dict[int, np.ndarray]:
+    """``{k: point}`` for the loci (T_k, R_k, a_k) that one point explains,
+    (|V − T_k| + |V − R_k|)/2 = a_k within ``tol``, from :data:`MIN_PILLAR_LOCI`
+    transmitter positions or more, inside their beams: a
+    room's corner (its retro-reflected double bounce) or a convex edge that a moving ring
+    hears from several poses, whose loci cross there (Kleeman & Kuc 1995's point
+    reflector, a pillar of radius 0). Cluster by cluster (:data:`CLUSTER_M`), point after
+    point, as :func:`pillar_arcs`."""
+    out: dict[int, np.ndarray] = {}
+    for members in _clusters(middles):
+        while len(members) >= MIN_PILLAR_LOCI:
+            found = _best_point(T[members], R[members], a[members], middles[members],
+                                tol[members], lambda v, m=members: in_beam(v)[m])
+            if found is None:
+                break
+            v, explained = found
+            for k in members[explained]:
+                out[int(k)] = v
+            members = members[~explained]
+    return out
+
+
 def pillar_arcs(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
                 bias: float, step: float, seen_through: SeenThrough
                 ) -> dict[int, np.ndarray]:
@@ -179,5 +268,14 @@ def pillar_arcs(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nda
     return out
 
 
-__all__ = ["CLUSTER_M", "MIN_PILLAR_LOCI", "PILLAR_RADII_M", "PILLAR_TOL_M", "SEED_M", "fit_pillar",
-           "pillar_arc", "pillar_arcs"]
+__all__ = [
+    "CLUSTER_M",
+    "MIN_PILLAR_LOCI",
+    "PILLAR_RADII_M",
+    "PILLAR_TOL_M",
+    "SEED_M",
+    "fit_pillar",
+    "pillar_arc",
+    "pillar_arcs",
+    "point_reflectors",
+]

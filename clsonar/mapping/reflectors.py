@@ -33,7 +33,7 @@ from .joins import draw_families
 from .loci import Loci, _subset
 from .models import dot2
 from .patches import Patches, mirror_echo
-from .tangents import tangent_points
+from .tangents import tangent_map
 
 #: Longest stretch of an array whose detections are fitted together, metres.
 WINDOW_M = 1.0
@@ -172,10 +172,10 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
     rest = rest[loci.amplitude[rest] >= DEFAULT_MIN_ENVELOPE]
     if len(rest) == 0:
         return drawn
-    points, source = tangent_points(scene, sensors, _subset(loci, rest),
-                                    isolated_bias_m=chosen(scene.mapping.isolated_bias_m,
-                                                           "mapping.isolated_bias_m"))
-    return drawn.plus(points, rest[source])
+    points, source, vertices = tangent_map(scene, sensors, _subset(loci, rest),
+                                           isolated_bias_m=chosen(scene.mapping.isolated_bias_m,
+                                                                  "mapping.isolated_bias_m"))
+    return drawn.plus(points, rest[source], vertices)
 
 
 __all__ = ["LINEAR_TOL_M", "WINDOW_M", "in_a_room", "linear_groups", "reflector_points",

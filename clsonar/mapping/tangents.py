@@ -14,7 +14,7 @@ from ..sensors import SensorArray
 from .envelope import ENVELOPE_ARC_BIAS_M, element_scans, envelope_links, in_beams, scan_envelope
 from .families import window_tolerance
 from .loci import Loci, as_loci
-from .pillars import MIN_PILLAR_LOCI, PILLAR_TOL_M, pillar_arcs
+from .pillars import MIN_PILLAR_LOCI, PILLAR_TOL_M, pillar_arcs, point_reflectors
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
@@ -162,7 +162,7 @@ def _isolated_points(s: _Sampled, isolated: np.ndarray, bias: float, linked: np.
     """Per locus in ``isolated``: where the scan envelope ``env`` has points on it, the arcs
     around them inside the element's beam; else the middle of its in-beam arc (none for a
     locus in ``linked``: the scan envelope's links already hold its surface point). And the
-    slots of the T = R loci given a middle of arc (pillar candidates, :func:`_pillars`)."""
+    slots of the loci given a middle of arc (point and, T = R, pillar candidates)."""
     found, stubs = [], []
     for k, i in enumerate(isolated):
         mine = np.flatnonzero(env[0] == i)
@@ -175,9 +175,52 @@ def _isolated_points(s: _Sampled, isolated: np.ndarray, bias: float, linked: np.
             found.append(np.zeros((0, 2)))
         else:
             found.append(_middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
-            if len(found[-1]) and s.loci.tx[i] == s.loci.rx[i]:
+            if len(found[-1]):
                 stubs.append(k)
     return found, stubs
+
+
+def _range_tolerance(scene: Scene, s: _Sampled, loci: np.ndarray) -> np.ndarray:
+    """How far the range of each of ``loci`` may be off, metres: half its detection
+    window's tolerance (noise), at least :data:`~.pillars.PILLAR_TOL_M`."""
+    return np.maximum(PILLAR_TOL_M, 0.5 * window_tolerance(
+        s.loci.amplitude[loci], scene.signal.noise_std, scene.medium.c,
+        scene.transducer.pulse_sigma_s))
+
+
+#: A locus drawn around its scan envelope's points is a point reflector's only where they
+#: lie within this of the reflector, metres (the envelope's central differences put a
+#: corner's point a few cm off at a metre's step: O(step²), exact only for a plane).
+POINT_ENVELOPE_M = 0.15
+
+
+def _points(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray],
+            slots: list[int], stubs: set[int], env: tuple[np.ndarray, ...]
+            ) -> dict[int, np.ndarray]:
+    """``{slot: point}``: the arcs (``found[slot]`` of locus ``loci[n]``) whose loci cross
+    at one point inside their beams, from three positions or more — a corner's
+    retro-reflection or an edge (:func:`~.pillars.point_reflectors`): the point in place
+    of the arc, which would stand across the corner, tangent to the locus, up to
+    sqrt(2·a·bias) long. A middle-of-arc stub (slot in ``stubs``) may be anywhere in the
+    beam; an arc around the scan envelope's points ``env`` must be around this point
+    (consecutive poses' loci of a point reflector touch there)."""
+    if len(loci) < MIN_PILLAR_LOCI:
+        return {}
+    T, R = s.T[loci], s.R[loci]
+    t_axes, r_axes = s.axes[s.loci.tx[loci]], s.axes[s.loci.rx[loci]]
+    middles = np.array([found[k].mean(axis=0) if k in stubs
+                        else env[3][env[0] == i].mean(axis=0)
+                        for k, i in zip(slots, loci, strict=True)])
+    reach = np.array([np.inf if k in stubs else POINT_ENVELOPE_M for k in slots])
+
+    def in_beam(v: np.ndarray) -> np.ndarray:
+        return (in_beams(v[None], T, t_axes, s.cut_sin2)
+                & in_beams(v[None], R, r_axes, s.cut_sin2)
+                & (np.hypot(*(middles - v).T) <= reach))
+
+    points = point_reflectors(T, R, s.a[loci], middles, _range_tolerance(scene, s, loci),
+                              in_beam)
+    return {slots[n]: v for n, v in points.items()}
 
 
 def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray],
@@ -187,10 +230,7 @@ def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray
     arc kept inside its element's beam."""
     if len(loci) < MIN_PILLAR_LOCI:
         return {}
-    c = scene.medium.c
-    T = s.T[loci]
-    tol = np.maximum(PILLAR_TOL_M, 0.5 * window_tolerance(
-        s.loci.amplitude[loci], scene.signal.noise_std, c, scene.transducer.pulse_sigma_s))
+    T, tol = s.T[loci], _range_tolerance(scene, s, loci)
     middles = np.array([found[k].mean(axis=0) for k in slots])
     mono = np.flatnonzero(s.loci.tx == s.loci.rx)
     axes = s.axes[s.loci.tx[mono]]
@@ -216,11 +256,13 @@ def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray
 
 
 def _add_isolated(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.ndarray,
-                  bias: float, found: list[np.ndarray], source: list[np.ndarray]) -> None:
+                  bias: float, found: list[np.ndarray], source: list[np.ndarray],
+                  vertices: list[np.ndarray]) -> None:
     """Append to ``found`` and ``source`` what the ``isolated`` loci give: the scan
     envelope's links between them (:func:`~.envelope.envelope_links`), and each one's
     points (:func:`_isolated_points`), a pillar's stretch for those a pillar explains
-    (:func:`_pillars`)."""
+    (:func:`_pillars`), the point where they cross for those a point reflector explains
+    (:func:`_points`; the point also to ``vertices``)."""
     if len(isolated) == 0:
         return
     scans = element_scans(scene, sensors, s.loci)
@@ -231,8 +273,16 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.
     source.append(ends[keep, 0])
     env = scan_envelope(scene, sensors, s.loci, scans)
     arcs, stubs = _isolated_points(s, isolated, bias, np.unique(ends[keep]), env)
-    for k, arc in _pillars(scene, s, isolated[stubs], arcs, stubs, bias).items():
-        arcs[k] = arc
+    mono = [k for k in stubs if s.loci.tx[isolated[k]] == s.loci.rx[isolated[k]]]
+    pillars = _pillars(scene, s, isolated[mono], arcs, mono, bias)
+    # a point reflector's loci from consecutive poses have their scan envelope at the
+    # point itself, and the arc around it would stand across it: every drawn arc is a
+    # candidate
+    left = [k for k, arc in enumerate(arcs) if len(arc) and k not in pillars]
+    corners = _points(scene, s, isolated[left], arcs, left, set(stubs), env)
+    for k, drawn in [*pillars.items(), *((k, v[None]) for k, v in corners.items())]:
+        arcs[k] = drawn
+    vertices += list({v.tobytes(): v for v in corners.values()}.values())
     for locus, arc in zip(isolated, arcs, strict=True):
         found.append(arc)
         source.append(np.full(len(arc), locus))
@@ -241,8 +291,17 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.
 def tangent_points(scene: Scene, sensors: SensorArray, loci,
                    max_bias_m: float = TANGENT_BIAS_M,
                    isolated_bias_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """``(points [m, 2], source [m])``: the points where the loci of neighbouring
-    transducers cross, inside all beams, and the index of the locus each came from.
+    """``(points [m, 2], source [m])`` of :func:`tangent_map`."""
+    points, source, _ = tangent_map(scene, sensors, loci, max_bias_m, isolated_bias_m)
+    return points, source
+
+
+def tangent_map(scene: Scene, sensors: SensorArray, loci,
+                max_bias_m: float = TANGENT_BIAS_M, isolated_bias_m: float = 0.0
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(points [m, 2], source [m], vertices [k, 2])``: the points where the loci of
+    neighbouring transducers cross, inside all beams, the index of the locus each came
+    from, and the point reflectors located from isolated loci (:func:`_points`).
 
     A smooth surface is the envelope of the loci of its echoes: each locus touches it at its
     reflection point. Two loci of transducers δ apart, tangent to the surface at points
@@ -259,8 +318,9 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
     ring, the same stretch around its point of the scan's envelope (:func:`scan_envelope`).
     """
     loci = as_loci(loci)
+    none = np.zeros((0, 2)), np.zeros(0, dtype=np.int64), np.zeros((0, 2))
     if len(loci) < 2:
-        return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
+        return none
     p, inside, a = _locus_samples(scene, sensors, loci)
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
     T, R = sensors.positions[loci.tx], sensors.positions[loci.rx]
@@ -286,10 +346,12 @@ def tangent_points(scene: Scene, sensors: SensorArray, loci,
             found.append(segment)
             source.append(np.full(len(segment), i))
     isolated = np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0))
-    _add_isolated(scene, sensors, s, isolated, isolated_bias_m, found, source)
+    vertices: list[np.ndarray] = []
+    _add_isolated(scene, sensors, s, isolated, isolated_bias_m, found, source, vertices)
     if not found:
-        return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
-    return np.concatenate(found), np.concatenate(source).astype(np.int64)
+        return none
+    return (np.concatenate(found), np.concatenate(source).astype(np.int64),
+            np.asarray(vertices, dtype=np.float64).reshape(-1, 2))
 
 
 def _arc_around(centre: np.ndarray, radius: float, point: np.ndarray,
