@@ -75,8 +75,7 @@ def split_rooms(scene: Scene) -> list[Region] | None:
     """The rooms of ``scene`` as :class:`Region`s, or None when the scene is not several
     separate closed rooms, each holding all of the transducers it maps (then it is mapped
     whole)."""
-    # obstacles, not rooms: they go with their room
-    solid = solid_surfaces(scene.surfaces, sensor_anchors(scene))
+    solid = solid_surfaces(scene.surfaces, sensor_anchors(scene))  # obstacles, not rooms
     rooms = [s for i, s in enumerate(scene.surfaces)
              if isinstance(s, Polyline) and s.closed and not solid[i]]
     placements = [p for p in (scene.sensors.placement, *scene.sensors.placements)

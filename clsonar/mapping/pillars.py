@@ -236,8 +236,11 @@ def point_reflectors(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.nd
     out: dict[int, np.ndarray] = {}
     for members in _clusters(middles):
         while len(members) >= MIN_PILLAR_LOCI:
+            def admitted(v: np.ndarray, m: np.ndarray = members) -> np.ndarray:
+                return in_beam(v)[m]
+
             found = _best_point(T[members], R[members], a[members], middles[members],
-                                tol[members], lambda v, m=members: in_beam(v)[m])
+                                tol[members], admitted)
             if found is None:
                 break
             v, explained = found
