@@ -468,6 +468,23 @@ def test_tangent_points_of_a_scan_come_from_the_envelope_with_their_source(room_
     assert points.shape == (0, 2) and source.shape == (0,)
 
 
+def test_an_echo_just_after_an_elements_first_is_not_drawn(room_scene):
+    """Lone transducers (a ring pose each) hear a wall 2 m away and, 8 cm later, a double
+    bounce: drawn as the middle of its arc the later echo would stand 8 cm behind the wall,
+    where the wall and it thin into one curve the line of sight cannot see past; it is
+    left out (MULTIPATH_M), and a later echo beyond it is kept."""
+    from clsonar.mapping.tangents import MULTIPATH_M
+
+    scene = wide(room_scene)
+    sensors = straight_scan([0.0, 3.0])
+    ranges = np.array([2.0, 2.08, 2.0, 2.0 + MULTIPATH_M + 0.05])
+    loci = Loci(np.array([0, 0, 1, 1]), np.array([0, 0, 1, 1]),
+                2.0 * ranges / scene.medium.c, np.ones(4))
+    points, source = tangent_points(scene, sensors, loci, isolated_bias_m=0.005)
+    assert sorted(set(source.tolist())) == [0, 2, 3]
+    assert np.abs(points[source != 3, 1] - 2.0).max() < 0.01
+
+
 # --------------------------------------------------------------------------- metrics
 
 

@@ -255,6 +255,29 @@ def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray
     return out
 
 
+#: A T = R echo this little farther than its element's first one, metres, is a multiple
+#: reflection's (the double bounce in the corner beside the wall heard first, a wall's
+#: echo via a nearby obstacle): the thesis keeps only the first (§2.1.1).
+MULTIPATH_M = 0.15
+
+
+def _just_after_first(s: _Sampled, isolated: np.ndarray, stubs: list[int]) -> list[int]:
+    """The slots of ``stubs`` whose T = R locus lies within :data:`MULTIPATH_M` beyond a
+    nearer T = R locus of the same element: drawn as the middle of its in-beam arc it would
+    stand a few cm behind the surface heard first, too near it for the line of sight to
+    tell (its ghost and the surface thin into one thick curve)."""
+    mono = np.flatnonzero(s.loci.tx == s.loci.rx)
+    first = np.full(int(s.loci.tx.max(initial=0)) + 1, np.inf)
+    np.minimum.at(first, s.loci.tx[mono], s.a[mono])
+    out = []
+    for k in stubs:
+        i = isolated[k]
+        if s.loci.tx[i] == s.loci.rx[i] and first[s.loci.tx[i]] < s.a[i] <= (
+                first[s.loci.tx[i]] + MULTIPATH_M):
+            out.append(k)
+    return out
+
+
 def _add_isolated(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.ndarray,
                   bias: float, found: list[np.ndarray], source: list[np.ndarray],
                   vertices: list[np.ndarray]) -> None:
@@ -273,6 +296,9 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.
     source.append(ends[keep, 0])
     env = scan_envelope(scene, sensors, s.loci, scans)
     arcs, stubs = _isolated_points(s, isolated, bias, np.unique(ends[keep]), env)
+    for k in _just_after_first(s, isolated, stubs):
+        arcs[k] = np.zeros((0, 2))
+    stubs = [k for k in stubs if len(arcs[k])]
     mono = [k for k in stubs if s.loci.tx[isolated[k]] == s.loci.rx[isolated[k]]]
     pillars = _pillars(scene, s, isolated[mono], arcs, mono, bias)
     # a point reflector's loci from consecutive poses have their scan envelope at the
