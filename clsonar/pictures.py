@@ -49,12 +49,13 @@ def block_max(image: np.ndarray, block: int) -> np.ndarray:
     return padded.reshape((ny + py) // block, block, (nx + px) // block, block).max(axis=(1, 3))
 
 
-def colour(values: np.ndarray, binary: bool) -> np.ndarray:
-    """[h, w, 3] float RGB of ``values``: black on white where ``binary``, else viridis
-    from 0 to the largest value."""
+def colour(values: np.ndarray, binary: bool, top: float | None = None) -> np.ndarray:
+    """[..., 3] float RGB of ``values``: black on white where ``binary``, else viridis
+    from 0 to ``top`` (default: the largest value)."""
     if binary:
         return np.repeat(np.where(values > 0, 0.0, 255.0)[..., None], 3, axis=-1)
-    top = float(values.max()) if values.size else 0.0
+    if top is None:
+        top = float(values.max()) if values.size else 0.0
     x = np.clip(values / top, 0.0, 1.0) if top > 0 else np.zeros_like(values)
     pos = x * (len(VIRIDIS) - 1)
     k = np.minimum(pos.astype(np.int64), len(VIRIDIS) - 2)
@@ -62,26 +63,46 @@ def colour(values: np.ndarray, binary: bool) -> np.ndarray:
     return VIRIDIS[k] * (1.0 - t) + VIRIDIS[k + 1] * t
 
 
-def draw_truth(rgb: np.ndarray, scene: Scene, geom: Geometry, pixel_m: float) -> None:
-    """Blend the true surfaces of ``scene`` into ``rgb`` (north up, ``pixel_m`` metres per
-    pixel), sampled at half a pixel."""
+def to_bytes(rgb: np.ndarray) -> np.ndarray:
+    """Float RGB rounded to 8 bits."""
+    return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+
+
+def coloured(values: np.ndarray, binary: bool) -> np.ndarray:
+    """[h, w, 3] 8-bit :func:`colour` of ``values`` [h, w], computed only for the nonzero
+    cells (a map is mostly empty; every zero cell has the colour of 0)."""
+    h, w = values.shape
+    top = float(values.max()) if values.size else 0.0
+    row = np.tile(to_bytes(colour(np.zeros(1), binary, top))[0], w)  # one row, then copies
+    rgb = np.broadcast_to(row, (h, 3 * w)).copy().reshape(h, w, 3)
+    flat, cells = values.ravel(), np.flatnonzero(values)
+    rgb.reshape(-1, 3)[cells] = to_bytes(colour(flat[cells], binary, top))
+    return rgb
+
+
+def truth_pixels(scene: Scene, geom: Geometry, shape: tuple[int, ...], pixel_m: float
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The (rows, cols) of a north-up picture of ``shape`` (``pixel_m`` metres per pixel)
+    that the true surfaces of ``scene`` cross, sampled at half a pixel."""
     pts = truth_points(scene, geom, 0.5 * pixel_m)
-    if len(pts) == 0:
-        return
-    h, w = rgb.shape[:2]
+    h, w = shape[:2]
     ix = np.floor((pts[:, 0] - scene.extent[0]) / pixel_m).astype(np.int64)
     iy = np.floor((pts[:, 1] - scene.extent[1]) / pixel_m).astype(np.int64)
     inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h)
-    rows, cols = h - 1 - iy[inside], ix[inside]
-    rgb[rows, cols] = (1.0 - TRUTH_ALPHA) * rgb[rows, cols] + TRUTH_ALPHA * TRUTH_RGB
+    return h - 1 - iy[inside], ix[inside]
+
+
+def over_truth(rgb: np.ndarray) -> np.ndarray:
+    """Float RGB ``rgb`` with the true surfaces' red blended over it."""
+    return (1.0 - TRUTH_ALPHA) * rgb + TRUTH_ALPHA * TRUTH_RGB
 
 
 def png(rgb: np.ndarray) -> bytes:
-    """8-bit RGB ``rgb`` [h, w, 3] as PNG bytes (one IDAT, no filtering)."""
+    """RGB ``rgb`` [h, w, 3] (8-bit, or float rounded to it) as PNG bytes (one IDAT, no
+    filtering)."""
     h, w = rgb.shape[:2]
-    rows = np.concatenate([np.zeros((h, 1), np.uint8),
-                           np.clip(np.rint(rgb), 0, 255).astype(np.uint8).reshape(h, 3 * w)],
-                          axis=1)
+    rgb = rgb if rgb.dtype == np.uint8 else to_bytes(rgb)
+    rows = np.concatenate([np.zeros((h, 1), np.uint8), rgb.reshape(h, 3 * w)], axis=1)
 
     def chunk(kind: bytes, data: bytes) -> bytes:
         return (struct.pack(">I", len(data)) + kind + data
@@ -95,12 +116,17 @@ def png(rgb: np.ndarray) -> bytes:
 def map_picture(scene: Scene, geom: Geometry, image: np.ndarray, *,
                 binary: bool = False) -> bytes:
     """A map stage (``[iy, ix]``) as a PNG: its cells coloured (:func:`colour`), north up,
-    the true surfaces in red over them."""
+    the true surfaces in red over them (:func:`truth_pixels`; only the nonzero cells and
+    the truth's pixels are coloured one by one, :func:`coloured`)."""
     ny, nx = image.shape
     block = max(1, math.ceil(max(nx, ny, 1) / MAX_SIDE))
-    rgb = colour(block_max(image, block)[::-1], binary)
-    draw_truth(rgb, scene, geom, block * scene.cell)
+    values = block_max(image, block)[::-1]
+    rgb = coloured(values, binary)
+    rows, cols = truth_pixels(scene, geom, values.shape, block * scene.cell)
+    top = float(values.max()) if values.size else 0.0
+    rgb[rows, cols] = to_bytes(over_truth(colour(values[rows, cols], binary, top)))
     return png(rgb)
 
 
-__all__ = ["MAX_SIDE", "block_max", "colour", "draw_truth", "map_picture", "png"]
+__all__ = ["MAX_SIDE", "block_max", "colour", "coloured", "map_picture", "png",
+           "to_bytes", "truth_pixels"]

@@ -13,6 +13,7 @@ import io
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 from scipy import ndimage
 
@@ -139,8 +140,10 @@ def scene_png(scene: Scene, geom: Geometry, sensors: SensorArray,
     draw_truth(ax, scene, geom)
     tick = 0.02 * max(scene.extent[2] - scene.extent[0], scene.extent[3] - scene.extent[1])
     ends = sensors.positions + tick * sensors.axes
-    for p, e in zip(sensors.positions, ends, strict=True):
-        ax.plot([p[0], e[0]], [p[1], e[1]], color="tab:blue", linewidth=0.5)
+    ax.add_collection(LineCollection(np.stack([sensors.positions, ends], axis=1),
+                                     colors="tab:blue", linewidths=0.5,
+                                     capstyle="projecting", joinstyle="round"),
+                      autolim=False)
     draw_poses(ax, scene, sensors.poses)
     if len(echo_points):
         ax.plot(echo_points[:, 0], echo_points[:, 1], "x", color="tab:orange", markersize=3,
