@@ -9,20 +9,25 @@ CPU 'generic'"), so listing a device is not enough.
 Kernel sources live in the package ``clsonar.kernels`` (the source tree's ``kernels/``) and
 are read with :mod:`importlib.resources`, so an installed wheel finds them. ``#include "x.h"``
 lines are expanded from the same package before the build; compile options (``-D``) carry
-the constants. Programs are built once per (context, source, options) and reused.
+the constants. Programs are built once per (context, source, options) and reused, and
+kept built on disk (:data:`PROGRAM_CACHE`), so a new process loads them instead of
+building them again.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
+from pathlib import Path
 
 import numpy as np
 
 from .errors import DeviceError
+from .files import write_atomic
 
 KERNEL_PACKAGE = "clsonar.kernels"
 
@@ -86,7 +91,7 @@ def _build_problem(device) -> str:
     cl = _cl()
     try:
         ctx = cl.Context([device])
-        cl.Program(ctx, _PROBE_SOURCE).build()
+        _built(ctx, _PROBE_SOURCE, ())
     except cl.Error as e:
         lines = [ln.strip() for ln in str(e).splitlines() if ln.strip()]
         detail = next((ln for ln in lines if "error" in ln.lower() and "build" not in ln.lower()),
@@ -300,10 +305,58 @@ def build_program(context, name: str, defines: dict[str, object] | None = None):
     if program is None:
         cl = _cl()
         try:
-            program = cl.Program(context, kernel_source(name)).build(options=list(options))
+            program = _built(context, kernel_source(name), options)
         except cl.Error as e:
             first = next((ln for ln in str(e).splitlines() if "error" in ln.lower()), str(e))
             raise DeviceError(f"kernels/{name} failed to build on "
                               f"{context.devices[0].name.strip()}: {first.strip()[:200]}") from None
         _PROGRAMS[key] = program
     return program
+
+
+def _built(context, source: str, options: tuple[str, ...]):
+    """``source`` built for ``context``'s device with ``options``, from this machine's
+    cache of built programs when it holds it (:func:`_cached_binary`): a build from
+    source costs 40–80 ms even when the OpenCL driver caches it itself (PoCL still
+    preprocesses and hashes the source), one from the driver's own binary about 5 ms. A
+    binary the driver refuses is built again from source."""
+    cl = _cl()
+    device = context.devices[0]
+    path = _cached_binary(device, source, options)
+    if path is not None and path.is_file():
+        try:
+            return cl.Program(context, [device], [path.read_bytes()]).build(options=list(options))
+        except (cl.Error, OSError):
+            pass
+    program = cl.Program(context, source).build(options=list(options))
+    if path is not None:
+        _keep_binary(path, program.get_info(cl.program_info.BINARIES)[0])
+    return program
+
+
+#: Where built programs are kept (``$XDG_CACHE_HOME/clsonar/programs``, by default
+#: ``~/.cache/clsonar/programs``); ``PYOPENCL_NO_CACHE`` (pyopencl's switch) turns it off.
+PROGRAM_CACHE = "clsonar/programs"
+
+
+def _cached_binary(device, source: str, options: tuple[str, ...]) -> Path | None:
+    """The cache file of ``source`` built with ``options`` on ``device``: named by a hash of
+    both and of everything that identifies the compiler (platform and device, their
+    versions, the driver's, pyopencl's). None when caching is off."""
+    if os.environ.get("PYOPENCL_NO_CACHE"):
+        return None
+    cl = _cl()
+    platform = device.platform
+    key = "\0".join((source, *options, platform.name, platform.version, device.name,
+                     device.version, device.driver_version, cl.VERSION_TEXT))
+    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return root / PROGRAM_CACHE / f"{hashlib.sha256(key.encode()).hexdigest()}.bin"
+
+
+def _keep_binary(path: Path, binary: bytes) -> None:
+    """Write ``binary`` to the program cache; a cache that cannot be written is no error."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(path, binary)
+    except OSError:
+        pass

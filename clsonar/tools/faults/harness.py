@@ -237,8 +237,9 @@ def failing_stage(index: int, error: Callable[[], Exception]) -> Iterator[None]:
 
 @contextlib.contextmanager
 def failing_build(fail_at: int | None, counted: list[int]) -> Iterator[None]:
-    """Every kernel built afresh; the ``fail_at``-th build fails as a compiler would
-    (``None``: none fails); ``counted[0]`` counts the builds."""
+    """Every kernel built afresh from source (not loaded from the program cache); the
+    ``fail_at``-th build fails as a compiler would (``None``: none fails); ``counted[0]``
+    counts the builds."""
     import pyopencl as cl
 
     from ... import opencl
@@ -253,6 +254,7 @@ def failing_build(fail_at: int | None, counted: list[int]) -> Iterator[None]:
         return build(self, *args, **kwargs)
 
     with mock.patch.object(opencl, "_PROGRAMS", {}), \
+            mock.patch.dict(os.environ, {"PYOPENCL_NO_CACHE": "1"}), \
             mock.patch.object(cl.Program, "build", failing):
         yield
 
