@@ -83,6 +83,14 @@ class Geometry:
         b = curve_point(self.curves[k], self.interval_s[:, 1])
         return np.concatenate([self.walls, np.concatenate([a, b], axis=1)])
 
+    @cached_property
+    def occluder_frames(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The occluders as start points A [O, 2], directions B − A [O, 2] and their
+        squared lengths [O] (what :func:`nearest_surface_point` projects onto, kept)."""
+        a = self.occluders[:, :2]
+        ab = self.occluders[:, 2:] - a
+        return a, ab, ab[:, 0] * ab[:, 0] + ab[:, 1] * ab[:, 1]
+
     @property
     def curve_counts(self) -> np.ndarray:
         """Number of intervals (= chords) of each curve."""
@@ -402,28 +410,29 @@ def nearest_surface_point(geom: Geometry, points: np.ndarray) -> tuple[np.ndarra
     """Distance from each of ``points`` [M, 2] to the nearest surface, and that surface point.
 
     Walls and curve chords are exact segments, circles analytic. With no surfaces the
-    distance is ``inf`` and the point is NaN.
+    distance is ``inf`` and the point is NaN. (Called once per sub-step of a wall-following
+    trace, so written with few array operations: x and y apart, the segments' frames kept
+    in ``geom.occluder_frames``.)
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    rows = np.arange(len(p))
     best = np.full(len(p), np.inf)
     near = np.full((len(p), 2), np.nan)
-    occ = geom.occluders
-    if len(occ):
-        a, b = occ[None, :, :2], occ[None, :, 2:]
-        ab = b - a
-        t = np.clip(np.sum((p[:, None] - a) * ab, -1) / np.sum(ab * ab, -1), 0.0, 1.0)
-        q = a + t[..., None] * ab
-        d = np.hypot(*(p[:, None] - q).transpose(2, 0, 1))
+    if len(geom.occluders):
+        a, ab, ab2 = geom.occluder_frames
+        px, py = p[:, 0:1], p[:, 1:2]
+        t = np.clip(((px - a[:, 0]) * ab[:, 0] + (py - a[:, 1]) * ab[:, 1]) / ab2, 0.0, 1.0)
+        qx, qy = a[:, 0] + t * ab[:, 0], a[:, 1] + t * ab[:, 1]
+        d = np.hypot(px - qx, py - qy)
         j = np.argmin(d, axis=1)
-        best = d[np.arange(len(p)), j]
-        near = q[np.arange(len(p)), j]
+        best = d[rows, j]
+        near = np.stack([qx[rows, j], qy[rows, j]], axis=-1)
     if len(geom.circles):
         c, r = geom.circles[None, :, :2], geom.circles[None, :, 2]
         v = p[:, None] - c
         dist_c = np.hypot(v[..., 0], v[..., 1])
         d = np.abs(dist_c - r)
         j = np.argmin(d, axis=1)
-        rows = np.arange(len(p))
         unit = v[rows, j] / np.maximum(dist_c[rows, j], 1e-300)[:, None]
         q = geom.circles[j, :2] + unit * geom.circles[j, 2:3]
         closer = d[rows, j] < best
