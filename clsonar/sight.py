@@ -64,9 +64,103 @@ def first_hits(origin: np.ndarray, occluders: np.ndarray, cell: float,
     return hits
 
 
+def first_hits_each(origins: np.ndarray, occluders: np.ndarray, cell: float,
+                    within: np.ndarray, wanted: np.ndarray,
+                    bin_rad: float = SIGHT_BIN_RAD) -> np.ndarray:
+    """[S, B] :func:`first_hits` of each of ``origins`` [S, 2] in one pass, with its own
+    ``within`` [S] and ``wanted`` bins [S, B].
+
+    Only the (origin, occluder) pairs that :func:`_may_cover` keeps are looked at (of the
+    occluders within ``within`` of the origins' box along x and y): a cheap test that keeps
+    every occluder near enough and inside (or whose cell reaches into) the arc of the
+    origin's wanted bins. Those pairs go through the very arithmetic of
+    :func:`first_hits`, so the distances are the same to the bit (tests/test_rooms.py)."""
+    n, bins = wanted.shape
+    hits = np.full(n * bins, np.inf)
+    reach = float(np.max(within, initial=0.0))  # none farther along x or y is used
+    box = np.all((occluders >= origins.min(axis=0) - reach)
+                 & (occluders <= origins.max(axis=0) + reach), axis=1)
+    occluders = occluders[box]
+    dx = occluders[None, :, 0] - origins[:, None, 0]
+    dy = occluders[None, :, 1] - origins[:, None, 1]
+    owner, cell_of = np.nonzero(_may_cover(dx, dy, cell, within, wanted, bin_rad))
+    dx, dy = dx[owner, cell_of], dy[owner, cell_of]
+    dist = np.hypot(dx, dy)
+    ok = (dist > 0.5 * cell) & (dist <= within[owner])
+    owner, dx, dy, dist = owner[ok], dx[ok], dy[ok], dist[ok]
+    theta = np.arctan2(dy, dx)
+    half = 0.75 * cell / dist
+    lo = np.floor((theta - half) / bin_rad).astype(np.int64)
+    width = np.floor((theta + half) / bin_rad).astype(np.int64) - lo
+    count = np.zeros((n, 2 * bins + 1), dtype=np.int64)  # wanted bins before each, twice round
+    count[:, 1:] = np.cumsum(np.tile(wanted, (1, 2)), axis=1)
+    start = owner * (2 * bins + 1) + lo % bins
+    use = count.ravel()[start + width + 1] - count.ravel()[start] > 0
+    owner, dist, lo, width = owner[use], dist[use], lo[use], width[use]
+    span = width + 1  # every bin lo .. lo + width of every cell, in one scatter
+    first = np.cumsum(span) - span
+    offset = np.arange(int(span.sum())) - np.repeat(first, span)
+    where = np.repeat(owner * bins, span) + (np.repeat(lo, span) + offset) % bins
+    np.minimum.at(hits, where, np.repeat(dist, span))
+    return hits.reshape(n, bins)
+
+
+#: Rounding allowance of :func:`_may_cover`'s cheap distances and angles (metres per metre;
+#: its arcs are also widened by two bins): far above float64's rounding, far below a cell.
+_COVER_SLACK = 1e-9
+
+
+def _may_cover(dx: np.ndarray, dy: np.ndarray, cell: float, within: np.ndarray,
+               wanted: np.ndarray, bin_rad: float) -> np.ndarray:
+    """[S, m] bool, a superset of the (origin, occluder) pairs :func:`first_hits` uses:
+    the occluder at (``dx``, ``dy``) [S, m] from its origin is, up to rounding, farther
+    than half a cell and at most ``within`` [S], and its cell's angular half-width
+    h = 0.75·cell/r reaches the arc φ ± β of the origin's wanted bins
+    (:func:`_wanted_arcs`): its angle to φ is at most β + h, which holds only if
+    ``v·u ≥ r·cos(β + h) ≥ r·cos β − w·sin β − w²/(2r)`` with w = r·h = 0.75·cell (cos'' ≥ −1),
+    or if β + h ≥ π. No arctangent and no hypot: a few products per pair."""
+    r = np.sqrt(dx * dx + dy * dy)
+    slack = _COVER_SLACK * (r + 1.0)
+    phi, beta = _wanted_arcs(wanted, bin_rad)
+    w = 0.75 * cell
+    with np.errstate(divide="ignore"):
+        bound = (r * np.cos(beta)[:, None] - w * np.sin(beta)[:, None] - w * w / (2.0 * r)
+                 - slack)
+    toward = dx * np.cos(phi)[:, None] + dy * np.sin(phi)[:, None] >= bound
+    wide = r * (math.pi - beta)[:, None] <= w + slack
+    return ((r + slack > 0.5 * cell) & (r - slack <= within[:, None])
+            & (toward | wide))
+
+
+def _wanted_arcs(wanted: np.ndarray, bin_rad: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per row of ``wanted`` [S, B]: the centre φ and half-width β (radians) of the
+    shortest arc holding all its wanted bins (bin k spans k·bin_rad to (k+1)·bin_rad, the
+    angle taken in [0, 2π)), widened by two bins; π (all round) for a row without any."""
+    n, bins = wanted.shape
+    phi, beta = np.zeros(n), np.full(n, math.pi)
+    rows, at = np.nonzero(wanted)
+    if len(rows) == 0:
+        return phi, beta
+    starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
+    ends = np.r_[starts[1:], len(rows)] - 1
+    after = np.r_[at[1:], 0]  # the next wanted bin of the same row, round the circle
+    after[ends] = at[starts] + bins
+    gap = after - at
+    widest = np.lexsort((gap, rows))[ends]  # each row's widest gap (sorted by row, gap)
+    length = bins - gap[widest] + 1  # the bins from the gap's end round to its start
+    phi[rows[starts]] = (after[widest] + 0.5 * length) * bin_rad
+    beta[rows[starts]] = np.minimum((0.5 * length + 2.0) * bin_rad, math.pi)
+    return phi, beta
+
+
 def _bin(origin: np.ndarray, points: np.ndarray, bins: int, bin_rad: float) -> np.ndarray:
     d = points - origin
     return np.floor(np.arctan2(d[:, 1], d[:, 0]) / bin_rad).astype(np.int64) % bins
+
+
+#: Origin-occluder pairs :func:`line_of_sight` looks at in one pass (a few arrays of this
+#: many float64, 2 MB each: they stay in the processor's cache, 2.4× faster than 16 MB).
+SIGHT_PAIRS_AT_ONCE = 1 << 18
 
 
 def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
@@ -75,15 +169,54 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
     """[n] bool: which estimated reflection ``points`` [n, 2] of the pairs (``tx``, ``rx``)
     [n] are in sight of both transducers (``positions`` [N, 2]) — no occupied cell of
     ``occluders`` [m, 2] lies nearer than the point by more than ``margin_m`` (default
-    :data:`SIGHT_MARGIN_CELLS` cells) in the point's direction, from T and from R."""
+    :data:`SIGHT_MARGIN_CELLS` cells) in the point's direction, from T and from R.
+
+    Every transducer's z-buffer is built at once (:func:`first_hits_each`), as many
+    transducers at a time as :data:`SIGHT_PAIRS_AT_ONCE` allows;
+    :func:`line_of_sight_per_sensor` is the same test one transducer at a time."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     margin = SIGHT_MARGIN_CELLS * cell if margin_m is None else margin_m
     keep = np.ones(len(points), dtype=bool)
     if len(points) == 0 or len(occluders) == 0:
         return keep
     bins = round(2 * math.pi / SIGHT_BIN_RAD)
-    for s, mine in _points_of_each_sensor(np.asarray(tx), np.asarray(rx)):
-        origin = positions[s]
+    sensor, point = _sensor_point_pairs(np.asarray(tx), np.asarray(rx))
+    d = points[point] - positions[sensor]
+    dist = np.hypot(d[:, 0], d[:, 1])
+    where = np.floor(np.arctan2(d[:, 1], d[:, 0]) / SIGHT_BIN_RAD).astype(np.int64) % bins
+    starts = np.flatnonzero(np.r_[True, sensor[1:] != sensor[:-1]])
+    farthest = np.maximum.reduceat(dist, starts)
+    step = max(1, SIGHT_PAIRS_AT_ONCE // len(occluders))
+    for first in range(0, len(starts), step):  # a group of transducers at a time
+        a = starts[first]
+        b = starts[first + step] if first + step < len(starts) else len(sensor)
+        group = np.repeat(np.arange(len(starts[first:first + step])),
+                          np.diff(np.r_[starts[first:first + step], b]))
+        wanted = np.zeros((group[-1] + 1, bins), dtype=bool)
+        wanted[group, where[a:b]] = True
+        hits = first_hits_each(positions[sensor[starts[first:first + step]]], occluders, cell,
+                               farthest[first:first + step] - margin, wanted)
+        hidden = dist[a:b] > hits[group, where[a:b]] + margin
+        keep[point[a:b][hidden]] = False
+    return keep
+
+
+def line_of_sight_per_sensor(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
+                             positions: np.ndarray, occluders: np.ndarray, cell: float,
+                             margin_m: float | None = None) -> np.ndarray:
+    """:func:`line_of_sight` one transducer at a time through :func:`first_hits`: the
+    reference the vectorised test is checked against (tests/test_rooms.py)."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    margin = SIGHT_MARGIN_CELLS * cell if margin_m is None else margin_m
+    keep = np.ones(len(points), dtype=bool)
+    if len(points) == 0 or len(occluders) == 0:
+        return keep
+    bins = round(2 * math.pi / SIGHT_BIN_RAD)
+    sensor, point = _sensor_point_pairs(np.asarray(tx), np.asarray(rx))
+    starts = np.flatnonzero(np.r_[True, sensor[1:] != sensor[:-1]])
+    for a, b in zip(starts, np.r_[starts[1:], len(sensor)], strict=True):
+        origin = positions[sensor[a]]
+        mine = point[a:b]
         q = points[mine]
         dist = np.hypot(*(q - origin).T)
         where = _bin(origin, q, bins, SIGHT_BIN_RAD)
@@ -94,18 +227,15 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
     return keep
 
 
-def _points_of_each_sensor(tx: np.ndarray, rx: np.ndarray):
-    """For each sensor in ``tx`` or ``rx`` (ascending): the indices (ascending) of the
-    points whose pair it is part of."""
+def _sensor_point_pairs(tx: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every (sensor, point) with the sensor in the point's pair (T = R once), sorted by
+    sensor, then point."""
     sensor = np.concatenate([tx, rx])
     point = np.concatenate([np.arange(len(tx)), np.arange(len(rx))])
     order = np.lexsort((point, sensor))
     sensor, point = sensor[order], point[order]
     new = np.r_[True, (sensor[1:] != sensor[:-1]) | (point[1:] != point[:-1])]  # T = R once
-    sensor, point = sensor[new], point[new]
-    starts = np.flatnonzero(np.r_[True, sensor[1:] != sensor[:-1]])
-    for a, b in zip(starts, np.r_[starts[1:], len(sensor)], strict=True):
-        yield sensor[a], point[a:b]
+    return sensor[new], point[new]
 
 
 def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
@@ -128,4 +258,5 @@ def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
     return line_of_sight(points, tx, rx, positions, occluders, scene.cell)
 
 
-__all__ = ["first_hits", "in_sight_of_map", "line_of_sight"]
+__all__ = ["first_hits", "first_hits_each", "in_sight_of_map", "line_of_sight",
+           "line_of_sight_per_sensor"]

@@ -16,13 +16,21 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 import clsonar
+from clsonar import sight as sight_module
 from clsonar.geometry import EDGE, build_geometry, true_vertices
 from clsonar.mapping import Loci, envelope_links, scan_envelope, tangent_points
 from clsonar.metrics import VERTEX_FOUND_M, cylinder_coverage, evaluate, vertex_errors
 from clsonar.post.walls import Arc, Wall, find_circles, join_walls, merge_collinear, split_straight
 from clsonar.scene import scene_from_dict
 from clsonar.sensors import SensorArray
-from clsonar.sight import SIGHT_BIN_RAD, SIGHT_MARGIN_CELLS, first_hits, line_of_sight
+from clsonar.sight import (
+    SIGHT_BIN_RAD,
+    SIGHT_MARGIN_CELLS,
+    first_hits,
+    first_hits_each,
+    line_of_sight,
+    line_of_sight_per_sensor,
+)
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 CELL = 0.01
@@ -125,6 +133,65 @@ def test_line_of_sight_drops_exactly_what_the_wall_hides(tx, ty, points):
         checked += 1
         assert kept == expected, (t, p)
     assume(checked > 0)
+
+
+def _scattered(draw, n_min, n_max, lo=-1.0, hi=5.0):
+    """[n, 2] points drawn uniformly, some of them on a grid of cell centres."""
+    n = draw(st.integers(n_min, n_max))
+    seed = draw(st.integers(0, 2**31))
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(lo, hi, (n, 2))
+    pts[: n // 2] = np.round(pts[: n // 2] / CELL) * CELL + CELL / 2
+    return pts
+
+
+@st.composite
+def _sight_cases(draw):
+    """Transducers, occluder cells (a few walls' cells and scattered ones) and points with
+    their pairs."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**31)))
+    positions = rng.uniform(0.0, 4.0, (draw(st.integers(1, 6)), 2))
+    walls = [segment(rng.uniform(-1, 5, 2), rng.uniform(-1, 5, 2), CELL)
+             for _ in range(draw(st.integers(0, 3)))]
+    occluders = np.concatenate([*walls, _scattered(draw, 0, 60)])
+    points = _scattered(draw, 1, 80)
+    tx = rng.integers(0, len(positions), len(points))
+    rx = np.where(rng.random(len(points)) < 0.5, tx, rng.integers(0, len(positions), len(points)))
+    return positions, occluders, points, tx, rx
+
+
+@settings(max_examples=80, deadline=None)
+@given(case=_sight_cases(), at_once=st.sampled_from([1, 50, 1 << 18]))
+def test_line_of_sight_of_all_transducers_at_once_is_the_per_transducer_test(case, at_once):
+    """The vectorised test (every transducer's z-buffer at once, a few transducers a pass)
+    keeps exactly the points the per-transducer reference keeps."""
+    positions, occluders, points, tx, rx = case
+    want = line_of_sight_per_sensor(points, tx, rx, positions, occluders, CELL)
+    old = sight_module.SIGHT_PAIRS_AT_ONCE
+    try:
+        sight_module.SIGHT_PAIRS_AT_ONCE = at_once
+        got = line_of_sight(points, tx, rx, positions, occluders, CELL)
+    finally:
+        sight_module.SIGHT_PAIRS_AT_ONCE = old
+    np.testing.assert_array_equal(got, want)
+
+
+@settings(max_examples=60, deadline=None)
+@given(case=_sight_cases(), within=st.floats(0.0, 8.0), share=st.floats(0.0, 1.0),
+       seed=st.integers(0, 2**31))
+def test_first_hits_each_are_first_hits_bit_for_bit(case, within, share, seed):
+    """Every bin of every origin's z-buffer equals :func:`first_hits` of that origin alone,
+    for wanted bins anywhere on the circle (an arc, across bin 0 or not; scattered; none)."""
+    positions, occluders, _, _, _ = case
+    rng = np.random.default_rng(seed)
+    bins = round(2 * math.pi / SIGHT_BIN_RAD)
+    wanted = rng.random((len(positions), bins)) < share * share * 0.01
+    wanted[0, (rng.integers(0, bins) + np.arange(200)) % bins] = share > 0.5  # an arc
+    reach = np.full(len(positions), within)
+    got = first_hits_each(positions, occluders, CELL, reach, wanted)
+    for i, origin in enumerate(positions):
+        want = first_hits(origin, occluders, CELL, within=within, wanted=wanted[i])
+        np.testing.assert_array_equal(got[i], want)
 
 
 # --------------------------------------------------------------------------- walls
