@@ -103,15 +103,15 @@ def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
     np.maximum.at(reach, tx, path)
     np.maximum.at(reach, rx, path)
     seen: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    axes = sensors.axes
     for s in np.unique(np.concatenate([tx, rx])):
-        origin, axis = sensors.positions[s], sensors.axes[s]
-        lo, hi = np.searchsorted(pts[:, 0], [origin[0] - reach[s], origin[0] + reach[s]],
-                                 side="left")
-        d = pts[lo:hi] - origin
+        origin, axis = sensors.positions[s], axes[s]
+        index = _near_beam(pts, origin, axis, float(reach[s]), cut_sin2)
+        d = pts[index] - origin
         dist = np.hypot(d[:, 0], d[:, 1])
         cross = axis[0] * d[:, 1] - axis[1] * d[:, 0]
         beam = (d @ axis > 0) & (cross * cross <= cut_sin2 * dist * dist)
-        seen[int(s)] = (lo + np.flatnonzero(beam), dist[beam])
+        seen[int(s)] = (index[beam], dist[beam])
     lit_sorted = np.zeros(len(pts), dtype=bool)
     for t, r, length in zip(tx, rx, path, strict=True):
         (it, dt), (ir, dr) = seen[int(t)], seen[int(r)]
@@ -123,6 +123,53 @@ def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
         lit_sorted[it[both][on]] = True
     lit[order] = lit_sorted
     return lit
+
+
+#: Widest beam (sin² of its half-angle) :func:`_near_beam` narrows a sensor's points for;
+#: beyond it (45°) the whole x-slice goes to the beam test.
+_NARROW_BEAM_SIN2 = 0.5
+
+
+def _near_beam(pts: np.ndarray, origin: np.ndarray, axis: np.ndarray, reach: float,
+               cut_sin2: float) -> np.ndarray:
+    """The indices (ascending) of the x-sorted ``pts`` that :func:`insonified` tests
+    against the beam of the sensor at ``origin`` (unit ``axis``) whose longest echo path is
+    ``reach``: its slice ``|x − origin_x| ≤ reach``, for a narrow beam only the points of
+    the box of its beam out to ``reach`` + 2·:data:`LOCUS_TOL_M` (no point farther lies on
+    a locus of this sensor; :func:`_beam_box`) and in a cone a little wider than the beam
+    (:func:`_in_cone`, no square root). The beam test that decides is the same."""
+    x = pts[:, 0]
+    lo, hi = np.searchsorted(x, [origin[0] - reach, origin[0] + reach], side="left")
+    if cut_sin2 > _NARROW_BEAM_SIN2:
+        return lo + np.arange(hi - lo)
+    xmin, ymin, xmax, ymax = _beam_box(origin, axis, reach + 2 * LOCUS_TOL_M + 1e-6, cut_sin2)
+    lo = max(lo, int(np.searchsorted(x, xmin, side="left")))
+    hi = max(lo, min(hi, int(np.searchsorted(x, xmax, side="right"))))
+    y = pts[lo:hi, 1]
+    index = lo + np.flatnonzero((y >= ymin) & (y <= ymax))
+    return index[_in_cone(pts[index] - origin, axis, cut_sin2)]
+
+
+def _beam_box(origin: np.ndarray, axis: np.ndarray, radius: float, cut_sin2: float
+              ) -> tuple[float, float, float, float]:
+    """``(xmin, ymin, xmax, ymax)`` holding every point within ``radius`` of ``origin``
+    inside the beam of ``axis`` (half-angle θ, sin²θ = ``cut_sin2`` ≤ 1/2): the box of the
+    triangle ``origin``, ``origin + radius·(axis ± tanθ·normal)``, widened for rounding."""
+    spread = math.sqrt(cut_sin2 / (1.0 - cut_sin2)) * np.array([-axis[1], axis[0]])
+    corners = origin + radius * np.array([[0.0, 0.0], axis + spread, axis - spread])
+    slack = 1e-9 * (radius + np.abs(origin).max() + 1.0)
+    (xmin, ymin), (xmax, ymax) = corners.min(axis=0) - slack, corners.max(axis=0) + slack
+    return float(xmin), float(ymin), float(xmax), float(ymax)
+
+
+def _in_cone(d: np.ndarray, axis: np.ndarray, cut_sin2: float) -> np.ndarray:
+    """[n] bool, a superset of the offsets ``d`` [n, 2] within the beam of ``axis``: sin²θ ≤
+    s ⇔ across² ≤ s/(1 − s)·along² in front, with room for rounding. For s ≤ 1/2 a point
+    off by 90° or more fails the beam test whatever the rounding of its sign."""
+    along = axis[0] * d[:, 0] + axis[1] * d[:, 1]
+    across = axis[0] * d[:, 1] - axis[1] * d[:, 0]
+    k = cut_sin2 / (1.0 - cut_sin2) * (1.0 + 1e-6)
+    return (along > -1e-9) & (across * across <= k * along * along + 1e-12)
 
 
 def single_wall(scene: Scene) -> tuple[np.ndarray, np.ndarray, Sinusoid | None] | None:

@@ -1,13 +1,15 @@
 """Metrics: thesis eq. 2.6 along a wall, accuracy, completeness, spurious share."""
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
+from clsonar import physics
 from clsonar.echoes import reference_echoes
 from clsonar.geometry import build_geometry
-from clsonar.metrics import evaluate, insonified, rms_along_wall, truth_points
+from clsonar.metrics import LOCUS_TOL_M, evaluate, insonified, rms_along_wall, truth_points
 from clsonar.scene import Polyline, Scene, Sensors, Sinusoid, Transducer
 from clsonar.sensors import place_sensors
 
@@ -48,6 +50,48 @@ def test_insonified_is_where_the_echo_loci_meet_the_wall():
     assert lit[:, 1].max() == pytest.approx(5 + half, abs=0.006)
     quiet = _scene(WALL, transducers=((7.0, 5.0, 20.0),))  # faces away from the normal
     assert not insonified(quiet, *_setup(quiet)[1:], truth).any()
+
+
+def _insonified_by_definition(scene, sensors, echoes, points):
+    """insonified's docstring, echo by echo and point by point: on the locus within
+    2·LOCUS_TOL_M and inside both beams (in front, sin² of the angle at most the cut)."""
+    t, c = scene.transducer, scene.medium.c
+    cut = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
+    lit = np.zeros(len(points), dtype=bool)
+    for tx, rx, tof, amp in zip(echoes.tx, echoes.rx, echoes.tof_s, echoes.amplitude,
+                                strict=True):
+        if amp < 0.1 * t.amplitude:
+            continue
+        dist = {}
+        inside = np.ones(len(points), dtype=bool)
+        for s in (tx, rx):
+            d = points - sensors.positions[s]
+            axis = sensors.axes[s]
+            dist[s] = np.hypot(d[:, 0], d[:, 1])
+            cross = axis[0] * d[:, 1] - axis[1] * d[:, 0]
+            along = axis[0] * d[:, 0] + axis[1] * d[:, 1]
+            inside &= (along > 0) & (cross * cross <= cut * dist[s] * dist[s])
+        lit |= inside & (np.abs(dist[tx] + dist[rx] - tof * c) <= 2 * LOCUS_TOL_M)
+    return lit
+
+
+@pytest.mark.parametrize("half_beam", [12.0, 60.0])
+def test_insonified_is_its_definition_in_a_room(half_beam):
+    """A box room with transducers facing every way (T = R and T ≠ R echoes, walls and
+    corners): the sensor-by-sensor slices and the all-echoes join find exactly the points
+    the definition does, for a narrow beam and a wide one."""
+    room = Polyline(((1.0, 1.0), (8.0, 1.0), (8.0, 6.0), (1.0, 6.0)), closed=True)
+    heads = [(3.0, 3.0, 0.0), (3.0, 3.0, 135.0), (5.0, 4.0, -90.0), (6.0, 2.0, 30.0),
+             (2.0, 5.0, 200.0), (7.0, 5.0, 45.0)]
+    scene = _scene(room, transducers=heads)
+    scene = dataclasses.replace(scene, transducer=dataclasses.replace(
+        scene.transducer, half_beam_deg=half_beam, directivity="uniform"))
+    geom, sensors, echoes = _setup(scene)
+    assert np.any(echoes.tx != echoes.rx)
+    truth = truth_points(scene, geom, 0.005)
+    want = _insonified_by_definition(scene, sensors, echoes, truth)
+    assert want.any()
+    np.testing.assert_array_equal(insonified(scene, sensors, echoes, truth), want)
 
 
 def test_evaluate_accuracy_completeness_spurious():
