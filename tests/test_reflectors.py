@@ -189,9 +189,9 @@ def test_plane_fit_recovers_the_wall(phi, d, noise):
 # --- whole runs with the default settings ----------------------------------------------
 
 
-def _scene(name, extent, surfaces, transducers, noise=0.0):
+def _scene(name, extent, surfaces, transducers, noise=0.0, seed=1):
     return scene_from_dict({"clsonar": 1, "name": name, "extent": extent, "surfaces": surfaces,
-                            "signal": {"noise_std": noise},
+                            "signal": {"noise_std": noise, "seed": seed},
                             "sensors": {"transducers": transducers}}, name)
 
 
@@ -232,6 +232,25 @@ def test_a_corner_seen_at_45_degrees_is_its_vertex():
     m = _metrics(scene)
     assert m["vertices"][0]["error_m"] < 0.005
     assert m["accuracy_m"]["rms"] < 0.005
+
+
+@pytest.mark.parametrize("noise", [0.6, 1.2])
+@pytest.mark.parametrize("seed", [1, 3])
+def test_a_noisy_corner_seen_at_45_degrees_is_its_vertex(noise, seed):
+    """The same corner with noise σ 0.6 and 1.2: the corner fits its detections best of
+    all models, but one or two of them lie outside their tolerance, which the free curve,
+    with a parameter more, takes in; it was drawn as a curve across the vertex (2.8 and
+    6.2 cm RMS, the vertex not found) — a best-fitting simpler model may leave
+    NOISY_OUTSIDE_SHARE of the members out."""
+    a = math.radians(45.0)
+    first = np.array([7.0 - 5.0 * math.cos(a) - 0.225 * math.sin(a),
+                      6.0 - 5.0 * math.sin(a) + 0.225 * math.cos(a)])
+    array = first + 0.05 * np.arange(10)[:, None] * np.array([math.cos(-a), math.sin(-a)])
+    m = _metrics(_scene("corner45", [0, 0, 9, 8],
+                        [{"type": "polyline", "points": [[4, 6], [7, 6], [7, 3]]}],
+                        _transducers(array, 45.0), noise, seed))
+    assert m["vertices"][0]["error_m"] < 0.02
+    assert m["accuracy_m"]["rms"] < 0.02
 
 
 def test_a_cylinder_is_an_arc_not_a_bar():

@@ -86,6 +86,12 @@ SIMPLER_RMS_FACTOR = 1.5
 #: a point or a corner where a plane fits (or the reverse) across a wide array.
 HOPELESS_START_M = 0.05
 
+#: With noise, a simpler model that fits the members best of all (a corner's T ≠ R paths
+#: tell it from a curve at first order) may leave this share of them outside its tolerance
+#: (a detection's noise exceeds NOISE_SIGMAS of it now and then, and the free curve, with
+#: a parameter more, takes it in); they leave the family.
+NOISY_OUTSIDE_SHARE = 0.1
+
 #: Path precision of a noise-free detection (measured: a few µm), metres.
 DETECTION_FLOOR_M = 2e-5
 
@@ -445,14 +451,18 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
         if f is None or (f.rms > limit and name != "curve"):
             continue
         path, q = _predict(w, name, f.params, members)
-        if not np.all(np.abs(path - w.paths[members]) <= _tolerance(w, name, members)):
+        within = np.abs(path - w.paths[members]) <= _tolerance(w, name, members)
+        best_fit = f.rms <= floor * (1.0 + 1e-9)
+        if np.count_nonzero(~within) > (NOISY_OUTSIDE_SHARE * len(members)
+                                        if noise > 0 and best_fit else 0):
             continue
+        kept, q = members[within], q[within]
         if name in ("plane", "point"):  # a face's echoes and its edge's apart
-            strong = _strong(w, name, members, q)
+            strong = _strong(w, name, kept, q)
             if np.count_nonzero(strong) < MIN_FAMILY:
                 continue
-            members, q = members[strong], q[strong]
-        return Family(name, f.params, w.x0, members, q, f.rms, w, bend)
+            kept, q = kept[strong], q[strong]
+        return Family(name, f.params, w.x0, kept, q, f.rms, w, bend)
     path, q = _predict(w, kind, fit.params, members)
     return Family(kind, fit.params, w.x0, members, q, fit.rms, w, bend)
 
