@@ -140,7 +140,7 @@ def scene_png(scene: Scene, geom: Geometry, sensors: SensorArray,
     draw_truth(ax, scene, geom)
     tick = 0.02 * max(scene.extent[2] - scene.extent[0], scene.extent[3] - scene.extent[1])
     ends = sensors.positions + tick * sensors.axes
-    ax.add_collection(LineCollection(np.stack([sensors.positions, ends], axis=1),
+    ax.add_collection(LineCollection(list(np.stack([sensors.positions, ends], axis=1)),
                                      colors="tab:blue", linewidths=0.5,
                                      capstyle="projecting", joinstyle="round"),
                       autolim=False)
