@@ -1,0 +1,122 @@
+"""Where one ``clsonar run SCENE --out DIR --png PNG`` process spends its time (issue 16):
+start-up and imports, the OpenCL device and kernels, each pipeline stage (report.json's
+``seconds``), and each output, as a table of seconds and shares of the whole.
+
+``python -m clsonar.tools.phases SCENE [--png all|stages|none] [--repeat N]`` runs the
+command's steps (:func:`clsonar.cli` ``run``: load, pipeline, outputs) in ``N`` fresh
+processes, each timing its own phases, and prints the fastest process's table. A phase is
+the wall time from the end of the one before; "interpreter start-up, ``import clsonar``" is
+what the process took before its first phase began (the parent's wall time less the
+phases). Compare tables taken in one session: the machine's load moves every number.
+"""
+
+from __future__ import annotations
+
+import time
+
+_START = time.perf_counter()
+
+import argparse  # noqa: E402  (the clock above starts first)
+import json  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+#: The first phase of the table: what a process does before this module's first line.
+START_UP = "interpreter start-up, import clsonar"
+
+
+class _Clock:
+    """Seconds of each phase: from the end of the one before to :meth:`mark`."""
+
+    def __init__(self) -> None:
+        self.phases: dict[str, float] = {}
+        self.since = _START
+
+    def mark(self, name: str) -> None:
+        now = time.perf_counter()
+        self.phases[name] = now - self.since
+        self.since = now
+
+
+def measure(scene_path: str, png: str, out: str) -> dict[str, float]:
+    """The phases of one ``clsonar run scene_path --out out --png png``, in this process
+    (which must not have imported the pipeline, the outputs or pyopencl yet)."""
+    clock = _Clock()
+    from .. import cli  # noqa: F401  (what the command line imports to start)
+
+    clock.mark("command line imports")
+    from .. import outputs, pipeline
+    from ..files import write_folder
+    from ..scene import load_scene
+
+    clock.mark("pipeline imports (scipy)")
+    from ..opencl import get_context
+
+    context = get_context()
+    clock.mark("pyopencl, device")
+    result = pipeline.run(load_scene(scene_path), context=context)
+    clock.since += sum(result.seconds.values())  # each stage is a phase of its own
+    clock.phases.update({f"stage {k}": v for k, v in result.seconds.items()})
+    clock.mark("pipeline, outside the stages")
+    files = outputs.data_files(result)
+    clock.mark("report.json, stages.npz, csv")
+    files.update(outputs.stage_pngs(result, "none" if png == "none" else "stages"))
+    clock.mark("raw, filtered, thin.png")
+    if png == "all":
+        from .. import plots
+
+        clock.mark("matplotlib import")
+        files["scene.png"] = plots.scene_png(result.scene, result.geometry, result.sensors,
+                                             result.echoes.point)
+        clock.mark("scene.png")
+        files["profile.png"] = outputs.profile_png(result)
+        clock.mark("profile.png")
+    write_folder(outputs.check_out(out), files, outputs.OUTPUT_NAMES)
+    clock.mark("writing the files")
+    return clock.phases
+
+
+def fastest(scene_path: str, png: str, repeat: int) -> dict[str, float]:
+    """:func:`measure` in ``repeat`` fresh processes; the phases of the fastest, with
+    :data:`START_UP` first."""
+    best: dict[str, float] = {}
+    with tempfile.TemporaryDirectory(prefix="clsonar-phases-") as tmp:
+        for k in range(max(1, repeat)):
+            command = [sys.executable, "-m", "clsonar.tools.phases", scene_path, "--png", png,
+                       "--child", str(Path(tmp) / str(k))]
+            start = time.perf_counter()
+            done = subprocess.run(command, check=True, capture_output=True, text=True)
+            wall = time.perf_counter() - start
+            phases = json.loads(done.stdout)
+            if not best or wall < sum(best.values()):
+                best = {START_UP: wall - sum(phases.values()), **phases}
+    return best
+
+
+def table(phases: dict[str, float]) -> list[str]:
+    """Markdown rows: each phase's seconds and share of the whole, then the whole."""
+    total = sum(phases.values())
+    rows = ["| phase | seconds | share |", "| --- | ---: | ---: |"]
+    rows += [f"| {name} | {s:.3f} | {100 * s / total:.0f} % |" for name, s in phases.items()]
+    return [*rows, f"| **whole process** | **{total:.3f}** | |"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m clsonar.tools.phases",
+                                     description=__doc__.split("\n\n")[0])
+    parser.add_argument("scene")
+    parser.add_argument("--png", choices=("none", "stages", "all"), default="all")
+    parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--child", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child:
+        print(json.dumps(measure(args.scene, args.png, args.child)))
+        return 0
+    print("\n".join(table(fastest(args.scene, args.png, args.repeat))))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
