@@ -41,6 +41,7 @@ from .version import __version__
 
 if TYPE_CHECKING:
     from .pipeline import RunResult
+    from .scene import Scene
 
     Subparsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
 
@@ -90,6 +91,11 @@ def _add_run(sub: Subparsers) -> None:
     p.add_argument("--dry-run", action="store_true",
                    help="place the transducers and print what the run would cost (pairs, "
                         "samples, cells, memory) without running it or writing anything")
+    p.add_argument("--max-memory", metavar="SIZE", default=None,
+                   help="the most memory the run may count on (2G, 500M, …): a scene "
+                        "whose pairs or maps would need more is refused before any work, "
+                        "in one line with the estimate (default: what this machine has "
+                        "available)")
     p.add_argument("--png", choices=PNG_CHOICES, default="all",
                    help="pictures to write: none; stages (raw, filtered, thin, drawn from "
                         "the maps); all (and scene.png, profile.png: needs matplotlib). "
@@ -239,13 +245,26 @@ def _sizes(values: Sequence[float]) -> str:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from . import outputs, pipeline
+    from . import cost
+    from .mapping import grid
     from .scene import load_scene
 
     scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
-    if args.dry_run:
-        from . import cost
+    try:
+        limit = None if args.max_memory is None else cost.parse_size(args.max_memory)
+    except ValueError:
+        raise ClsonarError(f"--max-memory {args.max_memory!r}: not a size (2G, 500M, "
+                           "1.5e9)") from None
+    with grid.memory_limit(limit):
+        return _run_scene(args, scene)
 
+
+def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
+    """``clsonar run`` of the loaded ``scene``: its cost (``--dry-run``) or the run, its
+    outputs written and summed up."""
+    from . import cost, outputs, pipeline
+
+    if args.dry_run:
         print("\n".join(f"{scene.name}: {line}"
                         for line in cost.lines(cost.estimate(scene, args.preset))))
         return 0
@@ -259,7 +278,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
                               progress=line.stage, skips=skips)
     finally:
         line.done()
-    paths = outputs.write_outputs(result, args.out, png=args.png)
+    paths = outputs.write_outputs(
+        result, args.out, png=args.png,
+        extra={"cost": cost.record(cost.of_run(result), cost.peak_bytes())})
     if args.png == "all" and not outputs.plots_available():
         print("clsonar: warning: matplotlib is not installed: scene.png and profile.png "
               f"not written ({outputs.PLOTS_INSTALL})", file=sys.stderr)

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 from . import regions
 from .geometry import build_geometry
 from .mapping import PAIR_BYTES, grid
-from .pipeline import MOSAIC_BYTES_PER_CELL, PIPELINE_BYTES_PER_CELL, apply_preset
+from .pipeline import MOSAIC_BYTES_PER_CELL, PIPELINE_BYTES_PER_CELL, RunResult, apply_preset
 from .scene import Scene
-from .sensors import place_sensors
+from .sensors import SensorArray, place_sensors
 from .signals import signal_model
 from .survey import choose_settings, survey
 
@@ -46,6 +46,33 @@ def estimate(scene: Scene, preset: str | None = None) -> Estimate:
     geom = build_geometry(scene)
     sensors = place_sensors(scene, geom)
     scene, _ = choose_settings(scene, survey(scene, sensors), geom=geom)
+    return _estimate(scene, sensors)
+
+
+def of_run(result: RunResult) -> Estimate:
+    """The estimate :func:`estimate` gives for the scene ``result`` ran, from its placed
+    transducers and chosen settings (nothing placed again)."""
+    return _estimate(result.scene, result.sensors)
+
+
+def peak_bytes() -> int:
+    """This process's peak resident memory so far, bytes (getrusage's ru_maxrss)."""
+    import resource
+
+    return int(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss) * 1024
+
+
+def record(e: Estimate, peak: int | None = None) -> dict[str, object]:
+    """``report.json``'s ``cost``: the estimate the run was checked against, beside the
+    process' ``peak`` resident memory (bytes) and the pairs and cells used."""
+    return {"transducers": e.transducers, "pairs": e.pairs,
+            "samples_per_pair": e.samples_per_pair, "cells": e.cells, "rooms": e.rooms,
+            "pair_bytes": e.pair_bytes, "map_bytes": e.map_bytes,
+            "available_bytes": e.available_bytes, "peak_bytes": peak}
+
+
+def _estimate(scene: Scene, sensors: SensorArray) -> Estimate:
+    """The :class:`Estimate` of ``scene`` (settings chosen) with ``sensors`` placed."""
     ny, nx = scene.grid_shape
     rooms = regions.split_rooms(scene)
     per_cell = MOSAIC_BYTES_PER_CELL if rooms else PIPELINE_BYTES_PER_CELL
@@ -71,4 +98,16 @@ def lines(e: Estimate) -> list[str]:
             + ("fits" if e.fits else "does not fit: the run would be refused")]
 
 
-__all__ = ["Estimate", "estimate", "lines"]
+def parse_size(text: str) -> int:
+    """Bytes from ``text``: a number with an optional unit, k, M, G or T (powers of 1000;
+    ``2G``, ``500M``, ``1.5e9``); ValueError when it is not one, or not above 0."""
+    units = {"": 1, "K": 10**3, "M": 10**6, "G": 10**9, "T": 10**12}
+    t = text.strip().upper().removesuffix("B")
+    unit = t[-1:] if t[-1:] in units else ""
+    value = float(t[: len(t) - len(unit)])
+    if not value > 0 or value != value or value == float("inf"):
+        raise ValueError(text)
+    return int(value * units[unit])
+
+
+__all__ = ["Estimate", "estimate", "lines", "of_run", "parse_size", "peak_bytes", "record"]

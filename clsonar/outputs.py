@@ -89,8 +89,10 @@ def profile_csv(points: np.ndarray) -> str:
     return "x,y\n" + "".join(f"{x:.6f},{y:.6f}\n" for x, y in points)
 
 
-def data_files(result: RunResult) -> dict[str, bytes]:
-    """Every output file of ``result`` but the PNGs, as bytes, by file name."""
+def data_files(result: RunResult, extra: Mapping[str, object] | None = None
+               ) -> dict[str, bytes]:
+    """Every output file of ``result`` but the PNGs, as bytes, by file name (``extra``:
+    more keys of report.json)."""
     s = result.scene
     npz = io.BytesIO()
     np.savez_compressed(npz, raw=result.raw, filtered=result.filtered, thin=result.thin,
@@ -98,8 +100,8 @@ def data_files(result: RunResult) -> dict[str, bytes]:
     echoes = io.StringIO()
     result.echoes.write_csv(echoes)
     return {
-        "report.json": (json.dumps(result.report(), indent=2, default=_json_default)
-                        + "\n").encode(),
+        "report.json": (json.dumps({**result.report(), **(extra or {})}, indent=2,
+                                   default=_json_default) + "\n").encode(),
         "stages.npz": npz.getvalue(),
         "profile.csv": profile_csv(result.profile.points).encode(),
         "echoes.csv": echoes.getvalue().encode(),
@@ -152,9 +154,10 @@ def check_out(out: str | os.PathLike[str]) -> Path:
 
 
 def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
-                  png: str = "all") -> list[Path]:
+                  png: str = "all", extra: Mapping[str, object] | None = None) -> list[Path]:
     """Write every output of ``result`` into folder ``out``, with the PNGs ``png`` asks
-    for (:func:`stage_pngs`); returns the paths written.
+    for (:func:`stage_pngs`) and ``extra`` keys in report.json; returns the paths
+    written.
 
     The folder is written whole or not at all (:func:`clsonar.files.write_folder`): a new
     one, or one holding only an earlier run's outputs, is replaced in one step; in a folder
@@ -163,7 +166,7 @@ def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
     half-written is left.
     """
     path = check_out(out)
-    files = data_files(result)
+    files = data_files(result, extra)
     files.update(stage_pngs(result, png))
     write_folder(path, files, OUTPUT_NAMES)
     return [path / name for name in files]

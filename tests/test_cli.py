@@ -211,3 +211,26 @@ def test_dry_run_prints_the_cost_and_writes_nothing(tmp_path, capsys, monkeypatc
     assert main(["run", str(room), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
     assert capsys.readouterr().out.rstrip().endswith("does not fit: the run would be refused")
     assert not (tmp_path / "out").exists()
+
+
+def test_max_memory_refuses_in_one_line_and_report_records_the_cost(tmp_path, capsys):
+    """Issue 19: ``--max-memory`` is the most a run may count on (a map or pairs needing
+    more are refused before any work, naming the limit; a size that is not one is refused
+    too); report.json's ``cost`` holds the estimate beside the run's peak memory."""
+    from clsonar.mapping import grid
+
+    plane = ROOT / "scenes" / "plane-2m.json"
+    out = tmp_path / "out"
+    assert main(["run", str(plane), "--out", str(out), "-q", "--max-memory", "1M"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "48 MB of memory, more than the --max-memory limit (1 MB)" in err[0]
+    assert main(["run", str(plane), "--out", str(out), "-q", "--max-memory", "lots"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        "clsonar: error: --max-memory 'lots': not a size (2G, 500M, 1.5e9)")
+    assert not out.exists() and grid.host_available_bytes() != 1_000_000  # limit undone
+    assert main(["run", str(plane), "--out", str(out), "-q", "--png", "none",
+                 "--max-memory", "2G"]) == 0
+    cost = json.loads((out / "report.json").read_text())["cost"]
+    assert cost["pairs"] == 900 and cost["cells"] == 1_000_000
+    assert cost["map_bytes"] == 48e6 and cost["available_bytes"] <= 2e9
+    assert 0 < cost["peak_bytes"]

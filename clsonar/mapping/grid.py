@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -93,7 +95,40 @@ def format_bytes(n: float) -> str:
     return f"{n:.0f} B"
 
 
+#: The most memory a run may count on, bytes (``clsonar run --max-memory``,
+#: :func:`memory_limit`; None: what the machine has available).
+_memory_limit: int | None = None
+
+
+@contextmanager
+def memory_limit(limit: int | None) -> Iterator[None]:
+    """Within the block, :func:`host_available_bytes` — what a run's memory checks count
+    on — is at most ``limit`` bytes (None: the machine's available memory)."""
+    global _memory_limit
+    before, _memory_limit = _memory_limit, limit
+    try:
+        yield
+    finally:
+        _memory_limit = before
+
+
 def host_available_bytes() -> int | None:
+    """Memory a run may take: what this machine can still give (MemAvailable), at most the
+    limit :func:`set_memory_limit` set; None if neither is known."""
+    free = _machine_available_bytes()
+    if _memory_limit is None:
+        return free
+    return _memory_limit if free is None else min(free, _memory_limit)
+
+
+def _available_text(available: int) -> str:
+    """What ``available`` bytes are, for an error line: the machine's memory or the limit."""
+    if _memory_limit is not None and available >= _memory_limit:
+        return f"the --max-memory limit ({format_bytes(available)})"
+    return f"this machine has available ({format_bytes(available)})"
+
+
+def _machine_available_bytes() -> int | None:
     """Memory this machine can still give (MemAvailable), None if unknown."""
     try:
         with open("/proc/meminfo", encoding="ascii") as f:
@@ -124,8 +159,8 @@ def check_pair_memory(scene: Scene, sensors: SensorArray) -> None:
     if available is not None and needed > available:
         raise ClsonarError(
             f"{scene.name}: {count:,} fired pairs ({len(sensors.groups):,} transducers) need "
-            f"about {format_bytes(needed)} of memory, more than this machine has available "
-            f"({format_bytes(available)}): use fewer transducers or smaller pair groups")
+            f"about {format_bytes(needed)} of memory, more than {_available_text(available)}: "
+            "use fewer transducers or smaller pair groups")
 
 
 def work_items(nx: int, ny: int, vec: int, wgx: int, wgy: int) -> tuple[int, int]:
@@ -181,5 +216,5 @@ def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
         needed = float(ny) * nx * np.dtype(PRECISIONS[precision]).itemsize * 3
     available = host_available_bytes()
     if available is not None and needed > available:
-        raise _grid_error(scene, f"needs {format_bytes(needed)} of memory, more than this machine "
-                                 f"has available ({format_bytes(available)})")
+        raise _grid_error(scene, f"needs {format_bytes(needed)} of memory, more than "
+                                 f"{_available_text(available)}")
