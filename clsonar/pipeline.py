@@ -455,8 +455,8 @@ def _raw_map(scene: Scene, sensors: SensorArray, votes: Votes, skips: Skips) -> 
         return _Drawn(votes.raw)
     points, ghosts = votes.points, 0
     seen = np.ones(len(points), dtype=bool)
-    if scene.mapping.line_of_sight:
-        assert votes.tx is not None and votes.rx is not None
+    if scene.mapping.line_of_sight and votes.tx is not None:  # points with their pairs
+        assert votes.rx is not None
         seen = sight.in_sight_of_map(scene, sensors.positions, points, votes.tx, votes.rx,
                                      box=skips.empty_cells)
         ghosts = int(np.count_nonzero(~seen))

@@ -1,7 +1,8 @@
-// The map: per-pixel accumulation of time-of-flight loci and delay-and-sum back-projection
+// The map: per-pixel accumulation of time-of-flight loci, the occupancy grid's log-odds and
+// delay-and-sum back-projection
 // (thesis §2.1.1, parts 3–4; host code in clsonar/mapping/launch.py, NumPy float64 reference in clsonar/mapping/reference.py).
 //
-// Both kernels run over a rectangle of pixels: work item (gx, gy) owns VEC consecutive
+// The kernels run over a rectangle of pixels: work item (gx, gy) owns VEC consecutive
 // pixels of one row, columns col0 + gx·VEC + lane (lane = 0..VEC−1) and row row0 + gy, where
 // columns and rows count from the *origin pixel*, whose centre is the local origin of every
 // coordinate the host passes (transducers relative to it, in float64 before rounding to
@@ -28,89 +29,7 @@
 // BEAM_TERMS/BEAM_SERIES (common.h), MAX_FOCUS_GAIN (common.h), REAL_DOUBLE for float64.
 
 #include "common.h"
-
-#define CAT(a, b) a##b
-#define XCAT(a, b) CAT(a, b)
-
-#ifdef REAL_DOUBLE
-#define REAL_NAME double
-#define MASK_NAME long
-#else
-#define REAL_NAME float
-#define MASK_NAME int
-#endif
-
-#if VEC == 1
-#define ANY(m) (m)
-typedef real realv;
-typedef int maskv;
-typedef int intv;
-#define LANES R(0.0)
-#define LOADV(p) (*(p))
-#define STOREV(v, p) (*(p) = (v))
-#define GATHER(b, i) ((b)[i])
-#define CONVERT_INTV convert_int
-#else
-#define ANY(m) any(m)
-typedef XCAT(REAL_NAME, VEC) realv;
-typedef XCAT(MASK_NAME, VEC) maskv;
-typedef XCAT(int, VEC) intv;
-#define LOADV(p) XCAT(vload, VEC)(0, p)
-#define STOREV(v, p) XCAT(vstore, VEC)(v, 0, p)
-#define CONVERT_INTV XCAT(convert_int, VEC)
-#if VEC == 2
-#define LANES ((realv)(0, 1))
-#define GATHER(b, i) ((realv)((b)[(i).s0], (b)[(i).s1]))
-#elif VEC == 4
-#define LANES ((realv)(0, 1, 2, 3))
-#define GATHER(b, i) ((realv)((b)[(i).s0], (b)[(i).s1], (b)[(i).s2], (b)[(i).s3]))
-#elif VEC == 8
-#define LANES ((realv)(0, 1, 2, 3, 4, 5, 6, 7))
-#define GATHER(b, i) ((realv)((b)[(i).s0], (b)[(i).s1], (b)[(i).s2], (b)[(i).s3], \
-                              (b)[(i).s4], (b)[(i).s5], (b)[(i).s6], (b)[(i).s7]))
-#elif VEC == 16
-#define LANES ((realv)(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))
-#define GATHER(b, i) ((realv)((b)[(i).s0], (b)[(i).s1], (b)[(i).s2], (b)[(i).s3], \
-                              (b)[(i).s4], (b)[(i).s5], (b)[(i).s6], (b)[(i).s7], \
-                              (b)[(i).s8], (b)[(i).s9], (b)[(i).sa], (b)[(i).sb], \
-                              (b)[(i).sc], (b)[(i).sd], (b)[(i).se], (b)[(i).sf]))
-#else
-#error "VEC must be 1, 2, 4, 8 or 16"
-#endif
-#endif
-
-#ifndef WEIGHT_BEAM
-#define WEIGHT_BEAM 0
-#endif
-
-// What every kernel here needs of one pixel and one transmitter–receiver row: T, R relative
-// to the origin pixel and their unit axes. The joint beam test is the echo engine's hard cut
-// (common.h, beam()): inside T's beam iff cosθ_T > 0 and sin²θ_T ≤ cut, with cosθ ∝ c =
-// axis·d, sinθ ∝ s = axis×d for d = p − T; sin²θ = s²/|d|² ≤ cut is tested multiplied out,
-// s² ≤ cut·|d|² (no division; the same decision but for rounding). The same for R.
-typedef struct {
-    realv dd_t, s_t, dd_r, s_r;  // |p − T|², axis_T × (p − T); the same for R
-    realv path;                  // |p − T| + |p − R|
-    maskv inside;                // inside both beams
-} pixel_view;
-
-inline pixel_view view_pixel(realv px, real py, real4 tr, real4 axes, real cut_sin2) {
-    pixel_view v;
-    realv tx = px - tr.x;
-    real ty = py - tr.y;
-    realv rx = px - tr.z;
-    real ry = py - tr.w;
-    v.dd_t = tx * tx + ty * ty;
-    v.dd_r = rx * rx + ry * ry;
-    realv c_t = axes.x * tx + axes.y * ty;
-    realv c_r = axes.z * rx + axes.w * ry;
-    v.s_t = axes.x * ty - axes.y * tx;
-    v.s_r = axes.z * ry - axes.w * rx;
-    v.path = sqrt(v.dd_t) + sqrt(v.dd_r);
-    v.inside = (c_t > R(0.0)) & (v.s_t * v.s_t <= cut_sin2 * v.dd_t) &
-               (c_r > R(0.0)) & (v.s_r * v.s_r <= cut_sin2 * v.dd_r);
-    return v;
-}
+#include "loci.h"
 
 // b(θ_T)·b(θ_R) inside both beams: common.h's beam() on vectors, the same series in the same
 // order from sin²θ = s²/|d|² (NaN where d = 0, which is never inside).
@@ -200,6 +119,25 @@ __kernel void loci_tiles(__global const real4 *loci, __global const int *members
             acc = add_vote(acc, px, py, chunk[3 * i], chunk[3 * i + 1], chunk[3 * i + 2],
                            half_band, cut_sin2, beam_u);
         barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    STOREV(acc, o);
+}
+
+// Occupancy grid (Elfes 1987; Moravec & Elfes 1985): the log-odds each detection adds to a
+// pixel inside both beams, by the sonar cone's sensor model: extra.y (occupied) where the
+// path is within the band, | |p − T| + |p − R| − L | ≤ half_band, extra.z (empty) where it
+// is shorter, |p − T| + |p − R| < L − half_band (the host puts 0 there for a pair's later
+// echoes: beyond its first echo nothing is known empty). Same rows and launch as loci_map.
+__kernel void occupancy_map(__constant real4 *loci, int n_loci, real cell, real half_band,
+                            real cut_sin2, real beam_u, int col0, int row0, int first,
+                            __global real *out, long out_offset, int pitch) {
+    PIXELS_OF_WORK_ITEM
+    for (int i = 0; i < n_loci; ++i) {
+        real4 extra = loci[3 * i + 2];
+        pixel_view v = view_pixel(px, py, loci[3 * i], loci[3 * i + 1], cut_sin2);
+        realv miss = v.path - extra.x;
+        acc += ((fabs(miss) <= half_band) & v.inside) ? (realv)(extra.y) : (realv)(R(0.0));
+        acc += ((miss < -half_band) & v.inside) ? (realv)(extra.z) : (realv)(R(0.0));
     }
     STOREV(acc, o);
 }

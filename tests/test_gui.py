@@ -500,3 +500,14 @@ def test_settings_chosen_from_the_scene_show_auto(qtbot, window):
     assert w.doc.scene.post.max_gap_m == 0.5
     w.params.set("post", "max_gap_m", "auto")
     assert w.doc.scene.post.max_gap_m is None
+
+
+
+def test_the_mapping_selector_lists_every_method(window):
+    """The parameters panel offers every mapping method of the registry (issue 15)."""
+    from clsonar.mapping import METHODS
+
+    mode = window.params.params.child("mapping", "mode")
+    assert list(mode.opts["limits"]) == list(edits.choices(type(window.doc.scene.mapping),
+                                                           "mode"))
+    assert set(mode.opts["limits"]) == set(METHODS) and len(METHODS) == 8

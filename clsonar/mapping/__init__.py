@@ -1,6 +1,6 @@
 """The map: from detected echoes to votes per cell (thesis §2.1.1, parts 3–4).
 
-Three methods, by ``mapping.mode`` (:data:`METHODS`, run by :func:`map_votes`, each returning
+The methods, by ``mapping.mode`` (:data:`METHODS`, run by :func:`map_votes`, each returning
 the :class:`Votes` post-processing starts from):
 
 **Loci** (``"loci"``, the thesis; :mod:`.launch`, :mod:`.tiles`). Each detected echo
@@ -42,6 +42,13 @@ pair's envelope at the pixel's delay ``(|p − T| + |p − R|)/c``, linearly int
 samples taken every ``dt`` from 0 (0 past the last sample); with ``weight = "beam"`` times
 b(θ_T)·b(θ_R), otherwise unweighted (:func:`backproject`).
 
+**The arc-map methods of the literature** (issue 15; docs/mapping.md): point marking
+(``"point-marking"``, :func:`arc_middles`), the directional maximum
+(``"directional-maximum"``, :func:`arc_maxima`, kernels of ``kernels/directional.cl``), the
+occupancy grid (``"occupancy"``, :func:`occupancy_grid`, :mod:`.occupancy`) and morphological
+processing (``"morphological"``, :func:`closed_arc_map`); :mod:`.arcs`,
+:mod:`.directional`.
+
 Two implementations of loci and back-projection, as for the echoes: :func:`accumulate` and
 :func:`backproject` run the OpenCL kernels of ``kernels/accumulate.cl`` (float32 by default,
 float64 where the device has ``cl_khr_fp64``; :mod:`.launch`); :func:`accumulate_reference`
@@ -69,7 +76,8 @@ against every locus.
 The modules: :mod:`.grid` (the map's grid, band, memory check), :mod:`.loci` (the inputs),
 :mod:`.reference`, :mod:`.tiles`, :mod:`.launch`, :mod:`.tangents`, :mod:`.envelope`,
 :mod:`.points`, :mod:`.models`, :mod:`.families`, :mod:`.patches`, :mod:`.joins`,
-:mod:`.reflectors` and :mod:`.methods` (the registry). The scalar launch limits
+:mod:`.reflectors`, :mod:`.arcs`, :mod:`.directional`, :mod:`.occupancy` and
+:mod:`.methods` (the registry). The scalar launch limits
 (``MAX_ROWS_PER_LAUNCH``, ``MAX_LAUNCH_BYTES``, ``MAX_PAIRS_PER_LAUNCH``, ``TILE_CHUNK``,
 ``BIN_*``) are read from their own modules: set them there.
 """
@@ -84,6 +92,7 @@ __all__ = [
     "TILES",
     "WEIGHTS",
     "AccumulationStats",
+    "ArcMaxima",
     "Loci",
     "MapGrid",
     "MapMethod",
@@ -93,23 +102,35 @@ __all__ = [
     "accumulate",
     "accumulate_reference",
     "accumulate_with_stats",
+    "arc_maxima",
+    "arc_maxima_reference",
+    "arc_middles",
     "as_loci",
     "backproject",
     "backproject_reference",
     "backprojection_votes",
+    "band_boxes",
     "band_m",
     "bin_loci",
     "cell_centres",
+    "cell_points",
     "check_map_memory",
     "check_pair_memory",
+    "closed_arc_map",
     "count_viewpoints",
+    "directional_maximum_votes",
     "envelope_links",
     "in_beams",
     "loci_votes",
     "map_grid",
     "map_votes",
     "merge_reciprocal",
+    "morphological_votes",
+    "occupancy_grid",
+    "occupancy_grid_reference",
+    "occupancy_votes",
     "point_map",
+    "point_marking_votes",
     "points_window",
     "prepare_backprojection",
     "prepare_loci",
@@ -123,6 +144,8 @@ __all__ = [
     "work_items",
 ]
 
+from .arcs import arc_middles, cell_points, closed_arc_map
+from .directional import ArcMaxima, arc_maxima, arc_maxima_reference
 from .envelope import envelope_links, in_beams, scan_envelope
 from .grid import (
     LAUNCH,
@@ -135,7 +158,14 @@ from .grid import (
     map_grid,
     work_items,
 )
-from .launch import TILES, AccumulationStats, accumulate, accumulate_with_stats, backproject
+from .launch import (
+    TILES,
+    AccumulationStats,
+    accumulate,
+    accumulate_with_stats,
+    backproject,
+    occupancy_grid,
+)
 from .loci import (
     WEIGHTS,
     Loci,
@@ -151,13 +181,22 @@ from .methods import (
     MapMethod,
     Votes,
     backprojection_votes,
+    directional_maximum_votes,
     loci_votes,
     map_votes,
+    morphological_votes,
+    occupancy_votes,
+    point_marking_votes,
     reflector_votes,
     tangent_votes,
 )
 from .points import point_map, points_window
-from .reference import accumulate_reference, backproject_reference, reference_beam
+from .reference import (
+    accumulate_reference,
+    backproject_reference,
+    occupancy_grid_reference,
+    reference_beam,
+)
 from .reflectors import reflector_points
 from .tangents import LOCUS_SAMPLES, tangent_map, tangent_points
-from .tiles import TileBins, bin_loci
+from .tiles import TileBins, band_boxes, bin_loci

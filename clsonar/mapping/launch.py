@@ -1,5 +1,6 @@
 """The host side of ``kernels/accumulate.cl``: :func:`accumulate` (loci, tiled or dense),
-:func:`accumulate_with_stats` (with its :class:`AccumulationStats`) and :func:`backproject`.
+:func:`accumulate_with_stats` (with its :class:`AccumulationStats`), :func:`occupancy_grid` and
+:func:`backproject`.
 
 One work item computes 8 pixels of a row as one float8 vector on a CPU (PoCL does not
 vectorise across work items a kernel with a loop), one pixel on a GPU (:data:`LAUNCH`); the
@@ -33,6 +34,7 @@ from ..scene import MappingSettings, Scene
 from ..sensors import SensorArray
 from .grid import LAUNCH, check_map_memory, work_items
 from .loci import LOCUS_COLUMNS, MapProblem, prepare_backprojection, prepare_loci
+from .occupancy import prepare_occupancy
 from .tiles import bin_loci
 
 #: Most loci (or back-projection pairs) per kernel launch; fewer where the device's
@@ -335,3 +337,20 @@ def backproject(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float,
     check_map_memory(scene, precision, ctx.devices[0])
     pb = prepare_backprojection(scene, sensors, pairs, envelopes, dt, settings)
     return _run(ctx, pb, precision, "backproject_map")
+
+
+def occupancy_grid(scene: Scene, sensors: SensorArray, loci, *, context=None,
+              device: str | None = None, precision: str | None = None,
+              settings: MappingSettings | None = None) -> np.ndarray:
+    """The occupancy grid's log-odds ``[ny, nx]`` (``mapping.mode = "occupancy"``; Elfes
+    1987) by the OpenCL kernel ``occupancy_map``: every detection of ``loci`` adds, inside
+    both beams, the occupied evidence over its band and the empty evidence nearer than it
+    (:mod:`clsonar.mapping.occupancy`). Dense (every pixel against every detection: the
+    empty cones cover most of the beams), otherwise as :func:`accumulate`; same model as
+    :func:`~clsonar.mapping.occupancy_grid_reference`."""
+    settings = settings if settings is not None else scene.mapping
+    precision = precision or settings.precision
+    ctx = context_for(context, device, precision)
+    check_map_memory(scene, precision, ctx.devices[0])
+    return _run(ctx, prepare_occupancy(scene, sensors, loci, settings), precision,
+                "occupancy_map")

@@ -18,8 +18,11 @@ from ..scene import Scene
 from ..scene.settings import chosen
 from ..sensors import SensorArray, pairs
 from ..signals import Detections
-from .launch import AccumulationStats, accumulate_with_stats, backproject
+from .arcs import arc_middles, cell_points, closed_arc_map
+from .directional import arc_maxima
+from .launch import AccumulationStats, accumulate_with_stats, backproject, occupancy_grid
 from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
+from .occupancy import OCCUPIED_LOG_ODDS
 from .reflectors import reflector_points
 from .tangents import tangent_map
 
@@ -33,8 +36,12 @@ class Votes:
     reflection points (with their pairs) whose map is drawn after the line-of-sight check."""
 
     raw: np.ndarray | None = None  # [ny, nx] votes (loci, backprojection)
-    points: np.ndarray | None = None  # [n, 2] estimated reflection points (tangents)
-    tx: np.ndarray | None = None  # [n] transmitter index of each point's pair
+    #: [n, 2] estimated reflection points (tangents, point-marking, directional-maximum), or
+    #: the centres of the cells a method marks occupied (occupancy, morphological)
+    points: np.ndarray | None = None
+    #: [n] transmitter index of each point's pair (None: points without a pair, which the
+    #: line of sight cannot check)
+    tx: np.ndarray | None = None
     rx: np.ndarray | None = None  # [n] receiver index
     counts: dict[str, int] = field(default_factory=dict)  # the stage's counters
     #: [k, 2] located point reflectors (corners, edges, thin posts; reflectors)
@@ -66,11 +73,11 @@ def backprojection_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     return Votes(raw=backproject(scene, sensors, pairs(sensors), env, dt, context=context))
 
 
-def loci_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
-               detections: Detections, context: cl.Context, tiles: bool) -> Votes:
-    """``"loci"`` (the thesis): the loci drawn (:func:`~clsonar.mapping.accumulate`), all in
-    one map (``combine = "sum"``) or counted by viewpoint (``"viewpoints"``,
-    :func:`~clsonar.mapping.count_viewpoints`); counts the tiled accumulation's work."""
+def _arc_map(scene: Scene, sensors: SensorArray, loci: Loci, context: cl.Context,
+             tiles: bool) -> tuple[np.ndarray, dict[str, int]]:
+    """The loci drawn (:func:`~clsonar.mapping.accumulate`), all in one map
+    (``combine = "sum"``) or counted by viewpoint (``"viewpoints"``,
+    :func:`~clsonar.mapping.count_viewpoints`), and the tiled accumulation's counters."""
     stats: list[AccumulationStats] = []
 
     def draw(part) -> np.ndarray:
@@ -78,14 +85,64 @@ def loci_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
         stats.append(one)
         return votes
 
-    loci = _loci(scene, detections)
     raw = (count_viewpoints(scene, sensors, loci, draw)
            if scene.mapping.combine == "viewpoints" else draw(loci))
-    return Votes(raw=raw, counts={
+    return raw, {
         "tiles_total": sum(t.tiles_total for t in stats),
         "tiles_skipped": sum(t.tiles_skipped for t in stats),
         "pixel_locus_tests": sum(t.pixel_locus_tests for t in stats),
-        "dense_pixel_locus_tests": sum(t.dense_tests for t in stats)})
+        "dense_pixel_locus_tests": sum(t.dense_tests for t in stats)}
+
+
+def loci_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+               detections: Detections, context: cl.Context, tiles: bool) -> Votes:
+    """``"loci"`` (the thesis; voting and thresholding, VT): the loci drawn, summed or
+    counted by viewpoint (:func:`_arc_map`); counts the tiled accumulation's work."""
+    raw, counts = _arc_map(scene, sensors, _loci(scene, detections), context, tiles)
+    return Votes(raw=raw, counts=counts)
+
+
+def point_marking_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+                        detections: Detections, context: cl.Context, tiles: bool) -> Votes:
+    """``"point-marking"`` (PM): one point at the middle of each locus' in-beam arc
+    (:func:`~clsonar.mapping.arc_middles`), with its pair."""
+    loci = _loci(scene, detections)
+    points, source = arc_middles(scene, sensors, loci)
+    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source],
+                 counts={"arc_points": len(points)})
+
+
+def directional_maximum_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+                              detections: Detections, context: cl.Context,
+                              tiles: bool) -> Votes:
+    """``"directional-maximum"`` (DM; Barshan 2007): the loci drawn as for ``"loci"``, then
+    along each locus the cells where that map is largest (:func:`~clsonar.mapping.arc_maxima`),
+    each as its centre with the locus' pair."""
+    loci = _loci(scene, detections)
+    raw, counts = _arc_map(scene, sensors, loci, context, tiles)
+    kept = arc_maxima(scene, sensors, loci, raw, context=context)
+    return Votes(points=cell_points(scene, kept.cells), tx=loci.tx[kept.source],
+                 rx=loci.rx[kept.source], counts={**counts, "arc_maxima": len(kept.cells)})
+
+
+def occupancy_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+                    detections: Detections, context: cl.Context, tiles: bool) -> Votes:
+    """``"occupancy"`` (BU; Elfes 1987): the occupancy grid's log-odds
+    (:func:`~clsonar.mapping.occupancy_grid`); the centres of the cells above
+    :data:`~clsonar.mapping.occupancy.OCCUPIED_LOG_ODDS`."""
+    odds = occupancy_grid(scene, sensors, _loci(scene, detections), context=context)
+    cells = np.flatnonzero(odds.ravel() > OCCUPIED_LOG_ODDS)
+    return Votes(points=cell_points(scene, cells), counts={"grid_occupied_cells": len(cells)})
+
+
+def morphological_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+                        detections: Detections, context: cl.Context, tiles: bool) -> Votes:
+    """``"morphological"`` (MP; Başkent & Barshan 1999): the binary arc map closed
+    (:func:`~clsonar.mapping.closed_arc_map`), its cells' centres; post-processing thins
+    them."""
+    raw, counts = _arc_map(scene, sensors, _loci(scene, detections), context, tiles)
+    cells = np.flatnonzero(closed_arc_map(raw).ravel())
+    return Votes(points=cell_points(scene, cells), counts={**counts, "closed_cells": len(cells)})
 
 
 def tangent_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
@@ -119,6 +176,10 @@ METHODS: dict[str, MapMethod] = {
     "backprojection": backprojection_votes,
     "tangents": tangent_votes,
     "reflectors": reflector_votes,
+    "point-marking": point_marking_votes,
+    "directional-maximum": directional_maximum_votes,
+    "occupancy": occupancy_votes,
+    "morphological": morphological_votes,
 }
 
 

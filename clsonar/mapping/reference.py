@@ -1,7 +1,7 @@
 """The NumPy float64 reference of the map's kernels (``kernels/accumulate.cl``):
-:func:`accumulate_reference` and :func:`backproject_reference` evaluate the kernels'
-expressions, in the same order, in float64, so the float64 kernels reproduce them bit for
-bit (the model is described in :mod:`clsonar.mapping`)."""
+:func:`accumulate_reference`, :func:`occupancy_grid_reference` and :func:`backproject_reference`
+evaluate the kernels' expressions, in the same order, in float64, so the float64 kernels
+reproduce them bit for bit (the model is described in :mod:`clsonar.mapping`)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from ..scene import MappingSettings, Scene
 from ..sensors import SensorArray
 from .grid import check_map_memory
 from .loci import MapProblem, prepare_backprojection, prepare_loci
+from .occupancy import prepare_occupancy
 
 
 def reference_beam(sin2: np.ndarray, beam_u: float) -> np.ndarray:
@@ -24,7 +25,7 @@ def reference_beam(sin2: np.ndarray, beam_u: float) -> np.ndarray:
     return (1.0 - u) * acc
 
 
-def _ref_view(pb: MapProblem, row: np.ndarray) -> dict[str, np.ndarray]:
+def pixel_view(pb: MapProblem, row: np.ndarray) -> dict[str, np.ndarray]:
     """|p − T|², axis_T × (p − T) (the same for R), |p − T| + |p − R| and the joint-beam
     mask over the whole map, evaluated exactly as the kernels' ``view_pixel``."""
     g = pb.grid
@@ -55,10 +56,21 @@ def _reference_loci(pb: MapProblem) -> np.ndarray:
     acc = np.zeros((pb.grid.ny, pb.grid.nx))
     with np.errstate(divide="ignore", invalid="ignore"):
         for row in pb.rows:
-            v = _ref_view(pb, row)
+            v = pixel_view(pb, row)
             vote = (np.abs(v["path"] - row[8]) <= pb.half_band) & v["inside"]
             w = _ref_joint_beam(pb, v) if pb.weight == "beam" else row[9]
             acc += np.where(vote, w, 0.0)
+    return acc
+
+
+def _reference_occupancy(pb: MapProblem) -> np.ndarray:
+    acc = np.zeros((pb.grid.ny, pb.grid.nx))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for row in pb.rows:
+            v = pixel_view(pb, row)
+            miss = v["path"] - row[8]
+            acc += np.where((np.abs(miss) <= pb.half_band) & v["inside"], row[9], 0.0)
+            acc += np.where((miss < -pb.half_band) & v["inside"], row[10], 0.0)
     return acc
 
 
@@ -70,7 +82,7 @@ def _reference_backprojection(pb: MapProblem) -> np.ndarray:
     last = float(env.shape[1] - 1) if env.ndim == 2 else 1.0
     with np.errstate(divide="ignore", invalid="ignore"):
         for i, row in enumerate(pb.rows):
-            v = _ref_view(pb, row)
+            v = pixel_view(pb, row)
             t = v["path"] * pb.inv_c_dt
             k = np.minimum(np.floor(t), last - 1.0)
             f = t - k
@@ -88,6 +100,14 @@ def accumulate_reference(scene: Scene, sensors: SensorArray, loci, *,
     """The loci map in NumPy float64 ([ny, nx]): the reference of :func:`accumulate`."""
     check_map_memory(scene, "float64", reference=True)
     return _reference_loci(prepare_loci(scene, sensors, loci, settings))
+
+
+def occupancy_grid_reference(scene: Scene, sensors: SensorArray, loci, *,
+                        settings: MappingSettings | None = None) -> np.ndarray:
+    """The occupancy grid's log-odds in NumPy float64 ([ny, nx]): the reference of
+    :func:`~clsonar.mapping.occupancy_grid`."""
+    check_map_memory(scene, "float64", reference=True)
+    return _reference_occupancy(prepare_occupancy(scene, sensors, loci, settings))
 
 
 def backproject_reference(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float, *,

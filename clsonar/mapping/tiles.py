@@ -134,6 +134,20 @@ def _reach(pb: MapProblem) -> _Reach:
                   reach.all(axis=1))
 
 
+def band_boxes(pb: MapProblem) -> np.ndarray:
+    """[n, 4] int32 ``(x0, y0, x1, y1)``: the map pixels (inclusive) of the bounding box of
+    each locus' band inside both beams (:func:`_reach`: the outer ellipse ∩ the beams'
+    sectors, padded as the binning is, so every pixel the kernels give a vote lies in it);
+    x1 < x0 for a locus that reaches no pixel."""
+    if len(pb.rows) == 0:
+        return np.zeros((0, 4), dtype=np.int32)
+    r = _reach(pb)
+    top = r.size - 1
+    first, last = np.clip(r.first, 0, top), np.clip(r.last, 0, top)
+    last[~r.reach, 0] = first[~r.reach, 0] - 1
+    return np.concatenate([first, last], axis=1).astype(np.int32)
+
+
 def _coarse_levels(ntx: int, nty: int) -> int:
     """Coarse levels of BIN_REFINE² tiles each, down to at most 8 × 8 tiles."""
     levels = 0

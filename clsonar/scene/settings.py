@@ -28,7 +28,8 @@ EdgeModel = Literal["estimate", "utd"]
 DetectionMode = Literal["threshold", "envelope"]
 
 #: How detections become a map (:class:`MappingSettings`).
-MappingMode = Literal["loci", "tangents", "backprojection", "reflectors"]
+MappingMode = Literal["loci", "tangents", "backprojection", "reflectors", "point-marking",
+                      "directional-maximum", "occupancy", "morphological"]
 
 #: The vote of a locus (``loci`` mapping).
 VoteWeight = Literal["unit", "amplitude", "beam"]
@@ -167,12 +168,19 @@ class MappingSettings:
       circles drawn over their regions of constant depth (Leonard & Durrant-Whyte 1991),
       points and corners located as vertices (mapping.reflector_points). Rings, and every
       group of a scene whose transducers stand inside a closed room, as ``tangents``.
+    - The arc-map methods of the literature (docs/mapping.md): ``point-marking`` (PM: the
+      middle of each locus' in-beam arc), ``directional-maximum`` (DM, Barshan 2007: the
+      loci drawn as ``loci``, then along each locus the cells where that map is largest),
+      ``occupancy`` (BU, Elfes 1987: an occupancy grid updated in log-odds by a sonar-cone
+      model) and ``morphological`` (MP, Başkent & Barshan 1999: the binary loci map closed,
+      then thinned).
 
     ``reciprocal``: ``merge`` makes the detections of (T, R) and (R, T) — one path measured
     twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
-    ``precision``: the kernels' arithmetic. ``line_of_sight`` (``tangents`` and
-    ``reflectors``): drop the points that the map itself shows hidden behind a surface from
-    their transducers — the ghosts of multiply reflected echoes (sight.line_of_sight).
+    ``precision``: the kernels' arithmetic. ``line_of_sight`` (the modes whose points have
+    their pairs: ``tangents``, ``reflectors``, ``point-marking``, ``directional-maximum``):
+    drop the points that the map itself shows hidden behind a surface from their
+    transducers — the ghosts of multiply reflected echoes (sight.line_of_sight).
     """
 
     mode: MappingMode = "reflectors"

@@ -1,0 +1,345 @@
+"""The arc-map methods of the literature (issue 15; docs/mapping.md): point marking, the
+directional maximum, the occupancy grid and morphological processing, each on a case whose
+answer is known by hand; the directional maximum's and the occupancy grid's kernels against
+their NumPy float64 references on generated cases; every mode through the pipeline."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import clsonar.mapping as mapping
+from clsonar import pipeline, post
+from clsonar.files import bundled_scenes
+from clsonar.mapping.occupancy import P_EMPTY, P_OCCUPIED, log_odds
+from clsonar.mapping.reference import pixel_view
+from clsonar.opencl import get_context, has_fp64
+from clsonar.scene import MappingSettings, PostSettings, Scene, TransducerModel, load_scene
+from clsonar.sensors import SensorArray
+
+EPS32 = float(np.finfo(np.float32).eps)
+NEW_MODES = ("point-marking", "directional-maximum", "occupancy", "morphological")
+
+
+@functools.cache
+def context():
+    return get_context()
+
+
+def precisions() -> tuple[str, ...]:
+    return ("float32", "float64") if has_fp64(context()) else ("float32",)
+
+
+def scene_of(extent=(0.0, 0.0, 3.0, 2.0), cell=0.01, mode="loci", band_m=None,
+             combine="sum") -> Scene:
+    return Scene(name="methods-test", extent=extent, cell=cell, transducer=TransducerModel(),
+                 mapping=MappingSettings(mode=mode, band_m=band_m, combine=combine))
+
+
+def sensors_of(transducers, groups=None) -> SensorArray:
+    """Transducers ``(x, y, heading_deg)``, in ``groups`` (default all in group 0)."""
+    t = np.asarray(transducers, dtype=np.float64).reshape(-1, 3)
+    g = np.zeros(len(t), np.int64) if groups is None else np.asarray(groups, np.int64)
+    return SensorArray(t[:, :2].copy(), t[:, 2].copy(), g, np.zeros((0, 2)))
+
+
+def loci_of(scene: Scene, rows) -> mapping.Loci:
+    """Rows ``(tx, rx, path length c·τ in m)``, amplitude 1."""
+    r = np.asarray(rows, dtype=np.float64).reshape(-1, 3)
+    return mapping.Loci(r[:, 0].astype(np.int64), r[:, 1].astype(np.int64),
+                        r[:, 2] / scene.medium.c, np.ones(len(r)))
+
+
+def votes_of(scene, sensors, loci) -> mapping.Votes:
+    """The method ``scene.mapping.mode`` names, on ``loci`` as detections."""
+    return mapping.map_votes(scene, sensors, None, loci, context=context())  # type: ignore[arg-type]
+
+
+def cells_of(scene: Scene, points: np.ndarray) -> set[tuple[int, int]]:
+    xmin, ymin = scene.extent[:2]
+    return {(math.floor((y - ymin) / scene.cell), math.floor((x - xmin) / scene.cell))
+            for x, y in points}
+
+
+# --------------------------------------------------------------------------- point marking
+
+
+def test_point_marking_puts_a_wall_seen_square_on_at_its_foot():
+    """A transducer 2 m from a wall, facing it square on, and a pair 0.2 m apart facing it:
+    the middle of each in-beam arc is the foot of the wall in front of the transducer (of
+    the pair's midpoint), within a cell."""
+    scene = scene_of(mode="point-marking")
+    sensors = sensors_of([(0.5, 1.0, 0.0), (0.5, 0.9, 0.0), (0.5, 1.1, 0.0)])
+    wall_x = 2.5
+    pair_path = 2.0 * math.hypot(wall_x - 0.5, 0.1)
+    loci = loci_of(scene, [(0, 0, 2.0 * (wall_x - 0.5)), (1, 2, pair_path)])
+    votes = votes_of(scene, sensors, loci)
+    assert votes.raw is None and votes.points is not None and votes.tx is not None
+    assert votes.points.shape == (2, 2)
+    assert np.all(np.hypot(votes.points[:, 0] - wall_x, votes.points[:, 1] - 1.0)
+                  < scene.cell)
+    assert votes.tx.tolist() == [0, 1] and votes.rx is not None and votes.rx.tolist() == [0, 2]
+    # the point lies on its locus
+    d = np.hypot(*(votes.points[1] - sensors.positions[1])) + np.hypot(
+        *(votes.points[1] - sensors.positions[2]))
+    assert d == pytest.approx(pair_path, abs=1e-4)
+
+
+def test_point_marking_follows_a_turned_transducer_and_skips_loci_out_of_its_beams():
+    """A transducer turned 30°: its point is on its axis at the range; a pair whose beams
+    do not meet on the locus gives none."""
+    scene = scene_of(mode="point-marking")
+    sensors = sensors_of([(0.5, 0.5, 30.0), (0.5, 1.5, 90.0)])
+    loci = loci_of(scene, [(0, 0, 2.0), (0, 1, 2.5)])
+    points, source = mapping.arc_middles(scene, sensors, loci)
+    want = np.array([0.5 + math.cos(math.radians(30.0)), 0.5 + math.sin(math.radians(30.0))])
+    assert source.tolist() == [0]
+    assert np.hypot(*(points[0] - want)) < 0.5 * scene.cell
+
+
+# --------------------------------------------------------------------------- directional maximum
+
+
+def crossing_arcs():
+    """Two viewpoints (groups) whose monostatic arcs cross at Q, a cell centre, each
+    transducer aimed at Q from 1.118 m."""
+    q = np.array([1.505, 1.005])
+    t0, t1 = q - (1.0, 0.5), q - (1.0, -0.5)
+    aim = math.degrees(math.atan2(0.5, 1.0))
+    sensors = sensors_of([(*t0, aim), (*t1, -aim)], groups=[0, 1])
+    r = math.hypot(1.0, 0.5)
+    return q, sensors, [(0, 0, 2 * r), (1, 1, 2 * r)]
+
+
+@pytest.mark.parametrize("combine", ["sum", "viewpoints"])
+def test_directional_maximum_keeps_where_two_arcs_cross(combine):
+    q, sensors, rows = crossing_arcs()
+    scene = scene_of(mode="directional-maximum", combine=combine)
+    loci = loci_of(scene, rows)
+    acc = mapping.accumulate(scene, sensors, loci, context=context())
+    iq = (int(q[1] / scene.cell), int(q[0] / scene.cell))
+    assert acc[iq] == 2.0 and acc.max() == 2.0 and np.count_nonzero(acc == 1.0) > 100
+    votes = votes_of(scene, sensors, loci)
+    assert votes.raw is None and votes.points is not None and votes.tx is not None
+    kept = cells_of(scene, votes.points)
+    assert iq in kept
+    # only the cells both arcs cross, each kept by both arcs
+    assert all(acc[c] == 2.0 for c in kept)
+    assert len(votes.points) == 2 * len(kept) == 2 * np.count_nonzero(acc == 2.0)
+    assert sorted(votes.tx.tolist()) == [0] * len(kept) + [1] * len(kept)
+    assert np.all(np.hypot(*(votes.points - q).T) < 2.5 * scene.cell)
+
+
+def test_directional_maximum_of_a_lone_arc_is_the_arc():
+    """With nothing else on the map every cell of an arc is its maximum."""
+    scene = scene_of()
+    sensors = sensors_of([(0.5, 1.0, 0.0)])
+    loci = loci_of(scene, [(0, 0, 3.0)])
+    acc = mapping.accumulate(scene, sensors, loci, context=context())
+    found = mapping.arc_maxima(scene, sensors, loci, acc, context=context())
+    assert found.best.tolist() == [1.0]
+    assert np.array_equal(found.cells, np.flatnonzero(acc.ravel()))
+
+
+@st.composite
+def arc_cases(draw):
+    """A map 20–70 cells a side anywhere in ±100 m, 1–3 transducers aimed near points of
+    it, 1–5 loci (T = R or not) through points near it, and an accumulated map of small
+    integers (ties everywhere) or the loci's own map."""
+    cell = draw(st.floats(0.005, 0.05))
+    nx, ny = draw(st.integers(20, 70)), draw(st.integers(20, 70))
+    x0, y0 = draw(st.floats(-100.0, 100.0)), draw(st.floats(-100.0, 100.0))
+    w, h = nx * cell * 0.999, ny * cell * 0.999
+    band = draw(st.one_of(st.none(), st.floats(0.5, 3.0).map(lambda f: f * cell)))
+    scene = scene_of((x0, y0, x0 + w, y0 + h), cell, band_m=band)
+    unit = st.floats(-0.3, 1.3)
+
+    def point():
+        return np.array([x0 + draw(unit) * w, y0 + draw(unit) * h])
+
+    transducers = []
+    for _ in range(draw(st.integers(1, 3))):
+        p, aim = point(), point()
+        heading = math.degrees(math.atan2(*(aim - p)[::-1])) + draw(st.floats(-15.0, 15.0))
+        transducers.append((*p, heading))
+    sensors = sensors_of(transducers)
+    rows = []
+    for _ in range(draw(st.integers(1, 5))):
+        t = draw(st.integers(0, len(transducers) - 1))
+        r = t if draw(st.booleans()) else draw(st.integers(0, len(transducers) - 1))
+        q = point()
+        path = sum(math.hypot(*(q - np.array(transducers[k][:2]))) for k in (t, r))
+        rows.append((t, r, path + draw(st.floats(-2.0, 2.0)) * cell))
+    loci = loci_of(scene, rows)
+    seed = draw(st.integers(0, 2**31 - 1))
+    acc = (np.random.default_rng(seed).integers(0, 4, scene.grid_shape).astype(np.float64)
+           if draw(st.booleans()) else mapping.accumulate_reference(scene, sensors, loci))
+    return scene, sensors, loci, acc
+
+
+def near_edges(scene, sensors, loci, ulps: float = 16.0) -> np.ndarray:
+    """[n, ny, nx]: pixels within ``ulps`` float32 roundings of a locus' band edge (or of
+    the edge of its empty region, the same path) or of a beam's edge."""
+    pb = mapping.prepare_loci(scene, sensors, loci)
+    g = pb.grid
+    scale = math.hypot(g.nx, g.ny) * g.cell + float(np.abs(pb.rows[:, :4]).max())
+    tol = ulps * EPS32 * scale
+    out = []
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for row in pb.rows:
+            v = pixel_view(pb, row)
+            band = np.abs(np.abs(v["path"] - row[8]) - pb.half_band) <= tol * (1 + row[8])
+            beam = ((np.abs(v["s_t"] ** 2 - pb.cut_sin2 * v["dd_t"]) <= tol * (1 + v["dd_t"]))
+                    | (np.abs(v["s_r"] ** 2 - pb.cut_sin2 * v["dd_r"]) <= tol * (1 + v["dd_r"])))
+            out.append(band | beam)
+    return np.asarray(out)
+
+
+@settings(max_examples=60, deadline=None)
+@given(arc_cases())
+def test_arc_maxima_kernels_match_the_reference(case):
+    scene, sensors, loci, acc = case
+    ref = mapping.arc_maxima_reference(scene, sensors, loci, acc)
+    assert len(ref.best) == len(loci) and np.all(ref.best >= 0)
+    # the reference by its definition: each kept cell is on its arc and holds its best
+    assert np.all(acc.ravel()[ref.cells] == ref.best[ref.source])
+    for precision in precisions():
+        got = mapping.arc_maxima(scene, sensors, loci, acc, context=context(),
+                                 precision=precision)
+        if precision == "float64":
+            for a, b in ((got.best, ref.best), (got.source, ref.source),
+                         (got.cells, ref.cells)):
+                assert np.array_equal(a, b)
+            continue
+        edges = near_edges(scene, sensors, loci)
+        for i in range(len(loci)):  # float32 decides alike but near an edge
+            if edges[i].any():
+                continue
+            assert got.best[i] == ref.best[i]
+            assert np.array_equal(got.cells[got.source == i], ref.cells[ref.source == i])
+
+
+# --------------------------------------------------------------------------- occupancy
+
+
+def test_occupancy_marks_in_front_of_a_wall_empty_and_the_band_occupied():
+    """A transducer 1 m from a wall, square on: inside its beam the cells nearer than the
+    echo's band are empty (the log-odds of P_EMPTY), the band occupied (of P_OCCUPIED),
+    the cells beyond the echo and outside the beam untouched."""
+    scene = scene_of(mode="occupancy")
+    sensors = sensors_of([(0.505, 1.005, 0.0)])
+    loci = loci_of(scene, [(0, 0, 2.0)])
+    odds = mapping.occupancy_grid(scene, sensors, loci, context=context())
+    arc = mapping.accumulate(scene, sensors, loci, context=context()) > 0
+    occ, emp = log_odds(P_OCCUPIED), log_odds(P_EMPTY)
+    assert emp == pytest.approx(-occ)
+    assert np.array_equal(odds > 0, arc)
+    assert np.allclose(odds[arc], occ, rtol=1e-6)
+    row = 100  # y = 1.005, the axis
+    for x, want in ((0.7, emp), (1.0, emp), (1.45, emp), (1.505, occ), (1.6, 0.0), (2.5, 0.0)):
+        assert odds[row, int(x / scene.cell)] == pytest.approx(want, rel=1e-6), x
+    assert odds[150, 100] == 0.0  # 0.5 m off the axis at 0.5 m: outside the ±12° beam
+    votes = votes_of(scene, sensors, loci)
+    assert votes.tx is None and votes.points is not None
+    assert cells_of(scene, votes.points) == set(zip(*np.nonzero(arc), strict=True))
+
+
+def test_occupancy_adds_readings_and_a_pairs_later_echo_clears_nothing():
+    """Readings add up in log-odds: a cell one reading sees occupied and another empty is
+    even (not occupied); a pair's second echo, beyond its first, leaves the first's band
+    occupied."""
+    scene = scene_of(mode="occupancy")
+    sensors = sensors_of([(0.505, 1.005, 0.0), (0.205, 1.005, 0.0)])
+    occ = log_odds(P_OCCUPIED)
+    both = loci_of(scene, [(0, 0, 2.0), (1, 1, 2.6)])  # 1 m and 1.3 m: both at x = 1.505
+    odds = mapping.occupancy_grid(scene, sensors, both, context=context())
+    assert odds[100, 150] == pytest.approx(2 * occ, rel=1e-6)
+    cleared = loci_of(scene, [(0, 0, 2.0), (1, 1, 3.6)])  # the second sees past x = 1.505
+    odds = mapping.occupancy_grid(scene, sensors, cleared, context=context())
+    assert odds[100, 150] == pytest.approx(0.0, abs=1e-6)
+    assert odds[100, 200] == pytest.approx(occ, rel=1e-6)
+    later = loci_of(scene, [(0, 0, 2.0), (0, 0, 3.0)])  # one pair's first and second echo
+    odds = mapping.occupancy_grid(scene, sensors, later, context=context())
+    assert odds[100, 150] == pytest.approx(occ, rel=1e-6)
+    assert odds[100, 200] == pytest.approx(occ, rel=1e-6)
+    assert odds[100, 120] == pytest.approx(log_odds(P_EMPTY), rel=1e-6)
+
+
+@settings(max_examples=60, deadline=None)
+@given(arc_cases())
+def test_occupancy_kernel_matches_the_reference(case):
+    scene, sensors, loci, _ = case
+    ref = mapping.occupancy_grid_reference(scene, sensors, loci)
+    assert ref.shape == scene.grid_shape and ref.dtype == np.float64
+    for precision in precisions():
+        got = mapping.occupancy_grid(scene, sensors, loci, context=context(),
+                                     precision=precision)
+        if precision == "float64":
+            assert np.array_equal(got, ref)
+            continue
+        differ = np.abs(got - ref) > 1e-5 * (1.0 + np.abs(ref))
+        assert not np.any(differ & ~near_edges(scene, sensors, loci).any(axis=0))
+
+
+# --------------------------------------------------------------------------- morphological
+
+
+def test_morphological_processing_of_one_arc_is_a_one_cell_thick_curve():
+    """One arc (a band √2 cells thick) closed and thinned: an 8-connected curve one cell
+    thick along the arc, about as many cells as the arc is long."""
+    scene = scene_of(mode="morphological")
+    sensors = sensors_of([(0.5, 1.0, 0.0)])
+    radius = 1.5
+    loci = loci_of(scene, [(0, 0, 2 * radius)])
+    votes = votes_of(scene, sensors, loci)
+    assert votes.tx is None and votes.points is not None
+    closed = np.zeros(scene.grid_shape, bool)
+    closed[tuple(np.array(sorted(cells_of(scene, votes.points))).T)] = True
+    arc = mapping.accumulate(scene, sensors, loci, context=context()) > 0
+    assert np.all(closed[arc]) and closed.sum() <= arc.sum() * 1.2
+    thin = post.thin_map(closed, PostSettings())
+    assert not np.any(thin[:-1, :-1] & thin[1:, :-1] & thin[:-1, 1:] & thin[1:, 1:])
+    iy, ix = np.nonzero(thin)
+    r = np.hypot((ix + 0.5) * scene.cell - 0.5, (iy + 0.5) * scene.cell - 1.0)
+    assert np.all(np.abs(r - radius) <= scene.cell)
+    length = 2 * radius * math.radians(12.0)
+    assert 0.7 * length / scene.cell <= thin.sum() <= 1.1 * length / scene.cell
+    assert len(set(iy.tolist())) == thin.sum()  # one cell per row: the arc runs along y
+
+
+def test_closing_fills_the_gap_between_two_arcs():
+    binary = np.zeros((9, 12), bool)
+    binary[4, 1:5] = True
+    binary[4, 6:11] = True  # one cell apart
+    binary[0, :3] = True  # at the map's edge: kept
+    closed = mapping.closed_arc_map(binary)
+    assert closed[4, 1:11].all() and closed[0, :3].all()
+    assert closed.sum() == binary.sum() + 1
+
+
+# --------------------------------------------------------------------------- the pipeline
+
+
+@pytest.mark.parametrize("mode", NEW_MODES)
+def test_every_new_mode_maps_the_bundled_plane(mode):
+    """plane-2m (a wall at x = 9 m seen by thesis-style arrays, 14 echoes) through the whole
+    pipeline: the thin map lies on the wall; every mode but point marking, whose dozen
+    isolated points make no curve, gives a profile there."""
+    scene = load_scene(bundled_scenes() / "plane-2m.json")
+    scene = dataclasses.replace(scene, mapping=dataclasses.replace(scene.mapping, mode=mode))
+    result = pipeline.run(scene, context=context())
+    assert result.thin is not None and result.profile is not None
+    ix = np.nonzero(result.thin)[1]
+    assert len(ix) >= 10
+    assert np.median(np.abs((ix + 0.5) * scene.cell - 9.0)) < 0.05
+    rms = result.metrics["accuracy_m"]["rms"]
+    if mode == "point-marking":
+        assert len(result.profile.points) == 0 and rms is None
+    else:
+        assert len(result.profile.points) > 100 and rms < 0.1
