@@ -834,3 +834,25 @@ def test_rings_far_from_the_walls_join_them_at_the_corners():
     assert "every 1.25 m" in result.settings_why["post.join_m"]
     assert result.metrics["vertices_found"] == "4/4"
     assert result.metrics["accuracy_m"]["rms"] <= 0.005
+
+
+def test_a_pillar_seen_from_every_side_is_fitted_though_its_stubs_lie_apart():
+    """Loci touching a 0.9 m pillar from five directions round it: their middle-of-arc
+    stubs lie farther apart than SEED_M, so no neighbourhood of one held three; the whole
+    set is tried as a seed too (zoo seed 0's T room with pillars: 0.71 -> 0.04 cm)."""
+    from clsonar.mapping.pillars import SEED_M, pillar_arcs
+
+    centre, radius = np.array([0.0, 4.5]), 0.45
+    angles = np.radians(np.arange(0, 360, 72) + 10.0)
+    u = np.stack([np.cos(angles), np.sin(angles)], axis=-1)
+    far = np.array([2.0, 3.5, 2.6, 4.1, 3.0])  # from poses at several distances
+    T = centre + far[:, None] * u
+    rho = far - radius
+    middles = centre + radius * u
+    gaps = np.hypot(*(middles[:, None] - middles[None]).transpose(2, 0, 1))
+    assert np.sort(gaps, axis=1)[:, 1].min() > SEED_M  # each stub alone in its neighbourhood
+    arcs = pillar_arcs(T, rho, middles, np.full(5, 0.003), 0.005, 0.005,
+                       lambda *_: False)
+    assert sorted(arcs) == list(range(5))
+    for arc in arcs.values():
+        assert np.abs(np.hypot(*(arc - centre).T) - radius).max() < 1e-3

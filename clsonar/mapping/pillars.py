@@ -11,7 +11,7 @@ stub off it by up to ρ·α²/2 (α the angle between the beam's axis and the pi
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -124,20 +124,28 @@ def _plausible(T: np.ndarray, rho: np.ndarray, tol: np.ndarray) -> bool:
     return bool(np.count_nonzero(off <= 3.0 * tol) >= MIN_PILLAR_LOCI)
 
 
+def _seed_sets(middles: np.ndarray) -> Iterator[np.ndarray]:
+    """The loci a reflector is first fitted to: the neighbourhood (:data:`SEED_M`) of each
+    locus' middle-of-arc point in turn, then all of them (a pillar seen from every side
+    has its stubs all round it, farther apart than SEED_M), each set once and only with
+    :data:`MIN_PILLAR_LOCI` loci or more."""
+    tried: set[bytes] = set()
+    sets = [np.flatnonzero(np.hypot(*(middles - m).T) <= SEED_M) for m in middles]
+    for near in [*sets, np.arange(len(middles))]:
+        if len(near) >= MIN_PILLAR_LOCI and near.tobytes() not in tried:
+            tried.add(near.tobytes())
+            yield near
+
+
 def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
                  seen_through: SeenThrough) -> tuple[np.ndarray, float, np.ndarray] | None:
-    """The pillar that explains the most of the loci: fitted (:func:`fit_pillar`) from the
-    neighbourhood (:data:`SEED_M`) of each locus' middle-of-arc point in turn, then again to
-    every locus it explains (several pillars in one cluster are found one by one); none
-    that the scan saw through (``seen_through``: a convex block's faces and edges, whose
-    ranges a circle can mimic, stand beside free space other elements see into)."""
+    """The pillar that explains the most of the loci: fitted (:func:`fit_pillar`) from each
+    of :func:`_seed_sets`, then again to every locus it explains (several pillars in one
+    cluster are found one by one); none that the scan saw through (``seen_through``: a
+    convex block's faces and edges, whose ranges a circle can mimic, stand beside free
+    space other elements see into)."""
     best = None
-    tried: set[bytes] = set()
-    for k in range(len(T)):
-        near = np.flatnonzero(np.hypot(*(middles - middles[k]).T) <= SEED_M)
-        if len(near) < MIN_PILLAR_LOCI or near.tobytes() in tried:
-            continue
-        tried.add(near.tobytes())
+    for near in _seed_sets(middles):
         if len(near) > MIN_PILLAR_LOCI and not _plausible(T[near], rho[near], tol[near]):
             continue
         found = fit_pillar(T[near], rho[near], middles[near], tol[near])
@@ -174,20 +182,15 @@ def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray
                 tol: np.ndarray, in_beam: InBeam) -> tuple[np.ndarray, np.ndarray] | None:
     """The point reflector that explains the most of the loci within ``tol``, from
     :data:`MIN_PILLAR_LOCI` transmitter positions or more, inside each explaining locus'
-    beams (``in_beam``): fitted from the neighbourhood (:data:`SEED_M`) of each locus'
-    middle-of-arc point in turn, then again to every locus it explains."""
+    beams (``in_beam``): fitted from each of :func:`_seed_sets`, then again to every locus
+    it explains."""
 
     def explains(v: np.ndarray) -> np.ndarray:
         off = 0.5 * (np.hypot(*(v - T).T) + np.hypot(*(v - R).T)) - a
         return (np.abs(off) <= tol) & in_beam(v)
 
     best = None
-    tried: set[bytes] = set()
-    for k in range(len(T)):
-        near = np.flatnonzero(np.hypot(*(middles - middles[k]).T) <= SEED_M)
-        if len(near) < MIN_PILLAR_LOCI or near.tobytes() in tried:
-            continue
-        tried.add(near.tobytes())
+    for near in _seed_sets(middles):
         v, off = _point_from(T[near], R[near], a[near], middles[near].mean(axis=0))
         if np.count_nonzero(np.abs(off) <= tol[near]) < MIN_PILLAR_LOCI:
             continue
