@@ -37,7 +37,7 @@ from functools import cached_property
 
 import numpy as np
 
-from .scene import Circle, Polyline, Scene, Sinusoid, Surface
+from .scene import Circle, Polyline, Scene, Sinusoid, Surface, WallFollowing
 
 #: Vertex kind codes (see the module docstring).
 FLAT, CORNER, EDGE, END, SOLID = range(5)
@@ -283,15 +283,16 @@ def enclosing(surfaces: tuple[Surface, ...]) -> list[int | None]:
 
 def sensor_anchors(scene: Scene) -> np.ndarray | None:
     """[k, 2] where ``scene``'s transducers are known to stand before they are placed: the
-    explicit transducers and each placement's start or centre; None where a placement's
-    may be anywhere (``random-lines`` without a start) or scans a room's walls
-    (``per-wall``)."""
+    explicit transducers and each ``random-lines`` start or ``circular`` centre; None where
+    a placement's may be anywhere (``random-lines`` without a start) or scans a room's
+    walls (``per-wall``, ``wall-following``: a start outside every room is a mistake the
+    placement names)."""
     points = [t.position for t in scene.sensors.transducers]
     for p in (scene.sensors.placement, *scene.sensors.placements):
         if p is None:
             continue
         anchor = getattr(p, "start", None) or getattr(p, "center", None)
-        if anchor is None:
+        if anchor is None or isinstance(p, WallFollowing):
             return None
         points.append(anchor)
     return np.asarray(points, dtype=np.float64).reshape(-1, 2)
