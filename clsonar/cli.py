@@ -246,7 +246,6 @@ def _sizes(values: Sequence[float]) -> str:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from . import cost
-    from .mapping import grid
     from .scene import load_scene
 
     scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
@@ -255,7 +254,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except ValueError:
         raise ClsonarError(f"--max-memory {args.max_memory!r}: not a size (2G, 500M, "
                            "1.5e9)") from None
-    with grid.memory_limit(limit):
+    with cost.memory_limit(limit):
         return _run_scene(args, scene)
 
 

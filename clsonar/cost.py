@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from . import regions
 from .geometry import build_geometry
 from .mapping import PAIR_BYTES, grid
+from .mapping.grid import memory_limit as memory_limit  # clsonar run --max-memory
 from .pipeline import MOSAIC_BYTES_PER_CELL, PIPELINE_BYTES_PER_CELL, RunResult, apply_preset
 from .scene import Scene
 from .sensors import SensorArray, place_sensors
@@ -110,4 +111,5 @@ def parse_size(text: str) -> int:
     return int(value * units[unit])
 
 
-__all__ = ["Estimate", "estimate", "lines", "of_run", "parse_size", "peak_bytes", "record"]
+__all__ = ["Estimate", "estimate", "lines", "memory_limit", "of_run", "parse_size",
+           "peak_bytes", "record"]
