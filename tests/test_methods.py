@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
 
 import numpy as np
@@ -343,3 +344,22 @@ def test_every_new_mode_maps_the_bundled_plane(mode):
         assert len(result.profile.points) == 0 and rms is None
     else:
         assert len(result.profile.points) > 100 and rms < 0.1
+
+
+def test_the_comparison_runs_every_mode_on_the_same_detections(tmp_path):
+    """python -m clsonar.tools.methods on plane-2m, noise-free, three modes: one row each,
+    the same detections, the table and the JSON written."""
+    from clsonar.tools import methods
+
+    modes = ("loci", "point-marking", "occupancy")
+    assert methods.main(["--out", str(tmp_path), "--scenes", "plane-2m.json", "--noise", "0",
+                         "--modes", ",".join(modes)]) == 0
+    rows = json.loads((tmp_path / "methods.json").read_text())
+    assert [r["mode"] for r in rows] == list(modes)
+    assert len({r["detections"] for r in rows}) == 1 and rows[0]["detections"] == 14
+    by_mode = {r["mode"]: r for r in rows}
+    assert by_mode["point-marking"]["accuracy_m"] is None  # no profile: a dozen points
+    assert by_mode["point-marking"]["map_error_m"] < 0.05  # but they lie on the wall
+    assert by_mode["occupancy"]["accuracy_m"] < 0.1
+    table = (tmp_path / "methods.md").read_text()
+    assert "## plane-2m" in table and table.count("| 0 | `") == 3

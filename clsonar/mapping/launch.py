@@ -1,6 +1,6 @@
 """The host side of ``kernels/accumulate.cl``: :func:`accumulate` (loci, tiled or dense),
-:func:`accumulate_with_stats` (with its :class:`AccumulationStats`), :func:`occupancy_grid` and
-:func:`backproject`.
+:func:`accumulate_with_stats` (with its :class:`AccumulationStats`),
+:func:`occupancy_grid` and :func:`backproject`.
 
 One work item computes 8 pixels of a row as one float8 vector on a CPU (PoCL does not
 vectorise across work items a kernel with a loop), one pixel on a GPU (:data:`LAUNCH`); the
@@ -340,8 +340,8 @@ def backproject(scene: Scene, sensors: SensorArray, pairs, envelopes, dt: float,
 
 
 def occupancy_grid(scene: Scene, sensors: SensorArray, loci, *, context=None,
-              device: str | None = None, precision: str | None = None,
-              settings: MappingSettings | None = None) -> np.ndarray:
+                   device: str | None = None, precision: str | None = None,
+                   settings: MappingSettings | None = None) -> np.ndarray:
     """The occupancy grid's log-odds ``[ny, nx]`` (``mapping.mode = "occupancy"``; Elfes
     1987) by the OpenCL kernel ``occupancy_map``: every detection of ``loci`` adds, inside
     both beams, the occupied evidence over its band and the empty evidence nearer than it

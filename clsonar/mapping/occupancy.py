@@ -15,9 +15,10 @@ beam cut, :func:`clsonar.mapping.accumulate`):
 
 A cell is occupied where its log-odds is above :data:`OCCUPIED_LOG_ODDS`. The model is
 flat over the cone: Elfes' angular and radial fall-off of the probabilities is left out.
-The kernel ``occupancy_map`` (``kernels/accumulate.cl``, :func:`~clsonar.mapping.occupancy_grid`)
-and its float64 reference (:func:`~clsonar.mapping.occupancy_grid_reference`) read the loci
-rows of :func:`prepare_occupancy`.
+The kernel ``occupancy_map`` (``kernels/accumulate.cl``,
+:func:`~clsonar.mapping.occupancy_grid`) and its float64 reference
+(:func:`~clsonar.mapping.occupancy_grid_reference`) read the loci rows of
+:func:`prepare_occupancy`.
 """
 
 from __future__ import annotations
