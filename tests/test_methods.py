@@ -25,7 +25,8 @@ from clsonar.scene import MappingSettings, PostSettings, Scene, TransducerModel,
 from clsonar.sensors import SensorArray
 
 EPS32 = float(np.finfo(np.float32).eps)
-NEW_MODES = ("point-marking", "directional-maximum", "occupancy", "morphological")
+NEW_MODES = ("point-marking", "directional-maximum", "occupancy", "morphological",
+             "arc-transversal-median")
 
 
 @functools.cache
@@ -324,23 +325,72 @@ def test_closing_fills_the_gap_between_two_arcs():
     assert closed.sum() == binary.sum() + 1
 
 
+# --------------------------------------------------------------------------- arc-transversal median
+
+
+def corner_seen_from(positions, corner=(2.005, 1.005)):
+    """Transducers at ``positions`` aimed at a point reflector (a corner) ``corner``, one
+    monostatic locus each through it."""
+    c = np.asarray(corner)
+    transducers = [(x, y, math.degrees(math.atan2(c[1] - y, c[0] - x))) for x, y in positions]
+    rows = [(k, k, 2.0 * math.hypot(*(c - p))) for k, p in enumerate(positions)]
+    return c, sensors_of(transducers), rows
+
+
+def test_arc_transversal_median_of_three_loci_through_a_corner_is_the_corner():
+    """Three transducers 0.3 m apart, 1.5 m from a corner, aimed at it: each locus crosses
+    the other two there (their second crossings, mirrored about the transducers' line, are
+    behind them), so each locus' median crossing is the corner."""
+    scene = scene_of(mode="arc-transversal-median")
+    corner, sensors, rows = corner_seen_from([(0.505, 0.705), (0.505, 1.005), (0.505, 1.305)])
+    votes = votes_of(scene, sensors, loci_of(scene, rows))
+    assert votes.points is not None and votes.tx is not None and votes.rx is not None
+    assert votes.tx.tolist() == [0, 1, 2] and votes.rx.tolist() == [0, 1, 2]
+    assert np.all(np.hypot(*(votes.points - corner).T) < 0.1 * scene.cell)
+
+
+def test_arc_transversal_median_puts_a_walls_loci_on_the_wall():
+    """Five transducers 0.1 m apart facing a wall 2 m away square on: neighbouring circles
+    cross δ²/(8r) in front of the wall, and each circle's median crossing lies on the wall,
+    within a cell, across from the transducers."""
+    scene = scene_of(mode="arc-transversal-median")
+    ys = [0.8, 0.9, 1.0, 1.1, 1.2]
+    sensors = sensors_of([(0.5, y, 0.0) for y in ys])
+    votes = votes_of(scene, sensors, loci_of(scene, [(k, k, 4.0) for k in range(5)]))
+    assert votes.points is not None and len(votes.points) == 5
+    assert np.all(np.abs(votes.points[:, 0] - 2.5) < scene.cell)
+    # each circle's crossings lie halfway to the others: its median toward the middle
+    assert votes.points[2, 1] == pytest.approx(1.0, abs=1e-3)
+    assert np.all(np.diff(votes.points[:, 1]) > 0)
+    assert np.all((votes.points[:, 1] >= 0.8) & (votes.points[:, 1] <= 1.2))
+
+
+def test_a_locus_that_crosses_none_gives_no_arc_transversal_median():
+    scene = scene_of(mode="arc-transversal-median")
+    sensors = sensors_of([(0.5, 0.5, 0.0), (0.5, 1.5, 0.0)])  # beams 1 m apart
+    points, source = mapping.arc_transversal_medians(scene, sensors,
+                                                     loci_of(scene, [(0, 0, 3.0), (1, 1, 3.0)]))
+    assert points.shape == (0, 2) and source.shape == (0,)
+
+
 # --------------------------------------------------------------------------- the pipeline
 
 
 @pytest.mark.parametrize("mode", NEW_MODES)
 def test_every_new_mode_maps_the_bundled_plane(mode):
     """plane-2m (a wall at x = 9 m seen by thesis-style arrays, 14 echoes) through the whole
-    pipeline: the thin map lies on the wall; every mode but point marking, whose dozen
-    isolated points make no curve, gives a profile there."""
+    pipeline: the thin map lies on the wall; every mode but point marking and the
+    arc-transversal median, whose dozen (the loci that cross another: four) isolated points
+    make no curve, gives a profile there."""
     scene = load_scene(bundled_scenes() / "plane-2m.json")
     scene = dataclasses.replace(scene, mapping=dataclasses.replace(scene.mapping, mode=mode))
     result = pipeline.run(scene, context=context())
     assert result.thin is not None and result.profile is not None
     ix = np.nonzero(result.thin)[1]
-    assert len(ix) >= 10
+    assert len(ix) >= (4 if mode == "arc-transversal-median" else 10)
     assert np.median(np.abs((ix + 0.5) * scene.cell - 9.0)) < 0.05
     rms = result.metrics["accuracy_m"]["rms"]
-    if mode == "point-marking":
+    if mode in ("point-marking", "arc-transversal-median"):
         assert len(result.profile.points) == 0 and rms is None
     else:
         assert len(result.profile.points) > 100 and rms < 0.1

@@ -46,8 +46,9 @@ b(θ_T)·b(θ_R), otherwise unweighted (:func:`backproject`).
 (``"point-marking"``, :func:`arc_middles`), the directional maximum
 (``"directional-maximum"``, :func:`arc_maxima`, kernels of ``kernels/directional.cl``), the
 occupancy grid (``"occupancy"``, :func:`occupancy_grid`, :mod:`.occupancy`) and morphological
-processing (``"morphological"``, :func:`closed_arc_map`); :mod:`.arcs`,
-:mod:`.directional`.
+processing (``"morphological"``, :func:`closed_arc_map`), the arc-transversal median
+(``"arc-transversal-median"``, :func:`arc_transversal_medians`); :mod:`.arcs`,
+:mod:`.directional`, :mod:`.crossings`.
 
 Two implementations of loci and back-projection, as for the echoes: :func:`accumulate` and
 :func:`backproject` run the OpenCL kernels of ``kernels/accumulate.cl`` (float32 by default,
@@ -76,7 +77,7 @@ against every locus.
 The modules: :mod:`.grid` (the map's grid, band, memory check), :mod:`.loci` (the inputs),
 :mod:`.reference`, :mod:`.tiles`, :mod:`.launch`, :mod:`.tangents`, :mod:`.envelope`,
 :mod:`.points`, :mod:`.models`, :mod:`.families`, :mod:`.patches`, :mod:`.joins`,
-:mod:`.reflectors`, :mod:`.arcs`, :mod:`.directional`, :mod:`.occupancy` and
+:mod:`.reflectors`, :mod:`.arcs`, :mod:`.directional`, :mod:`.occupancy`, :mod:`.crossings` and
 :mod:`.methods` (the registry). The scalar launch limits
 (``MAX_ROWS_PER_LAUNCH``, ``MAX_LAUNCH_BYTES``, ``MAX_PAIRS_PER_LAUNCH``, ``TILE_CHUNK``,
 ``BIN_*``) are read from their own modules: set them there.
@@ -105,6 +106,8 @@ __all__ = [
     "arc_maxima",
     "arc_maxima_reference",
     "arc_middles",
+    "arc_transversal_median_votes",
+    "arc_transversal_medians",
     "as_loci",
     "backproject",
     "backproject_reference",
@@ -145,6 +148,7 @@ __all__ = [
 ]
 
 from .arcs import arc_middles, cell_points, closed_arc_map
+from .crossings import arc_transversal_medians
 from .directional import ArcMaxima, arc_maxima, arc_maxima_reference
 from .envelope import envelope_links, in_beams, scan_envelope
 from .grid import (
@@ -180,6 +184,7 @@ from .methods import (
     METHODS,
     MapMethod,
     Votes,
+    arc_transversal_median_votes,
     backprojection_votes,
     directional_maximum_votes,
     loci_votes,

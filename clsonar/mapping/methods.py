@@ -19,6 +19,7 @@ from ..scene.settings import chosen
 from ..sensors import SensorArray, pairs
 from ..signals import Detections
 from .arcs import arc_middles, cell_points, closed_arc_map
+from .crossings import arc_transversal_medians
 from .directional import arc_maxima
 from .launch import AccumulationStats, accumulate_with_stats, backproject, occupancy_grid
 from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
@@ -125,6 +126,18 @@ def directional_maximum_votes(scene: Scene, sensors: SensorArray, echoes: EchoTa
                  rx=loci.rx[kept.source], counts={**counts, "arc_maxima": len(kept.cells)})
 
 
+def arc_transversal_median_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+                                 detections: Detections, context: cl.Context,
+                                 tiles: bool) -> Votes:
+    """``"arc-transversal-median"`` (ATM; Choset, Nagatani & Lazar 2003): one point per
+    locus, the median of its crossings with every other locus
+    (:func:`~clsonar.mapping.arc_transversal_medians`), with its pair."""
+    loci = _loci(scene, detections)
+    points, source = arc_transversal_medians(scene, sensors, loci)
+    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source],
+                 counts={"arc_medians": len(points)})
+
+
 def occupancy_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
                     detections: Detections, context: cl.Context, tiles: bool) -> Votes:
     """``"occupancy"`` (BU; Elfes 1987): the occupancy grid's log-odds
@@ -180,6 +193,7 @@ METHODS: dict[str, MapMethod] = {
     "directional-maximum": directional_maximum_votes,
     "occupancy": occupancy_votes,
     "morphological": morphological_votes,
+    "arc-transversal-median": arc_transversal_median_votes,
 }
 
 

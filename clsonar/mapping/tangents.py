@@ -92,7 +92,7 @@ def _beam_arc_samples(u: np.ndarray, v: np.ndarray, axis: np.ndarray, a: np.ndar
 
 
 @dataclass(frozen=True, eq=False)
-class _Sampled:
+class SampledLoci:
     """The loci, their samples (:func:`_locus_samples`) and what the crossings need."""
 
     loci: Loci
@@ -106,7 +106,18 @@ class _Sampled:
     cut_sin2: float
 
 
-def _neighbours(s: _Sampled, groups: np.ndarray, i: int, max_bias_m: float) -> np.ndarray:
+def sample_loci(scene: Scene, sensors: SensorArray, loci) -> SampledLoci:
+    """The loci sampled every 360°/:data:`LOCUS_SAMPLES` of eccentric anomaly, each sample
+    tested against both beams (:func:`_locus_samples`), with what their crossings need
+    (:func:`locus_crossings`)."""
+    loci = as_loci(loci)
+    p, inside, a = _locus_samples(scene, sensors, loci)
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+    T, R = sensors.positions[loci.tx], sensors.positions[loci.rx]
+    return SampledLoci(loci, p, inside, a, T, R, 0.5 * (T + R), sensors.axes, cut_sin2)
+
+
+def _neighbours(s: SampledLoci, groups: np.ndarray, i: int, max_bias_m: float) -> np.ndarray:
     """The later loci of i's viewpoint whose centres lie within sqrt(8·a·max_bias_m) of
     i's (none when i has no sample in its beams)."""
     others = np.flatnonzero((groups == groups[i]) & (np.arange(len(s.loci)) > i))
@@ -116,14 +127,14 @@ def _neighbours(s: _Sampled, groups: np.ndarray, i: int, max_bias_m: float) -> n
     return others[np.hypot(*(s.centre[others] - s.centre[i]).T) <= reach]
 
 
-def _residual(s: _Sampled, q: np.ndarray, others: np.ndarray) -> np.ndarray:
+def _residual(s: SampledLoci, q: np.ndarray, others: np.ndarray) -> np.ndarray:
     """[others, q]: each other locus' path-length residual |q−T| + |q−R| − 2a at ``q``."""
     return (np.hypot(*(q[None] - s.T[others, None]).transpose(2, 0, 1))
             + np.hypot(*(q[None] - s.R[others, None]).transpose(2, 0, 1))
             - 2 * s.a[others, None])
 
 
-def _crossings(s: _Sampled, i: int, others: np.ndarray
+def _crossings(s: SampledLoci, i: int, others: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(q, k, b)``: where locus i crosses ``others`` between samples k and k+1 (both in
     i's beams), interpolated, and the locus b crossed; in every beam of b or not, unchecked.
@@ -145,7 +156,17 @@ def _crossings(s: _Sampled, i: int, others: np.ndarray
     return q, k, others[j]
 
 
-def _tangent_segments(s: _Sampled, i: int, ks: np.ndarray,
+def locus_crossings(s: SampledLoci, i: int, others: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(q, k, b)``: where locus i crosses the loci ``others`` inside the joint beam
+    regions of both (:func:`_crossings`, then the beams of the locus b crossed)."""
+    q, k, b = _crossings(s, i, others)
+    keep = (in_beams(q, s.T[b], s.axes[s.loci.tx[b]], s.cut_sin2)
+            & in_beams(q, s.R[b], s.axes[s.loci.rx[b]], s.cut_sin2))
+    return q[keep], k[keep], b[keep]
+
+
+def _tangent_segments(s: SampledLoci, i: int, ks: np.ndarray,
                       max_bias_m: float) -> list[np.ndarray]:
     """The locus stays within max_bias_m of the surface for ±sqrt(2·r·bias) of arc around
     its tangent point: the in-beam samples of locus i that far around each sample in ``ks``."""
@@ -157,7 +178,7 @@ def _tangent_segments(s: _Sampled, i: int, ks: np.ndarray,
     return out
 
 
-def _isolated_points(s: _Sampled, isolated: np.ndarray, bias: float, linked: np.ndarray,
+def _isolated_points(s: SampledLoci, isolated: np.ndarray, bias: float, linked: np.ndarray,
                      env: tuple[np.ndarray, ...]) -> tuple[list[np.ndarray], list[int]]:
     """Per locus in ``isolated``: where the scan envelope ``env`` has points on it, the arcs
     around them inside the element's beam; else the middle of its in-beam arc (none for a
@@ -180,7 +201,7 @@ def _isolated_points(s: _Sampled, isolated: np.ndarray, bias: float, linked: np.
     return found, stubs
 
 
-def _range_tolerance(scene: Scene, s: _Sampled, loci: np.ndarray) -> np.ndarray:
+def _range_tolerance(scene: Scene, s: SampledLoci, loci: np.ndarray) -> np.ndarray:
     """How far the range of each of ``loci`` may be off, metres: half its detection
     window's tolerance (noise), at least :data:`~.pillars.PILLAR_TOL_M`."""
     return np.maximum(PILLAR_TOL_M, 0.5 * window_tolerance(
@@ -194,7 +215,7 @@ def _range_tolerance(scene: Scene, s: _Sampled, loci: np.ndarray) -> np.ndarray:
 POINT_ENVELOPE_M = 0.15
 
 
-def _points(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray],
+def _points(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndarray],
             slots: list[int], stubs: set[int], env: tuple[np.ndarray, ...]
             ) -> dict[int, np.ndarray]:
     """``{slot: point}``: the arcs (``found[slot]`` of locus ``loci[n]``) whose loci cross
@@ -223,7 +244,7 @@ def _points(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray]
     return {slots[n]: v for n, v in points.items()}
 
 
-def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray],
+def _pillars(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndarray],
              slots: list[int], bias: float) -> dict[int, np.ndarray]:
     """``{slot: arc}``: the middle-of-arc stubs (``found[slot]`` of T = R locus
     ``loci[n]``) that a pillar fitted to their ranges replaces (:mod:`.pillars`), each
@@ -261,7 +282,7 @@ def _pillars(scene: Scene, s: _Sampled, loci: np.ndarray, found: list[np.ndarray
 MULTIPATH_M = 0.15
 
 
-def _just_after_first(s: _Sampled, isolated: np.ndarray, stubs: list[int]) -> list[int]:
+def _just_after_first(s: SampledLoci, isolated: np.ndarray, stubs: list[int]) -> list[int]:
     """The slots of ``stubs`` whose T = R locus lies within :data:`MULTIPATH_M` beyond a
     nearer T = R locus of the same element: drawn as the middle of its in-beam arc it would
     stand a few cm behind the surface heard first, too near it for the line of sight to
@@ -278,7 +299,7 @@ def _just_after_first(s: _Sampled, isolated: np.ndarray, stubs: list[int]) -> li
     return out
 
 
-def _add_isolated(scene: Scene, sensors: SensorArray, s: _Sampled, isolated: np.ndarray,
+def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: np.ndarray,
                   bias: float, found: list[np.ndarray], source: list[np.ndarray],
                   vertices: list[np.ndarray]) -> None:
     """Append to ``found`` and ``source`` what the ``isolated`` loci give: the scan
@@ -347,10 +368,7 @@ def tangent_map(scene: Scene, sensors: SensorArray, loci,
     none = np.zeros((0, 2)), np.zeros(0, dtype=np.int64), np.zeros((0, 2))
     if len(loci) < 2:
         return none
-    p, inside, a = _locus_samples(scene, sensors, loci)
-    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
-    T, R = sensors.positions[loci.tx], sensors.positions[loci.rx]
-    s = _Sampled(loci, p, inside, a, T, R, 0.5 * (T + R), sensors.axes, cut_sin2)
+    s = sample_loci(scene, sensors, loci)
     groups = sensors.groups[loci.tx]
     found: list[np.ndarray] = []
     source: list[np.ndarray] = []
@@ -359,19 +377,15 @@ def tangent_map(scene: Scene, sensors: SensorArray, loci,
         others = _neighbours(s, groups, i, max_bias_m)
         if len(others) == 0:
             continue
-        q, k, b = _crossings(s, i, others)
-        if len(q) == 0:
-            continue
-        keep = (in_beams(q, T[b], s.axes[loci.tx[b]], cut_sin2)
-                & in_beams(q, R[b], s.axes[loci.rx[b]], cut_sin2))
-        found.append(q[keep])
-        source.append(np.full(int(keep.sum()), i))
-        crossed[i] |= keep.any()
-        crossed[b[keep]] = True
-        for segment in _tangent_segments(s, i, k[keep], max_bias_m):
+        q, k, b = locus_crossings(s, i, others)
+        found.append(q)
+        source.append(np.full(len(q), i))
+        crossed[i] |= len(q) > 0
+        crossed[b] = True
+        for segment in _tangent_segments(s, i, k, max_bias_m):
             found.append(segment)
             source.append(np.full(len(segment), i))
-    isolated = np.flatnonzero(~crossed & inside.any(axis=1) & (isolated_bias_m > 0))
+    isolated = np.flatnonzero(~crossed & s.inside.any(axis=1) & (isolated_bias_m > 0))
     vertices: list[np.ndarray] = []
     _add_isolated(scene, sensors, s, isolated, isolated_bias_m, found, source, vertices)
     if not found:

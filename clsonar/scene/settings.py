@@ -29,7 +29,8 @@ DetectionMode = Literal["threshold", "envelope"]
 
 #: How detections become a map (:class:`MappingSettings`).
 MappingMode = Literal["loci", "tangents", "backprojection", "reflectors", "point-marking",
-                      "directional-maximum", "occupancy", "morphological"]
+                      "directional-maximum", "occupancy", "morphological",
+                      "arc-transversal-median"]
 
 #: The vote of a locus (``loci`` mapping).
 VoteWeight = Literal["unit", "amplitude", "beam"]
@@ -172,13 +173,15 @@ class MappingSettings:
       middle of each locus' in-beam arc), ``directional-maximum`` (DM, Barshan 2007: the
       loci drawn as ``loci``, then along each locus the cells where that map is largest),
       ``occupancy`` (BU, Elfes 1987: an occupancy grid updated in log-odds by a sonar-cone
-      model) and ``morphological`` (MP, Başkent & Barshan 1999: the binary loci map closed,
-      then thinned).
+      model), ``morphological`` (MP, Başkent & Barshan 1999: the binary loci map closed,
+      then thinned) and ``arc-transversal-median`` (ATM, Choset, Nagatani & Lazar 2003:
+      per locus the median, by arc angle, of its crossings with all the other loci).
 
     ``reciprocal``: ``merge`` makes the detections of (T, R) and (R, T) — one path measured
     twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
     ``precision``: the kernels' arithmetic. ``line_of_sight`` (the modes whose points have
-    their pairs: ``tangents``, ``reflectors``, ``point-marking``, ``directional-maximum``):
+    their pairs: ``tangents``, ``reflectors``, ``point-marking``, ``directional-maximum``,
+    ``arc-transversal-median``):
     drop the points that the map itself shows hidden behind a surface from their
     transducers — the ghosts of multiply reflected echoes (sight.line_of_sight).
     """
