@@ -174,9 +174,7 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
     Every transducer's z-buffer is built at once (:func:`first_hits_each`), as many
     transducers at a time as :data:`SIGHT_PAIRS_AT_ONCE` allows;
     :func:`line_of_sight_per_sensor` is the same test one transducer at a time."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    margin = SIGHT_MARGIN_CELLS * cell if margin_m is None else margin_m
-    keep = np.ones(len(points), dtype=bool)
+    points, margin, keep = _start(points, cell, margin_m)
     if len(points) == 0 or len(occluders) == 0:
         return keep
     bins = round(2 * math.pi / SIGHT_BIN_RAD)
@@ -206,9 +204,7 @@ def line_of_sight_per_sensor(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
                              margin_m: float | None = None) -> np.ndarray:
     """:func:`line_of_sight` one transducer at a time through :func:`first_hits`: the
     reference the vectorised test is checked against (tests/test_rooms.py)."""
-    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-    margin = SIGHT_MARGIN_CELLS * cell if margin_m is None else margin_m
-    keep = np.ones(len(points), dtype=bool)
+    points, margin, keep = _start(points, cell, margin_m)
     if len(points) == 0 or len(occluders) == 0:
         return keep
     bins = round(2 * math.pi / SIGHT_BIN_RAD)
@@ -225,6 +221,15 @@ def line_of_sight_per_sensor(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
         hits = first_hits(origin, occluders, cell, within=dist.max() - margin, wanted=wanted)
         keep[mine[dist > hits[where] + margin]] = False
     return keep
+
+
+def _start(points: np.ndarray, cell: float, margin_m: float | None
+           ) -> tuple[np.ndarray, float, np.ndarray]:
+    """The points as [n, 2] floats, the margin (default :data:`SIGHT_MARGIN_CELLS` cells)
+    and every point kept, where both line-of-sight tests start."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    margin = SIGHT_MARGIN_CELLS * cell if margin_m is None else margin_m
+    return points, margin, np.ones(len(points), dtype=bool)
 
 
 def _sensor_point_pairs(tx: np.ndarray, rx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
