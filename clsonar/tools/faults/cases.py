@@ -161,14 +161,20 @@ def kill_run_writes(work: Path, rng: random.Random, count: int) -> Outcome:
     return outcome
 
 
+def _sweep_writes(work: Path) -> tuple[Path, int, list[dict[str, Any]]]:
+    """A sweep spec in ``work``, how many writes its uninterrupted sweep makes, and that
+    sweep's rows: what a fault at each write is checked against."""
+    spec = write_spec(work)
+    reference_out = work / "reference"
+    total = writes(work, lambda: call(["sweep", str(spec), "--out", str(reference_out), "-q"]))
+    return spec, total, sweep_rows(reference_out)
+
+
 def kill_sweep_writes(work: Path, rng: random.Random, count: int) -> Outcome:
     """kill -9 halfway through each write of ``clsonar sweep`` (its plan, each row, its
     table), then the sweep run again to its end."""
     outcome = Outcome("kill -9 halfway through each write of `clsonar sweep`, then run again")
-    spec = write_spec(work)
-    reference_out = work / "reference"
-    total = writes(work, lambda: call(["sweep", str(spec), "--out", str(reference_out), "-q"]))
-    reference = sweep_rows(reference_out)
+    spec, total, reference = _sweep_writes(work)
     for fail_at in range(1, total + 1):
         out = work / f"sweep-{fail_at}"
         argv = ["sweep", str(spec), "--out", str(out), "-q"]
@@ -226,10 +232,7 @@ def disk_full_sweep(work: Path, rng: random.Random, count: int) -> Outcome:
     the sweep run again with space: one line, exit 2, then exactly the uninterrupted
     table."""
     outcome = Outcome("full disk: `clsonar sweep` table, then run again")
-    spec = write_spec(work)
-    reference_out = work / "reference"
-    total = writes(work, lambda: call(["sweep", str(spec), "--out", str(reference_out), "-q"]))
-    reference = sweep_rows(reference_out)
+    spec, total, reference = _sweep_writes(work)
     for fail_at in range(1, total + 1):
         out = work / f"sweep-{fail_at}"
         argv = ["sweep", str(spec), "--out", str(out), "-q"]
