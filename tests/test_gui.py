@@ -510,4 +510,4 @@ def test_the_mapping_selector_lists_every_method(window):
     mode = window.params.params.child("mapping", "mode")
     assert list(mode.opts["limits"]) == list(edits.choices(type(window.doc.scene.mapping),
                                                            "mode"))
-    assert set(mode.opts["limits"]) == set(METHODS) and len(METHODS) == 9
+    assert set(mode.opts["limits"]) == set(METHODS) and len(METHODS) == 10

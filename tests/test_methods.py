@@ -26,7 +26,7 @@ from clsonar.sensors import SensorArray
 
 EPS32 = float(np.finfo(np.float32).eps)
 NEW_MODES = ("point-marking", "directional-maximum", "occupancy", "morphological",
-             "arc-transversal-median")
+             "arc-transversal-median", "triangulation")
 
 
 @functools.cache
@@ -373,10 +373,64 @@ def test_a_locus_that_crosses_none_gives_no_arc_transversal_median():
     assert points.shape == (0, 2) and source.shape == (0,)
 
 
+# --------------------------------------------------------------------------- triangulation
+
+
+def test_triangulation_of_a_corner_seen_from_three_nearby_positions_is_one_point():
+    """Three transducers 0.3 m apart (within the 1 m baseline) aimed at a corner: their
+    three pairwise crossings are the corner, one cluster of three, one point there with
+    the pair of the nearest locus."""
+    scene = scene_of(mode="triangulation")
+    corner, sensors, rows = corner_seen_from([(0.505, 0.705), (0.605, 1.005), (0.505, 1.305)])
+    votes = votes_of(scene, sensors, loci_of(scene, rows))
+    assert votes.points is not None and votes.tx is not None and votes.rx is not None
+    assert votes.points.shape == (1, 2)
+    assert np.hypot(*(votes.points[0] - corner)) < 0.1 * scene.cell
+    assert votes.tx.tolist() == [1] and votes.rx.tolist() == [1]  # 1.4 m: the nearest
+
+
+def test_triangulation_keeps_nothing_of_arcs_that_share_no_reflector():
+    """Two loci that cross once inside their beams: one intersection, fewer than three."""
+    scene = scene_of(mode="triangulation")
+    corner, sensors, rows = corner_seen_from([(0.505, 0.705), (0.505, 1.305)])
+    rows = [rows[0], (1, 1, rows[1][2] + 0.13)]  # the second locus 6.5 cm farther
+    loci = loci_of(scene, rows)
+    sampled = mapping.tangents.sample_loci(scene, sensors, loci)
+    q, _, _ = mapping.tangents.locus_crossings(sampled, 0, np.array([1]))
+    assert len(q) == 1 and np.hypot(*(q[0] - corner)) > 0.02
+    votes = votes_of(scene, sensors, loci)
+    assert votes.points is not None and votes.points.shape == (0, 2)
+
+
+def test_triangulation_ignores_transmitters_beyond_the_baseline():
+    """The corner seen from three positions 1.2 m apart: no pair within 1 m, no point;
+    with a 1.5 m baseline, the corner."""
+    scene = scene_of(extent=(0.0, 0.0, 4.0, 4.0), mode="triangulation")
+    corner, sensors, rows = corner_seen_from([(0.505, 0.805), (0.505, 2.005), (0.505, 3.205)],
+                                             corner=(2.505, 2.005))
+    loci = loci_of(scene, rows)
+    points, _ = mapping.triangulated_points(scene, sensors, loci)
+    assert points.shape == (0, 2)
+    points, source = mapping.triangulated_points(scene, sensors, loci, baseline_m=1.5)
+    assert points.shape == (1, 2) and np.hypot(*(points[0] - corner)) < 0.1 * scene.cell
+    assert source.tolist() == [1]  # 2 m from the corner, the others 2.33 m
+
+
+def test_support_clusters_seed_the_best_supported_and_do_not_chain():
+    """A chain of points 1 cm apart along a line, 2 cm radius: clusters of at most 5
+    (never the whole chain), each 3 or more; a lone pair stays unclustered."""
+    chain = np.stack([np.arange(20) * 0.01, np.zeros(20)], axis=1)
+    lone = np.array([[5.0, 5.0], [5.005, 5.0]])
+    labels = mapping.crossings.support_clusters(np.vstack([chain, lone]), 0.02, 3)
+    assert np.all(labels[20:] == -1)
+    sizes = np.bincount(labels[labels >= 0])
+    assert len(sizes) >= 4 and sizes.min() >= 3 and sizes.max() <= 5
+
+
 # --------------------------------------------------------------------------- the pipeline
 
 
-@pytest.mark.parametrize("mode", NEW_MODES)
+@pytest.mark.parametrize("mode", [m for m in NEW_MODES if m != "triangulation"])
 def test_every_new_mode_maps_the_bundled_plane(mode):
     """plane-2m (a wall at x = 9 m seen by thesis-style arrays, 14 echoes) through the whole
     pipeline: the thin map lies on the wall; every mode but point marking and the
@@ -394,6 +448,21 @@ def test_every_new_mode_maps_the_bundled_plane(mode):
         assert len(result.profile.points) == 0 and rms is None
     else:
         assert len(result.profile.points) > 100 and rms < 0.1
+
+
+def test_triangulation_maps_the_bundled_corner_and_not_the_plane():
+    """Triangulation finds what three crossings or more agree on: at corner-4m (47 echoes)
+    a few points in the corner, within a cm of its walls; plane-2m's 14 echoes cross too
+    seldom for a cluster: nothing."""
+    for name, want in (("corner-4m.json", True), ("plane-2m.json", False)):
+        scene = load_scene(bundled_scenes() / name)
+        scene = dataclasses.replace(scene, mapping=dataclasses.replace(scene.mapping,
+                                                                       mode="triangulation"))
+        result = pipeline.run(scene, context=context())
+        found = result.counts["triangulated_points"]
+        assert (found >= 3) if want else (found == 0), name
+        if want:
+            assert result.metrics["accuracy_m"]["rms"] < 0.01
 
 
 def test_the_comparison_runs_every_mode_on_the_same_detections(tmp_path):

@@ -47,7 +47,8 @@ b(θ_T)·b(θ_R), otherwise unweighted (:func:`backproject`).
 (``"directional-maximum"``, :func:`arc_maxima`, kernels of ``kernels/directional.cl``), the
 occupancy grid (``"occupancy"``, :func:`occupancy_grid`, :mod:`.occupancy`) and morphological
 processing (``"morphological"``, :func:`closed_arc_map`), the arc-transversal median
-(``"arc-transversal-median"``, :func:`arc_transversal_medians`); :mod:`.arcs`,
+(``"arc-transversal-median"``, :func:`arc_transversal_medians`) and triangulation-based
+fusion (``"triangulation"``, :func:`triangulated_points`); :mod:`.arcs`,
 :mod:`.directional`, :mod:`.crossings`.
 
 Two implementations of loci and back-projection, as for the echoes: :func:`accumulate` and
@@ -144,11 +145,13 @@ __all__ = [
     "tangent_map",
     "tangent_points",
     "tangent_votes",
+    "triangulated_points",
+    "triangulation_votes",
     "work_items",
 ]
 
 from .arcs import arc_middles, cell_points, closed_arc_map
-from .crossings import arc_transversal_medians
+from .crossings import arc_transversal_medians, triangulated_points
 from .directional import ArcMaxima, arc_maxima, arc_maxima_reference
 from .envelope import envelope_links, in_beams, scan_envelope
 from .grid import (
@@ -194,6 +197,7 @@ from .methods import (
     point_marking_votes,
     reflector_votes,
     tangent_votes,
+    triangulation_votes,
 )
 from .points import point_map, points_window
 from .reference import (

@@ -1,16 +1,28 @@
-"""An arc-map method of the literature built on the crossings of loci (the crossing search
-of the tangent points, :func:`~.tangents.locus_crossings`): the arc-transversal median
-(``mapping.mode = "arc-transversal-median"``, ATM; Choset, Nagatani & Lazar 2003,
-:func:`arc_transversal_medians`)."""
+"""Two arc-map methods of the literature built on the crossings of loci (the crossing
+search of the tangent points, :func:`~.tangents.locus_crossings`): the arc-transversal
+median (``mapping.mode = "arc-transversal-median"``, ATM; Choset, Nagatani & Lazar 2003,
+:func:`arc_transversal_medians`) and triangulation-based fusion (``"triangulation"``, TBF;
+Wijk & Christensen 2000, :func:`triangulated_points`)."""
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ..scene import Scene
 from ..sensors import SensorArray
 from .loci import as_loci
 from .tangents import LOCUS_SAMPLES, SampledLoci, locus_crossings, sample_loci
+
+#: TBF: the farthest apart two transmitters whose loci are intersected, metres (Wijk &
+#: Christensen's nearby sensor poses).
+TBF_BASELINE_M = 1.0
+
+#: TBF: intersections within this of a cluster's seed support it, metres.
+TBF_RADIUS_M = 0.02
+
+#: TBF: the fewest intersections (the seed included) that make a cluster a point.
+TBF_MIN_SUPPORT = 3
 
 
 def _arc_boxes(s: SampledLoci) -> np.ndarray:
@@ -77,3 +89,75 @@ def arc_transversal_medians(scene: Scene, sensors: SensorArray, loci
             source.append(i)
     return (np.asarray(points, dtype=np.float64).reshape(-1, 2),
             np.asarray(source, dtype=np.int64))
+
+
+def support_clusters(points: np.ndarray, radius_m: float, min_support: int) -> np.ndarray:
+    """[n] the cluster of each point (−1: none). The point with the most others within
+    ``radius_m`` seeds a cluster of the unclustered points within ``radius_m`` of it, kept
+    when they are at least ``min_support``; then the next best seed, and so on. A cluster
+    is never wider than 2·``radius_m``: a wall's chain of intersections does not merge
+    into one."""
+    labels = np.full(len(points), -1, dtype=np.int64)
+    if len(points) < max(min_support, 1):
+        return labels
+    tree = cKDTree(points)
+    support = tree.query_ball_point(points, radius_m, return_length=True)
+    for seed in np.argsort(-support, kind="stable"):
+        if support[seed] < min_support:
+            break
+        if labels[seed] >= 0:
+            continue
+        near = np.asarray(tree.query_ball_point(points[seed], radius_m), dtype=np.int64)
+        near = near[labels[near] < 0]
+        if len(near) >= min_support:
+            labels[near] = labels.max() + 1
+    return labels
+
+
+def _intersections(s: SampledLoci, baseline_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(q [m, 2], loci [m, 2])``: every crossing, inside both joint beam regions, of two
+    loci whose transmitters stand within ``baseline_m`` of each other, and the two loci."""
+    boxes = _arc_boxes(s)
+    some = s.inside.any(axis=1)
+    q_all, pairs = [], []
+    for i in np.flatnonzero(some).tolist():
+        near = np.hypot(*(s.T - s.T[i]).T) <= baseline_m
+        others = _overlapping(boxes, i, np.flatnonzero(some & near & (np.arange(len(s.a)) > i)))
+        q, _, b = locus_crossings(s, i, others)
+        q_all.append(q)
+        pairs.append(np.stack([np.full(len(b), i), b], axis=1))
+    if not q_all:
+        return np.zeros((0, 2)), np.zeros((0, 2), np.int64)
+    return np.concatenate(q_all), np.concatenate(pairs).astype(np.int64)
+
+
+def triangulated_points(scene: Scene, sensors: SensorArray, loci, *,
+                        baseline_m: float = TBF_BASELINE_M, radius_m: float = TBF_RADIUS_M,
+                        min_support: int = TBF_MIN_SUPPORT) -> tuple[np.ndarray, np.ndarray]:
+    """``(points [m, 2], source [m])``: triangulation-based fusion (TBF; Wijk & Christensen
+    2000, "Triangulation-based fusion of sonar data with application in robot pose
+    tracking", IEEE T-RA 16(6)). Two loci of transmitters within ``baseline_m`` (nearby
+    sensor poses) that met one reflector cross at it: every such pair is intersected
+    (:func:`~.tangents.locus_crossings`, inside both joint beam regions), the
+    intersections clustered (:func:`support_clusters`: within ``radius_m`` of a seed, at
+    least ``min_support`` of them), and each cluster's centroid is a point. ``source``: of
+    the cluster's loci, the nearest (least path length), whose pair the point keeps."""
+    loci = as_loci(loci)
+    none = np.zeros((0, 2)), np.zeros(0, np.int64)
+    if len(loci) < 2:
+        return none
+    s = sample_loci(scene, sensors, loci)
+    q, crossed = _intersections(s, baseline_m)
+    labels = support_clusters(q, radius_m, min_support)
+    kept = labels >= 0
+    if not kept.any():
+        return none
+    n = int(labels.max()) + 1
+    count = np.bincount(labels[kept], minlength=n)
+    centroids = np.stack([np.bincount(labels[kept], q[kept, d], n) / count for d in (0, 1)],
+                         axis=1)
+    member = np.repeat(labels[kept], 2)
+    locus = crossed[kept].ravel()
+    order = np.lexsort((locus, s.a[locus], member))
+    first = np.r_[True, member[order][1:] != member[order][:-1]]
+    return centroids, locus[order][first]

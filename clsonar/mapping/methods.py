@@ -19,7 +19,7 @@ from ..scene.settings import chosen
 from ..sensors import SensorArray, pairs
 from ..signals import Detections
 from .arcs import arc_middles, cell_points, closed_arc_map
-from .crossings import arc_transversal_medians
+from .crossings import arc_transversal_medians, triangulated_points
 from .directional import arc_maxima
 from .launch import AccumulationStats, accumulate_with_stats, backproject, occupancy_grid
 from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
@@ -138,6 +138,17 @@ def arc_transversal_median_votes(scene: Scene, sensors: SensorArray, echoes: Ech
                  counts={"arc_medians": len(points)})
 
 
+def triangulation_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
+                        detections: Detections, context: cl.Context, tiles: bool) -> Votes:
+    """``"triangulation"`` (TBF; Wijk & Christensen 2000): the centroids of the clusters of
+    the pairwise crossings of nearby transmitters' loci
+    (:func:`~clsonar.mapping.triangulated_points`), each with its nearest locus' pair."""
+    loci = _loci(scene, detections)
+    points, source = triangulated_points(scene, sensors, loci)
+    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source],
+                 counts={"triangulated_points": len(points)})
+
+
 def occupancy_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
                     detections: Detections, context: cl.Context, tiles: bool) -> Votes:
     """``"occupancy"`` (BU; Elfes 1987): the occupancy grid's log-odds
@@ -194,6 +205,7 @@ METHODS: dict[str, MapMethod] = {
     "occupancy": occupancy_votes,
     "morphological": morphological_votes,
     "arc-transversal-median": arc_transversal_median_votes,
+    "triangulation": triangulation_votes,
 }
 
 

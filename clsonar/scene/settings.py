@@ -30,7 +30,7 @@ DetectionMode = Literal["threshold", "envelope"]
 #: How detections become a map (:class:`MappingSettings`).
 MappingMode = Literal["loci", "tangents", "backprojection", "reflectors", "point-marking",
                       "directional-maximum", "occupancy", "morphological",
-                      "arc-transversal-median"]
+                      "arc-transversal-median", "triangulation"]
 
 #: The vote of a locus (``loci`` mapping).
 VoteWeight = Literal["unit", "amplitude", "beam"]
@@ -174,14 +174,16 @@ class MappingSettings:
       loci drawn as ``loci``, then along each locus the cells where that map is largest),
       ``occupancy`` (BU, Elfes 1987: an occupancy grid updated in log-odds by a sonar-cone
       model), ``morphological`` (MP, Başkent & Barshan 1999: the binary loci map closed,
-      then thinned) and ``arc-transversal-median`` (ATM, Choset, Nagatani & Lazar 2003:
-      per locus the median, by arc angle, of its crossings with all the other loci).
+      then thinned), ``arc-transversal-median`` (ATM, Choset, Nagatani & Lazar 2003:
+      per locus the median, by arc angle, of its crossings with all the other loci) and
+      ``triangulation`` (TBF, Wijk & Christensen 2000: the crossings of the loci of
+      transmitters within 1 m, clustered within 2 cm, three or more to a point).
 
     ``reciprocal``: ``merge`` makes the detections of (T, R) and (R, T) — one path measured
     twice — one locus with their mean time of flight; ``both`` draws both (the thesis).
     ``precision``: the kernels' arithmetic. ``line_of_sight`` (the modes whose points have
     their pairs: ``tangents``, ``reflectors``, ``point-marking``, ``directional-maximum``,
-    ``arc-transversal-median``):
+    ``arc-transversal-median``, ``triangulation``):
     drop the points that the map itself shows hidden behind a surface from their
     transducers — the ghosts of multiply reflected echoes (sight.line_of_sight).
     """
