@@ -482,3 +482,28 @@ def test_the_comparison_runs_every_mode_on_the_same_detections(tmp_path):
     assert by_mode["occupancy"]["accuracy_m"] < 0.1
     table = (tmp_path / "methods.md").read_text()
     assert "## plane-2m" in table and table.count("| 0 | `") == 3
+    assert "**shapes**, front (fastest first)" in table
+    if (tmp_path / "methods-pareto-shapes.png").exists():
+        assert "(methods-pareto-shapes.png)" in table
+
+
+def test_the_pareto_front_keeps_the_modes_nothing_beats():
+    """Seconds against error: (1, 5) and (1, 6) tie on time, (1, 5) wins; (2, 5) is beaten
+    by (1, 5); (3, 1) and (0.5, 9) are each best at something."""
+    from clsonar.tools import methods
+
+    cost = np.array([1.0, 1.0, 2.0, 3.0, 0.5])
+    error = np.array([5.0, 6.0, 5.0, 1.0, 9.0])
+    assert methods.pareto_front(cost, error).tolist() == [4, 0, 3]
+    rows = [{"scene": s, "mode": m, "map_s": ms, "post_s": 1.0, "map_error_m": e,
+             "completeness_2cm": c}
+            for s, m, ms, e, c in (("room", "a", 1.0, 0.02, 0.9), ("room-l", "a", 3.0, 0.04, 0.7),
+                                   ("room", "b", None, None, None),
+                                   ("plane-2m", "a", 0.0, 0.5, None),
+                                   ("plane-2m", "c", 0.0, 0.1, 0.1))]
+    rooms = methods.mode_summary(rows, "rooms")
+    assert rooms == {"a": (3.0, pytest.approx(0.03), pytest.approx(0.8))}
+    shapes = methods.mode_summary(rows, "shapes")
+    assert shapes == {"a": (1.0, 0.5, 0.0), "c": (1.0, 0.1, 0.1)}
+    # c is as fast and more accurate, but maps 10 %: the second front has neither
+    assert methods.fronts(shapes) == (["c"], [])

@@ -10,6 +10,9 @@ each mode's seconds are its map (``accumulation``) and its post-processing. Erro
 pipeline's (``accuracy_m.rms`` of the profile, ``completeness.2cm``), and the mean
 absolute distance of the thin map's cells to the true surfaces — the map error of the
 literature's comparisons (Barshan 2007), which also scores a map too sparse for a profile.
+Per scene kind (the thesis' shapes, the rooms) the modes' mean seconds against their mean
+map error, and the Pareto front of the two (:func:`pareto_front`), drawn as
+``methods-pareto-KIND.png`` beside the table when matplotlib is installed.
 """
 
 from __future__ import annotations
@@ -27,7 +30,7 @@ import numpy as np
 from .. import geometry
 from ..files import bundled_scenes, write_atomic
 from ..mapping import METHODS
-from ..outputs import metric
+from ..outputs import metric, plots_available
 from ..pipeline import RunResult, StageCache, run
 from ..scene import MappingMode, MappingSettings, Scene, load_scene
 from .markdown import NONE, cm, percent
@@ -96,12 +99,113 @@ def compare(scenes: Sequence[str] = SCENES, noises: Sequence[float] = NOISE,
     return rows
 
 
+def scene_kind(name: str) -> str:
+    """``"rooms"`` for a room (its name starts with ``room``), else ``"shapes"`` (the
+    thesis' single reflectors)."""
+    return "rooms" if name.startswith("room") else "shapes"
+
+
+#: A mode maps a scene kind when its mean share of the truth within 2 cm of its profile
+#: is at least this: the second front leaves out the sparse maps, whose few points score a
+#: small map error however little of the surfaces they show.
+COMPLETE = 0.5
+
+
+def mode_summary(rows: list[dict[str, Any]], kind: str
+                 ) -> dict[str, tuple[float, float, float]]:
+    """Per mode, over the rows of scenes of ``kind`` (:func:`scene_kind`) with a map: the
+    mean of its own seconds (map and post-processing), of its map errors and of its
+    completeness within 2 cm (none: 0). A mode with no map is left out."""
+    out = {}
+    for mode in dict.fromkeys(str(r["mode"]) for r in rows):
+        mine = [r for r in rows if r["mode"] == mode and scene_kind(str(r["scene"])) == kind
+                and r["map_error_m"] is not None]
+        if mine:
+            out[mode] = (float(np.mean([(r["map_s"] or 0.0) + r["post_s"] for r in mine])),
+                         float(np.mean([r["map_error_m"] for r in mine])),
+                         float(np.mean([r.get("completeness_2cm") or 0.0 for r in mine])))
+    return out
+
+
+def pareto_front(cost: np.ndarray, error: np.ndarray) -> np.ndarray:
+    """The indices, by increasing cost, of the points that no other point dominates (as
+    cheap and as accurate, and better in one): the Pareto front of time against error."""
+    cost, error = np.asarray(cost, float), np.asarray(error, float)
+    dominated = ((cost[None] <= cost[:, None]) & (error[None] <= error[:, None])
+                 & ((cost[None] < cost[:, None]) | (error[None] < error[:, None]))).any(axis=1)
+    front = np.flatnonzero(~dominated)
+    return front[np.argsort(cost[front], kind="stable")]
+
+
+def fronts(summary: dict[str, tuple[float, float, float]]) -> tuple[list[str], list[str]]:
+    """The modes on the Pareto front of seconds against map error, fastest first: of all
+    modes, and of those that map the kind (completeness ≥ :data:`COMPLETE`)."""
+    def front(modes: list[str]) -> list[str]:
+        at = pareto_front(np.array([summary[m][0] for m in modes]),
+                          np.array([summary[m][1] for m in modes]))
+        return [modes[i] for i in at]
+
+    return (front(list(summary)),
+            front([m for m in summary if summary[m][2] >= COMPLETE]))
+
+
+def pareto_png(summary: dict[str, tuple[float, float, float]], kind: str) -> bytes:
+    """The modes' mean seconds against mean map error (log–log), hollow where they map
+    less than :data:`COMPLETE` of the truth, both Pareto fronts (:func:`fronts`) joined."""
+    from ..plots import figure, png_bytes
+
+    fig = figure((6.5, 4.5), 120)
+    ax = fig.add_subplot()
+    for modes, style, label in zip(fronts(summary), ("--", "-"),
+                                   ("front", f"front of the maps ≥ {percent(COMPLETE)} complete"),
+                                   strict=True):
+        ax.plot([summary[m][0] for m in modes], [100 * summary[m][1] for m in modes], style,
+                color="0.5", zorder=1, label=label)
+    for m, (x, e, c) in summary.items():
+        ax.scatter([x], [100 * e], zorder=2, color="C0",
+                   facecolors="C0" if c >= COMPLETE else "none")
+        ax.annotate(m, (x, 100 * e), textcoords="offset points", xytext=(4, 3), fontsize=7)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("mean seconds (map + post-processing)")
+    ax.set_ylabel("mean map error (cm)")
+    ax.set_title(f"The mapping methods on the {kind}: time against error", fontsize=10)
+    ax.legend(fontsize=8)
+    return png_bytes(fig)
+
+
+def _pareto_section(rows: list[dict[str, Any]], images: dict[str, str]) -> list[str]:
+    """Per scene kind, the modes on both Pareto fronts and whether the default is one."""
+    default = MappingSettings().mode
+    out = ["## Time against error", "",
+           "Per scene kind, each mode's mean seconds (map and post-processing) against its",
+           "mean map error over the kind's scenes and noise levels. The Pareto front: the",
+           "modes no other is both faster and more accurate than; the map error scores",
+           "only the cells a mode draws, so the second front keeps the modes whose profile",
+           f"covers at least {percent(COMPLETE)} of the truth within 2 cm on average (hollow in",
+           "the figure: the others).", ""]
+    for kind in dict.fromkeys(scene_kind(str(r["scene"])) for r in rows):
+        summary = mode_summary(rows, kind)
+        for name, front in zip(("front", f"front of the maps ≥ {percent(COMPLETE)} complete"),
+                               fronts(summary), strict=True):
+            on = "is" if default in front else "is not"
+            out += [f"**{kind}**, {name} (fastest first): "
+                    + ", ".join(f"`{m}` ({summary[m][0]:.2f} s, {100 * summary[m][1]:.2f} cm, "
+                                f"{percent(summary[m][2])})" for m in front)
+                    + f"; the default `{default}` {on} on it.", ""]
+        if kind in images:
+            out += [f"![{kind}: time against error]({images[kind]})", ""]
+    return out
+
+
 def _seconds(value: float | None) -> str:
     return NONE if value is None else f"{float(value):.2f}"
 
 
-def markdown(rows: list[dict[str, Any]], command: str) -> str:
-    """The comparison as markdown: one table per scene, modes by noise σ."""
+def markdown(rows: list[dict[str, Any]], command: str,
+             images: dict[str, str] | None = None) -> str:
+    """The comparison as markdown: one table per scene, modes by noise σ, then per scene
+    kind the Pareto front of time against error (``images``: the kind's PNG's path)."""
     default = MappingSettings().mode
     out = ["# The mapping methods side by side", "",
            "Every `mapping.mode` on the same detections of each scene (issue 15; docs/mapping.md",
@@ -125,6 +229,7 @@ def markdown(rows: list[dict[str, Any]], command: str) -> str:
                 f"{percent(r['completeness_2cm'])} | "
                 f"{cm(r['map_error_m'])} | {r['thin_cells']} |")
         out.append("")
+    out += _pareto_section(rows, images or {})
     return "\n".join(out)
 
 
@@ -145,8 +250,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     write_atomic(args.out / "methods.json", (json.dumps(rows, indent=1) + "\n").encode())
     command = "python -m clsonar.tools.methods --out DIR --markdown docs/methods.md"
-    write_atomic(args.markdown or args.out / "methods.md",
-                 (markdown(rows, command) + "\n").encode())
+    table = args.markdown or args.out / "methods.md"
+    images = {}
+    if plots_available():
+        for kind in dict.fromkeys(scene_kind(str(r["scene"])) for r in rows):
+            images[kind] = f"methods-pareto-{kind}.png"
+            write_atomic(table.parent / images[kind], pareto_png(mode_summary(rows, kind), kind))
+    write_atomic(table, (markdown(rows, command, images) + "\n").encode())
     return 0
 
 
