@@ -103,14 +103,26 @@ def loci_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     return Votes(raw=raw, counts=counts)
 
 
+#: ``(scene, sensors, loci) → (points [m, 2], the locus of each [m])``: a method that
+#: gives one point per locus or per cluster of crossings.
+PointsOfLoci = Callable[[Scene, SensorArray, Loci], tuple[np.ndarray, np.ndarray]]
+
+
+def _points_of(method: PointsOfLoci, counter: str, scene: Scene, sensors: SensorArray,
+               detections: Detections) -> Votes:
+    """The :class:`Votes` of a method of points (``method`` on the detections' loci), each
+    with its locus' pair, their number under ``counter``."""
+    loci = _loci(scene, detections)
+    points, source = method(scene, sensors, loci)
+    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source],
+                 counts={counter: len(points)})
+
+
 def point_marking_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
                         detections: Detections, context: cl.Context, tiles: bool) -> Votes:
     """``"point-marking"`` (PM): one point at the middle of each locus' in-beam arc
     (:func:`~clsonar.mapping.arc_middles`), with its pair."""
-    loci = _loci(scene, detections)
-    points, source = arc_middles(scene, sensors, loci)
-    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source],
-                 counts={"arc_points": len(points)})
+    return _points_of(arc_middles, "arc_points", scene, sensors, detections)
 
 
 def directional_maximum_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
@@ -132,10 +144,7 @@ def arc_transversal_median_votes(scene: Scene, sensors: SensorArray, echoes: Ech
     """``"arc-transversal-median"`` (ATM; Choset, Nagatani & Lazar 2003): one point per
     locus, the median of its crossings with every other locus
     (:func:`~clsonar.mapping.arc_transversal_medians`), with its pair."""
-    loci = _loci(scene, detections)
-    points, source = arc_transversal_medians(scene, sensors, loci)
-    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source],
-                 counts={"arc_medians": len(points)})
+    return _points_of(arc_transversal_medians, "arc_medians", scene, sensors, detections)
 
 
 def triangulation_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
@@ -143,10 +152,7 @@ def triangulation_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     """``"triangulation"`` (TBF; Wijk & Christensen 2000): the centroids of the clusters of
     the pairwise crossings of nearby transmitters' loci
     (:func:`~clsonar.mapping.triangulated_points`), each with its nearest locus' pair."""
-    loci = _loci(scene, detections)
-    points, source = triangulated_points(scene, sensors, loci)
-    return Votes(points=points, tx=loci.tx[source], rx=loci.rx[source],
-                 counts={"triangulated_points": len(points)})
+    return _points_of(triangulated_points, "triangulated_points", scene, sensors, detections)
 
 
 def occupancy_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
