@@ -210,7 +210,8 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file",
 
     choices = dict(CHOICES[found.kind])
     reach = join_reach(found)
-    if reach is not None and reach > float(choices["post.join_m"]):  # type: ignore[arg-type]
+    farther = reach is not None and reach > float(choices["post.join_m"])  # type: ignore[arg-type]
+    if farther:
         choices["post.join_m"] = reach
 
     def filled(settings: Any, block: str) -> Any:
@@ -222,7 +223,7 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file",
                 why[key] = auto if unset else given
                 if unset:
                     changes[name] = choices[key]
-                    if key == "post.join_m" and choices[key] == reach:
+                    if key == "post.join_m" and farther:
                         why[key] = (f"{auto}, {found.clearance_m:.2f} m from the walls every "
                                     f"{found.step_m:.2f} m")
         return dataclasses.replace(settings, **changes)
