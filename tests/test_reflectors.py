@@ -127,39 +127,6 @@ def test_corner_path_is_the_double_bounce(dist, view, n, pitch):
     assert np.allclose(q, v)
 
 
-@settings(max_examples=60, deadline=None)
-@given(dist=finite(min_value=1.0, max_value=9.0), view=finite(min_value=-30.0, max_value=30.0),
-       angle=finite(min_value=80.0, max_value=100.0), n=st.integers(2, 10),
-       pitch=finite(min_value=0.02, max_value=0.11))
-def test_a_corner_of_any_angle_turns_the_path_by_twice_its_angle(dist, view, angle, n, pitch):
-    """Walls meeting at α: reflected across one wall and then the other, R's image is R
-    turned by ±2α about V (the order decides the sign); the shorter path is heard first,
-    and corner_paths with δ = 2α − π gives it (δ = 0: |T + R − 2V|)."""
-    v = np.array([dist, 0.0])
-    b, half = math.radians(view), math.radians(angle) / 2
-    walls = [np.array([math.cos(b + s), math.sin(b + s)]) for s in (half, -half)]
-    T, R = _pairs(_array(n, pitch))
-    images = [_reflect(_reflect(R, v, walls[i]), v, walls[1 - i]) for i in (0, 1)]
-    shortest = np.minimum(*(np.hypot(*(T - image).T) for image in images))
-    path, q = models.corner_paths(np.r_[v, 2 * math.radians(angle) - math.pi], T, R)
-    assert np.allclose(path, shortest, atol=1e-9)
-    assert np.allclose(q, v)
-
-
-def test_the_corner_fit_finds_the_vertex_and_angle_of_an_88_degree_corner():
-    """An 88° corner 6.6 m from a 31-element array (zoo seed 2's corner-02): the
-    right-angled model misses the far pairs by up to a few mm and the rows it left fitted
-    two planes through the vertex, 47 cm RMS; with δ free the fit is exact."""
-    v = np.array([6.6, 0.3])
-    T, R = _pairs(_array(31, 0.061))
-    paths, _ = models.corner_paths(np.r_[v, math.radians(-4.0)], T, R)
-    fit = models.fit_corner(T, R, paths, v + 0.01)
-    assert np.hypot(*(fit.params[:2] - v)) < 1e-5
-    assert abs(fit.params[2] - math.radians(4.0)) < 1e-5  # δ's sign: either way round
-    right = models.fit_corner(T, R, models.corner_paths(v, T, R)[0], v + 0.01)
-    assert abs(right.params[2]) < 1e-4 and right.rms < 1e-6
-
-
 # --- fits and the distinction of the reflectors ---------------------------------------
 
 

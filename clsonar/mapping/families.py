@@ -495,7 +495,7 @@ def _family_starts(w: Window, kind: str, params: np.ndarray,
         curve = np.array([phi, d, params[2] if kind == "curve" else 0.0])
         return {"plane": np.array([phi, d, 0.0]), "curve": curve, "point": apex,
                 "corner": apex}
-    point = np.asarray(params, dtype=np.float64)[:2]  # a corner's δ set aside
+    point = np.asarray(params, dtype=np.float64)
     rel = point - w.x0
     reach = max(float(np.hypot(*rel)), 1e-3)
     phi = math.atan2(rel[1], rel[0])

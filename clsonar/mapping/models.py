@@ -18,9 +18,8 @@ edge, a post), 0 < ψ < 1/A a convex cylinder, ψ > 1/A or ψ < 0 a concave one.
 of T = R echoes near X0 are A + x²·ψ/2 along the array, so ψ is what the data measure, and
 planes, cylinders and points are one family of which the fit picks the member.
 
-**Corner model** (:func:`corner_paths`), parameters V and δ: the double bounce of a corner
-whose walls meet at α = (π + δ)/2 (the two reflections make a rotation by ±2α about V);
-``|T + R − 2V|`` for a right angle (δ = 0, a rotation by 180°).
+**Corner model** (:func:`corner_paths`), parameters V: ``|T + R − 2V|``, the double bounce
+of a right-angled corner (the two reflections make a rotation by 180° about V).
 """
 
 from __future__ import annotations
@@ -149,22 +148,10 @@ def point_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
 
 def corner_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """``(path [n], q [n, 2])`` of a corner at V = ``params[:2]`` whose walls meet at
-    α = (π + δ)/2, δ = ``params[2]`` (absent or 0: right-angled): the two reflections make
-    a rotation by ±2α about V — one way round or the other, the shorter heard first — so
-    the double bounce's length is min over ± of |(T − V) + Rot(±δ)(R − V)| (δ = 0:
-    |T + R − 2V|, a point reflection through V), and V itself."""
-    p = np.asarray(params, dtype=np.float64)
-    v, delta = p[:2], float(p[2]) if len(p) > 2 else 0.0
-    a, b = T - v, R - v
-    if delta == 0.0:
-        path = np.hypot(*(a + b).T)
-    else:
-        c, s = math.cos(delta), math.sin(delta)
-        turned = [np.stack([c * b[:, 0] - k * s * b[:, 1], k * s * b[:, 0] + c * b[:, 1]],
-                           axis=-1) for k in (1.0, -1.0)]
-        path = np.minimum(*(np.hypot(*(a + t).T) for t in turned))
-    return path, np.broadcast_to(v, T.shape).copy()
+    """``(path [n], q [n, 2])`` of a right-angled corner at V = ``params``: the double
+    bounce's length |T + R − 2V| (a point reflection through V) and V itself."""
+    v = np.asarray(params, dtype=np.float64)
+    return np.hypot(*(T + R - 2.0 * v).T), np.broadcast_to(v, T.shape).copy()
 
 
 #: ``params → (path, q)`` of one model for fixed pairs.
@@ -266,16 +253,7 @@ def _damped_step(H: np.ndarray, g: np.ndarray, lam: float) -> np.ndarray:
 #: Finite-difference steps of the curve model's (φ, d, ψ) and of a point's or corner's
 #: position (ψ's straddles the plane's threshold :data:`PSI_PLANE` with circles of 10⁴ m).
 CURVE_STEPS = np.array([1e-7, 1e-7, 1e-4])
-POINT_STEPS = np.array([1e-7, 1e-7])
-CORNER_STEPS = np.array([1e-7, 1e-7, 1e-7])
-
-#: A corner's walls meet at a right angle ± this half-angle of δ at most (radians; 80–100°):
-#: farther, its double bounce leaves the array's beams, and a fitted δ beyond it is the
-#: fit wandering where the data do not hold it.
-MAX_CORNER_DELTA = math.radians(20.0)
-
-#: Where the free fit of δ starts (radians; :func:`fit_corner`).
-CORNER_DELTA_START = math.radians(1.0)
+CORNER_STEPS = np.array([1e-7, 1e-7])
 
 
 def fit_curve(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
@@ -294,24 +272,13 @@ def fit_curve(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
 
 
 def fit_corner(T: np.ndarray, R: np.ndarray, paths: np.ndarray, start: np.ndarray) -> Fit:
-    """The corner model's least-squares ``(V, δ)`` from ``start`` (V, or V and δ): with δ
-    free, or held at 0 (a right angle) where the free fit leaves
-    :data:`MAX_CORNER_DELTA`."""
-    v = np.asarray(start, dtype=np.float64)[:2]
-    # the paths are even in δ (both rotations, the shorter heard) with a kink at 0, where
-    # a central difference sees no slope: the free fit starts a little off it
-    fit = least_squares(lambda p: corner_paths(p, T, R), paths, np.r_[v, CORNER_DELTA_START],
-                        CORNER_STEPS)
-    right = least_squares(lambda p: corner_paths(p, T, R), paths, np.r_[v, 0.0], CORNER_STEPS,
-                          fixed=np.array([False, False, True]))
-    if abs(float(fit.params[2])) <= MAX_CORNER_DELTA and fit.rms < right.rms:
-        return Fit(np.r_[fit.params[:2], abs(float(fit.params[2]))], fit.rms, fit.converged)
-    return right
+    """The corner model's least-squares vertex V from ``start``."""
+    return least_squares(lambda p: corner_paths(p, T, R), paths, start, CORNER_STEPS)
 
 
 def fit_point(T: np.ndarray, R: np.ndarray, paths: np.ndarray, start: np.ndarray) -> Fit:
     """The point model's least-squares position F from ``start``."""
-    return least_squares(lambda p: point_paths(p, T, R), paths, start, POINT_STEPS)
+    return least_squares(lambda p: point_paths(p, T, R), paths, start, CORNER_STEPS)
 
 
 def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
@@ -334,28 +301,7 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
     return np.array([phis[best], float(np.median(support[:, best])), 0.0])
 
 
-__all__ = [
-    "CORNER_DELTA_START",
-    "CORNER_STEPS",
-    "CURVE_STEPS",
-    "MAX_CORNER_DELTA",
-    "POINT_STEPS",
-    "PSI_PLANE",
-    "SPECULAR_STEPS",
-    "Fit",
-    "PathModel",
-    "circle_points",
-    "corner_paths",
-    "curve_geometry",
-    "curve_paths",
-    "dot2",
-    "fit_corner",
-    "fit_curve",
-    "fit_point",
-    "gram",
-    "least_squares",
-    "plane_points",
-    "plane_start",
-    "point_paths",
-    "project_paths",
-]
+__all__ = ["CORNER_STEPS", "CURVE_STEPS", "PSI_PLANE", "SPECULAR_STEPS", "Fit", "PathModel",
+           "circle_points", "corner_paths", "curve_geometry", "curve_paths", "dot2",
+           "fit_corner", "fit_curve", "fit_point", "gram", "least_squares", "plane_points",
+           "plane_start", "point_paths", "project_paths"]
