@@ -167,15 +167,35 @@ def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nd
 def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares point V on the loci (|V − T_k| + |V − R_k|)/2 = a_k (a corner or an
-    edge seen from several positions; T = R: |V − T_k| = ρ_k), and the residuals."""
-    from scipy.optimize import least_squares
+    edge seen from several positions; T = R: |V − T_k| = ρ_k), and the residuals:
+    Gauss–Newton from ``start``, each step halved until the cost falls (two unknowns: a
+    solver's set-up would cost more than the solve, and this runs once per seed set)."""
 
     def residual(v: np.ndarray) -> np.ndarray:
         return 0.5 * (np.hypot(*(v - T).T) + np.hypot(*(v - R).T)) - a
 
-    v = least_squares(residual, start,
-                      jac=lambda v: 0.5 * (_directions(v, T) + _directions(v, R))).x
-    return v, residual(v)
+    v = np.asarray(start, dtype=np.float64)
+    r = residual(v)
+    for _ in range(POINT_ITERATIONS):
+        J = 0.5 * (_directions(v, T) + _directions(v, R))
+        step = np.linalg.lstsq(J, r, rcond=None)[0]
+        for _ in range(30):  # halve the step until the cost falls
+            trial = v - step
+            r_trial = residual(trial)
+            if r_trial @ r_trial <= r @ r:
+                break
+            step = 0.5 * step
+        else:
+            break
+        v, r = trial, r_trial
+        if float(np.hypot(*step)) <= POINT_STEP_M:
+            break
+    return v, r
+
+
+#: Gauss–Newton steps of :func:`_point_from`, and the step (metres) at which it stops.
+POINT_ITERATIONS = 30
+POINT_STEP_M = 1e-10
 
 
 def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,
