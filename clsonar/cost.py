@@ -7,7 +7,8 @@ itself refuses on (:func:`~clsonar.mapping.check_pair_memory`,
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import asdict, dataclass
 
 from . import regions
 from .geometry import build_geometry
@@ -46,7 +47,7 @@ def estimate(scene: Scene, preset: str | None = None) -> Estimate:
     scene = apply_preset(scene, preset)
     geom = build_geometry(scene)
     sensors = place_sensors(scene, geom)
-    scene, _ = choose_settings(scene, survey(scene, sensors), geom=geom)
+    scene, _ = choose_settings(scene, survey(scene, sensors, geom), geom=geom)
     return _estimate(scene, sensors)
 
 
@@ -66,10 +67,7 @@ def peak_bytes() -> int:
 def record(e: Estimate, peak: int | None = None) -> dict[str, object]:
     """``report.json``'s ``cost``: the estimate the run was checked against, beside the
     process' ``peak`` resident memory (bytes) and the pairs and cells used."""
-    return {"transducers": e.transducers, "pairs": e.pairs,
-            "samples_per_pair": e.samples_per_pair, "cells": e.cells, "rooms": e.rooms,
-            "pair_bytes": e.pair_bytes, "map_bytes": e.map_bytes,
-            "available_bytes": e.available_bytes, "peak_bytes": peak}
+    return {**asdict(e), "peak_bytes": peak}
 
 
 def _estimate(scene: Scene, sensors: SensorArray) -> Estimate:
@@ -106,7 +104,7 @@ def parse_size(text: str) -> int:
     t = text.strip().upper().removesuffix("B")
     unit = t[-1:] if t[-1:] in units else ""
     value = float(t[: len(t) - len(unit)])
-    if not value > 0 or value != value or value == float("inf"):
+    if not (math.isfinite(value) and value > 0):
         raise ValueError(text)
     return int(value * units[unit])
 

@@ -114,7 +114,7 @@ def memory_limit(limit: int | None) -> Iterator[None]:
 
 def host_available_bytes() -> int | None:
     """Memory a run may take: what this machine can still give (MemAvailable), at most the
-    limit :func:`set_memory_limit` set; None if neither is known."""
+    limit :func:`memory_limit` sets; None if neither is known."""
     free = _machine_available_bytes()
     if _memory_limit is None:
         return free

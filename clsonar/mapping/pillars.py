@@ -71,8 +71,7 @@ def fit_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndar
             return None
         centre, radius, _ = _fit(T[keep], rho[keep], middles[keep].mean(axis=0))
         keep = np.abs(np.hypot(*(centre - T).T) - rho - radius) <= loose * tol
-    positions = np.unique(np.round(T[keep], 6), axis=0)
-    if (len(positions) < MIN_PILLAR_LOCI
+    if (_positions(T[keep]) < MIN_PILLAR_LOCI
             or not PILLAR_RADII_M[0] <= radius <= PILLAR_RADII_M[1]
             or _a_point(T[keep], rho[keep], centre, tol[keep])):
         return None
@@ -110,8 +109,9 @@ SEED_M = 0.5
 #: (it would have heard the circle first, as the loci that touch it did from as far).
 SeenThrough = Callable[[np.ndarray, float, float], bool]
 
-#: ``in_beam(point)``: [k] whether ``point`` lies in the beam of each locus' transducer.
-InBeam = Callable[[np.ndarray], np.ndarray]
+#: ``admits(point)``: [k] whether each locus may be drawn as ``point`` (it lies in the
+#: locus' beams, and near enough to what the locus drew).
+Admits = Callable[[np.ndarray], np.ndarray]
 
 
 def _plausible(T: np.ndarray, rho: np.ndarray, tol: np.ndarray) -> bool:
@@ -164,6 +164,17 @@ def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nd
     return centre, radius, np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
 
 
+def _point_residual(v: np.ndarray, T: np.ndarray, R: np.ndarray, a: np.ndarray
+                    ) -> np.ndarray:
+    """[k] how far the point ``v`` lies off each locus, (|v − T_k| + |v − R_k|)/2 − a_k."""
+    return 0.5 * (np.hypot(*(v - T).T) + np.hypot(*(v - R).T)) - a
+
+
+def _positions(T: np.ndarray) -> int:
+    """How many different transducer positions ``T`` [k, 2] holds (to a micrometre)."""
+    return len(np.unique(np.round(T, 6), axis=0))
+
+
 def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares point V on the loci (|V − T_k| + |V − R_k|)/2 = a_k (a corner or an
@@ -172,7 +183,7 @@ def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
     solver's set-up would cost more than the solve, and this runs once per seed set)."""
 
     def residual(v: np.ndarray) -> np.ndarray:
-        return 0.5 * (np.hypot(*(v - T).T) + np.hypot(*(v - R).T)) - a
+        return _point_residual(v, T, R, a)
 
     v = np.asarray(start, dtype=np.float64)
     r = residual(v)
@@ -199,15 +210,14 @@ POINT_STEP_M = 1e-10
 
 
 def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,
-                tol: np.ndarray, in_beam: InBeam) -> tuple[np.ndarray, np.ndarray] | None:
+                tol: np.ndarray, admits: Admits) -> tuple[np.ndarray, np.ndarray] | None:
     """The point reflector that explains the most of the loci within ``tol``, from
-    :data:`MIN_PILLAR_LOCI` transmitter positions or more, inside each explaining locus'
-    beams (``in_beam``): fitted from each of :func:`_seed_sets`, then again to every locus
-    it explains."""
+    :data:`MIN_PILLAR_LOCI` transmitter positions or more, each explaining locus admitting
+    it (``admits``: inside its beams): fitted from each of :func:`_seed_sets`, then again
+    to every locus it explains."""
 
     def explains(v: np.ndarray) -> np.ndarray:
-        off = 0.5 * (np.hypot(*(v - T).T) + np.hypot(*(v - R).T)) - a
-        return (np.abs(off) <= tol) & in_beam(v)
+        return (np.abs(_point_residual(v, T, R, a)) <= tol) & admits(v)
 
     best = None
     for near in _seed_sets(middles):
@@ -221,7 +231,7 @@ def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray
         return None
     v, _ = _point_from(T[best[1]], R[best[1]], a[best[1]], best[0])
     explained = explains(v)
-    if (len(np.unique(np.round(T[explained], 6), axis=0)) < MIN_PILLAR_LOCI
+    if (_positions(T[explained]) < MIN_PILLAR_LOCI
             or _a_plane(0.5 * (T + R)[explained], a[explained], tol[explained])):
         return None
     return v, explained
@@ -246,31 +256,36 @@ def _a_plane(centres: np.ndarray, a: np.ndarray, tol: np.ndarray) -> bool:
     return bool(spread(np.array([found.x]))[0] <= 2.0 * float(np.max(tol)))
 
 
-
 def point_reflectors(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,
-                     tol: np.ndarray, in_beam: InBeam) -> dict[int, np.ndarray]:
+                     tol: np.ndarray, admits: Admits) -> dict[int, np.ndarray]:
     """``{k: point}`` for the loci (T_k, R_k, a_k) that one point explains,
     (|V − T_k| + |V − R_k|)/2 = a_k within ``tol``, from :data:`MIN_PILLAR_LOCI`
-    transmitter positions or more, inside their beams: a
+    transmitter positions or more, each admitting it (``admits``: inside its beams): a
     room's corner (its retro-reflected double bounce) or a convex edge that a moving ring
     hears from several poses, whose loci cross there (Kleeman & Kuc 1995's point
     reflector, a pillar of radius 0). Cluster by cluster (:data:`CLUSTER_M`), point after
     point, as :func:`pillar_arcs`."""
-    out: dict[int, np.ndarray] = {}
+
+    def best(m: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        return _best_point(T[m], R[m], a[m], middles[m], tol[m], lambda v: admits(v)[m])
+
+    return {int(k): v for (v, _), ks in _one_by_one(middles, best) for k in ks}
+
+
+def _one_by_one(middles: np.ndarray, best: Callable[[np.ndarray], tuple | None]
+                ) -> Iterator[tuple[tuple, np.ndarray]]:
+    """Reflectors found one after another in each cluster (:data:`CLUSTER_M`) of the loci'
+    ``middles``: ``best(members)`` gives the one that explains most of ``members`` (its
+    last item the mask of those it explains) or None; yields it with the loci it explains,
+    then searches the rest of the cluster."""
     for members in _clusters(middles):
         while len(members) >= MIN_PILLAR_LOCI:
-            def admitted(v: np.ndarray, m: np.ndarray = members) -> np.ndarray:
-                return in_beam(v)[m]
-
-            found = _best_point(T[members], R[members], a[members], middles[members],
-                                tol[members], admitted)
+            found = best(members)
             if found is None:
                 break
-            v, explained = found
-            for k in members[explained]:
-                out[int(k)] = v
+            explained = found[-1]
+            yield found, members[explained]
             members = members[~explained]
-    return out
 
 
 def pillar_arcs(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
@@ -280,18 +295,12 @@ def pillar_arcs(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nda
     tolerances ``tol``) that a fitted pillar explains (:func:`_best_pillar`, cluster by
     cluster, pillar after pillar): each its stretch of the pillar (:func:`pillar_arc`) in
     place of its middle-of-arc stub."""
-    out: dict[int, np.ndarray] = {}
-    for members in _clusters(middles):
-        while len(members) >= MIN_PILLAR_LOCI:
-            found = _best_pillar(T[members], rho[members], middles[members], tol[members],
-                                 seen_through)
-            if found is None:
-                break
-            centre, radius, explained = found
-            for k in members[explained]:
-                out[int(k)] = pillar_arc(centre, radius, T[k], float(rho[k]), bias, step)
-            members = members[~explained]
-    return out
+
+    def best(m: np.ndarray) -> tuple[np.ndarray, float, np.ndarray] | None:
+        return _best_pillar(T[m], rho[m], middles[m], tol[m], seen_through)
+
+    return {int(k): pillar_arc(centre, radius, T[k], float(rho[k]), bias, step)
+            for (centre, radius, _), ks in _one_by_one(middles, best) for k in ks}
 
 
 __all__ = [

@@ -234,13 +234,13 @@ def _points(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndarr
                         for k, i in zip(slots, loci, strict=True)])
     reach = np.array([np.inf if k in stubs else POINT_ENVELOPE_M for k in slots])
 
-    def in_beam(v: np.ndarray) -> np.ndarray:
+    def admits(v: np.ndarray) -> np.ndarray:
         return (in_beams(v[None], T, t_axes, s.cut_sin2)
                 & in_beams(v[None], R, r_axes, s.cut_sin2)
                 & (np.hypot(*(middles - v).T) <= reach))
 
     points = point_reflectors(T, R, s.a[loci], middles, _range_tolerance(scene, s, loci),
-                              in_beam)
+                              admits)
     return {slots[n]: v for n, v in points.items()}
 
 
@@ -287,16 +287,13 @@ def _just_after_first(s: SampledLoci, isolated: np.ndarray, stubs: list[int]) ->
     nearer T = R locus of the same element: drawn as the middle of its in-beam arc it would
     stand a few cm behind the surface heard first, too near it for the line of sight to
     tell (its ghost and the surface thin into one thick curve)."""
-    mono = np.flatnonzero(s.loci.tx == s.loci.rx)
-    first = np.full(int(s.loci.tx.max(initial=0)) + 1, np.inf)
-    np.minimum.at(first, s.loci.tx[mono], s.a[mono])
-    out = []
-    for k in stubs:
-        i = isolated[k]
-        if s.loci.tx[i] == s.loci.rx[i] and first[s.loci.tx[i]] < s.a[i] <= (
-                first[s.loci.tx[i]] + MULTIPATH_M):
-            out.append(k)
-    return out
+    tx, rx = s.loci.tx, s.loci.rx
+    mono = np.flatnonzero(tx == rx)
+    first = np.full(int(tx.max(initial=0)) + 1, np.inf)  # each element's nearest echo
+    np.minimum.at(first, tx[mono], s.a[mono])
+    i = isolated[np.asarray(stubs, dtype=np.int64)]
+    after = (tx[i] == rx[i]) & (first[tx[i]] < s.a[i]) & (s.a[i] <= first[tx[i]] + MULTIPATH_M)
+    return [k for k, late in zip(stubs, after, strict=True) if late]
 
 
 def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: np.ndarray,
