@@ -29,6 +29,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
+from . import steps
 from .errors import ClsonarError, DeviceError, one_line, save_traceback
 from .files import PNG_CHOICES
 from .opencl import INSTALL_HINT, PRECISIONS
@@ -58,8 +59,9 @@ def _device_args(p: argparse.ArgumentParser) -> None:
                         "(default: PYOPENCL_CTX, else the first GPU, else the CPU)")
 
 
-def _out_arg(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", required=True, metavar="DIR", help="output folder")
+def _out_arg(p: argparse.ArgumentParser, required: bool = True) -> None:
+    p.add_argument("--out", required=required, metavar="DIR",
+                   help="output folder" + ("" if required else " (not with --dry-run)"))
 
 
 def _scheduler_arg(p: argparse.ArgumentParser, what: str = "") -> None:
@@ -77,7 +79,7 @@ def _add_run(sub: Subparsers) -> None:
                                    "thinning, profile fit and metrics; writes report.json, "
                                    "stages.npz, profile.csv, echoes.csv and PNGs into DIR.")
     p.add_argument("scene", metavar="SCENE.json")
-    _out_arg(p)
+    _out_arg(p, required=False)
     p.add_argument("--preset", choices=tuple(PRESETS),
                    help="detection/mapping/post settings: the thesis' methods or ours "
                         "(default: the scene file's settings, which default to ours)")
@@ -248,6 +250,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from . import cost
     from .scene import load_scene
 
+    if args.out is None and not args.dry_run:
+        raise ClsonarError("run: --out DIR is needed (or --dry-run)")
     scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
     try:
         limit = None if args.max_memory is None else cost.parse_size(args.max_memory)
@@ -273,8 +277,9 @@ def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
     skips = Skips(**{name: name not in off for name in names})
     line = ProgressLine(not args.quiet)
     try:
-        result = pipeline.run(scene, device=args.device, preset=args.preset,
-                              progress=line.stage, skips=skips)
+        with steps.watching(line.step):
+            result = pipeline.run(scene, device=args.device, preset=args.preset,
+                                  progress=line.stage, skips=skips)
     finally:
         line.done()
     paths = outputs.write_outputs(

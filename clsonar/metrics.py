@@ -25,7 +25,7 @@ from typing import TypedDict
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import physics
+from . import physics, steps
 from .geometry import Geometry, curve_point, nearest_surface_point, true_vertices
 from .scene import Polyline, Scene, Sinusoid
 from .sensors import SensorArray
@@ -113,7 +113,9 @@ def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
         beam = (d @ axis > 0) & (cross * cross <= cut_sin2 * dist * dist)
         seen[int(s)] = (index[beam], dist[beam])
     lit_sorted = np.zeros(len(pts), dtype=bool)
-    for t, r, length in zip(tx, rx, path, strict=True):
+    for k, (t, r, length) in enumerate(zip(tx, rx, path, strict=True)):
+        if k % STEP_ECHOES == 0:
+            steps.step("echoes' loci", k, len(path))
         (it, dt), (ir, dr) = seen[int(t)], seen[int(r)]
         if len(it) == 0 or len(ir) == 0:
             continue
@@ -121,8 +123,13 @@ def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
         both = ir[at] == it
         on = np.abs(dt[both] + dr[at[both]] - length) <= 2 * LOCUS_TOL_M
         lit_sorted[it[both][on]] = True
+    steps.step("echoes' loci", len(path), len(path))
     lit[order] = lit_sorted
     return lit
+
+
+#: Echoes :func:`insonified` tests between two reports of its progress.
+STEP_ECHOES = 4096
 
 
 #: Widest beam (sin² of its half-angle) :func:`_near_beam` narrows a sensor's points for;

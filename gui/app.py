@@ -143,6 +143,7 @@ class MainWindow(QMainWindow):
         self.progress.setMaximumWidth(220)
         self.progress.setVisible(False)
         self.stage_label = QLabel("")
+        self.stage_text = ""  # the stage the running job reported last
         self.statusBar().addPermanentWidget(self.stage_label)
         self.statusBar().addPermanentWidget(self.progress)
 
@@ -385,6 +386,7 @@ class MainWindow(QMainWindow):
             return False
         job = Job(fn, kind, self)
         job.progressed.connect(self._progress)
+        job.stepped.connect(self._step)
         job.succeeded.connect(functools.partial(self._done, job, self._generation))
         job.failed.connect(lambda m, j=job: self._failed(j, m))
         job.cancelled.connect(lambda j=job: self._cancelled(j))
@@ -403,7 +405,12 @@ class MainWindow(QMainWindow):
 
     def _progress(self, stage: str, i: int, n: int) -> None:
         self.progress.setValue(i - 1)
-        self.stage_label.setText(f"{stage} ({i}/{n})")
+        self.stage_text = f"{stage} ({i}/{n})"
+        self.stage_label.setText(self.stage_text)
+
+    def _step(self, what: str, done: int, total: int) -> None:
+        """Progress inside the stage (:mod:`clsonar.steps`), beside its name."""
+        self.stage_label.setText(f"{self.stage_text}: {what} {done:,}/{total:,}")
 
     def _finish(self, job: Job) -> None:
         job.wait()

@@ -1,8 +1,11 @@
 """Long work off the GUI thread: a :class:`Job` runs one function in a ``QThread``.
 
 The function gets a ``progress(stage, i, n)`` callback (the shape of
-:data:`clsonar.pipeline.Progress`); :meth:`Job.cancel` makes the next call of it raise
-:class:`Cancelled`, so a pipeline run stops between stages. The outcome comes back as
+:data:`clsonar.pipeline.Progress`) and runs watched by :func:`clsonar.steps.watching`, so
+the stages' long loops report their steps too (signal ``stepped``, at most 10 a second);
+:meth:`Job.cancel` makes the next report of either kind raise :class:`Cancelled`, so a
+pipeline run stops within one step of a stage (a fraction of a second), not only between
+stages. The outcome comes back as
 exactly one of the signals ``succeeded(result)``, ``failed(message)`` or ``cancelled()``,
 delivered on the GUI thread; nothing the function raises can crash the GUI.
 """
@@ -10,12 +13,14 @@ delivered on the GUI thread; nothing the function raises can crash the GUI.
 from __future__ import annotations
 
 import threading
+import time
 import traceback
 from collections.abc import Callable
 from typing import Any
 
 from PySide6.QtCore import QObject, QThread, Signal
 
+from .. import steps
 from ..errors import ClsonarError
 from ..pipeline import Progress
 
@@ -35,6 +40,7 @@ class Job(QThread):
     """Runs ``fn(progress)`` in its own thread; see the module docstring."""
 
     progressed = Signal(str, int, int)
+    stepped = Signal(str, int, int)
     succeeded = Signal(object)
     failed = Signal(str)
     cancelled = Signal()
@@ -46,6 +52,7 @@ class Job(QThread):
         self.name = name
         self._cancel = threading.Event()
         self.stages: list[str] = []  # the stages it reported, in order
+        self._stepped = 0.0  # when ``stepped`` was last emitted
 
     def cancel(self) -> None:
         """Ask the job to stop at its next progress report."""
@@ -57,9 +64,18 @@ class Job(QThread):
         self.stages.append(stage)
         self.progressed.emit(stage, i, n)
 
+    def _step(self, what: str, done: int, total: int) -> None:
+        if self._cancel.is_set():
+            raise Cancelled
+        now = time.perf_counter()
+        if now - self._stepped >= 0.1 or done >= total:
+            self._stepped = now
+            self.stepped.emit(what, done, total)
+
     def run(self) -> None:  # the thread's body
         try:
-            result = self.fn(self._progress)
+            with steps.watching(self._step):
+                result = self.fn(self._progress)
         except Cancelled:
             self.cancelled.emit()
         except Exception as e:

@@ -511,3 +511,24 @@ def test_the_mapping_selector_lists_every_method(window):
     assert list(mode.opts["limits"]) == list(edits.choices(type(window.doc.scene.mapping),
                                                            "mode"))
     assert set(mode.opts["limits"]) == set(METHODS) and len(METHODS) == 10
+
+
+def test_job_cancel_inside_a_stage(qtbot, monkeypatch):
+    """Cancel stops a real run at the detection's next launch, not at the end of the stage:
+    the launches are one pair each, and the first one cancels."""
+    from clsonar import pipeline
+    from clsonar.signals import host
+
+    scene = load_scene(str(importlib.resources.files("clsonar.scenes") / "plane-2m.json"))
+    job = Job(lambda progress: pipeline.run(scene, progress=progress))
+
+    def one_pair_and_cancel(size, seconds, most):
+        job.cancel()
+        return 1
+
+    monkeypatch.setattr(host, "FIRST_LAUNCH_SLOTS", 1)
+    monkeypatch.setattr(host, "launch_size", one_pair_and_cancel)
+    with qtbot.waitSignal(job.cancelled, timeout=RUN_TIMEOUT_MS):
+        job.start()
+    job.wait()
+    assert job.stages[-1] == "detection"

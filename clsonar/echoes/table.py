@@ -8,6 +8,7 @@ from typing import TextIO
 
 import numpy as np
 
+from .. import steps
 from .problem import EchoProblem
 
 KINDS = ("specular", "corner", "edge", "curved")
@@ -101,11 +102,10 @@ def _table(parts: list[dict[str, np.ndarray]]) -> EchoTable:
 
 def solve(pb: EchoProblem, run: Callable[[str, slice], tuple]) -> EchoTable:
     """Run every non-empty family over chunks of pairs and collect the echoes."""
+    launches = [(family, chunk) for family, width in pb.widths.items()
+                if width and len(pb.pairs) for chunk in _pair_chunks(len(pb.pairs), width)]
     parts = []
-    for family, width in pb.widths.items():
-        if width == 0 or len(pb.pairs) == 0:
-            continue
-        for chunk in _pair_chunks(len(pb.pairs), width):
-            tof, amp, point = run(family, chunk)
-            parts.append(_rows(pb, family, chunk.start, tof, amp, point))
+    for family, chunk in steps.each("launches", launches):
+        tof, amp, point = run(family, chunk)
+        parts.append(_rows(pb, family, chunk.start, tof, amp, point))
     return _table(parts)

@@ -18,6 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .. import steps
 from ..scene import Scene
 from ..sensors import SensorArray
 from .families import Family
@@ -30,6 +31,7 @@ from .patches import (
     carrier_points,
     coordinates,
     draw_patch,
+    heard_index,
     patch_of,
     spread_patch,
 )
@@ -239,8 +241,10 @@ def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
     """The points and vertices of ``families``: patches spread over their regions of
     constant depth, joined, met at corners and edges, drawn every :data:`STEP_CELLS`
     cells."""
-    patches = [spread_patch(patch_of(f, loci), scene, sensors, loci)
-               for f in families if f.kind in ("plane", "curve")]
+    spread = [f for f in families if f.kind in ("plane", "curve")]
+    heard = heard_index(loci, sensors, scene.medium.c)
+    patches = [spread_patch(patch_of(f, loci), scene, sensors, heard)
+               for f in steps.each("patches", spread)]
     points = [f for f in families if f.kind in ("point", "corner")]
     vertices = merge_vertices(
         np.asarray([f.params for f in points], dtype=np.float64).reshape(-1, 2),

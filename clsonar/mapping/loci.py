@@ -64,7 +64,45 @@ def merge_reciprocal(loci: Loci, tolerance_s: float) -> Loci:
     """One locus per physical path: (T, R) and (R, T) travel the same path, so a detection
     of each whose times of flight differ by at most ``tolerance_s`` become one row with
     T < R, their mean time of flight (√2 less noise) and mean amplitude. Unmatched rows and
-    T = R rows stay as they are. Rows come back sorted by (tx, rx, tof)."""
+    T = R rows stay as they are. Rows come back sorted by (tx, rx, tof).
+
+    A pair with at most one detection each way (nearly all of them) is merged in one
+    vectorised pass; the others by :func:`merge_reciprocal_reference`, nearest first."""
+    loci = as_loci(loci)
+    a, b = np.minimum(loci.tx, loci.rx), np.maximum(loci.tx, loci.rx)
+    key = a * (int(b.max(initial=0)) + 1) + b
+    backward = loci.tx > loci.rx  # rows of (R, T); T = R rows count as forward
+    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
+    n_back = np.bincount(inverse, backward, minlength=len(counts))
+    simple = ((counts - n_back) <= 1) & (n_back <= 1)
+    mine = simple[inverse]
+    order = np.lexsort((backward, key))  # each simple pair: its forward row, then backward
+    order = order[mine[order]]
+    k = key[order]
+    first = np.r_[True, k[1:] != k[:-1]][:len(k)]
+    alone = order[first]  # one row per simple pair: the forward, or a lone backward
+    partner = np.full(len(alone), -1)
+    has_two = np.flatnonzero(~first) - 1  # positions in ``order`` whose next row pairs them
+    partner[np.cumsum(first)[has_two] - 1] = order[has_two + 1]
+    i, j = alone[partner >= 0], partner[partner >= 0]
+    close = np.abs(loci.tof_s[i] - loci.tof_s[j]) <= tolerance_s
+    merged_i, merged_j = i[close], j[close]
+    single = np.r_[alone[partner < 0], i[~close], j[~close]]
+    rest = merge_reciprocal_reference(_subset(loci, np.flatnonzero(~mine)), tolerance_s)
+    tx = np.r_[a[merged_i], a[single], rest.tx]
+    rx = np.r_[b[merged_i], b[single], rest.rx]
+    tof = np.r_[(loci.tof_s[merged_i] + loci.tof_s[merged_j]) / 2.0, loci.tof_s[single],
+                rest.tof_s]
+    amp = np.r_[(loci.amplitude[merged_i] + loci.amplitude[merged_j]) / 2.0,
+                loci.amplitude[single], rest.amplitude]
+    order = np.lexsort((tof, rx, tx))
+    return Loci(tx[order].astype(np.int64), rx[order].astype(np.int64),
+                tof[order].astype(np.float64), amp[order].astype(np.float64))
+
+
+def merge_reciprocal_reference(loci: Loci, tolerance_s: float) -> Loci:
+    """:func:`merge_reciprocal` row by row: each (T, R) detection, in order, takes the
+    nearest unused (R, T) detection of its pair within ``tolerance_s``."""
     loci = as_loci(loci)
     groups: dict[tuple[int, int], list[int]] = {}
     for i, (t, r) in enumerate(zip(loci.tx.tolist(), loci.rx.tolist(), strict=True)):

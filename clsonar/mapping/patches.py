@@ -22,6 +22,7 @@ is nearest (the line-of-sight check asks which pair saw it).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -161,46 +162,72 @@ def patch_of(f: Family, loci: Loci) -> Patch:
                  loci.rx[f.loci], w.T[f.rows], w.R[f.rows], w.paths[f.rows])
 
 
-def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
+def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
                       lo: float, hi: float) -> tuple[float, float]:
     """The span ``(lo, hi)`` cut where the array heard nothing (module docstring): pairs
     whose two-way beam (:func:`~.families.two_way`) points at the surface beyond the span
     at least as well as for the weakest of the patch's own detections, and that have no
-    echo there."""
-    c = scene.medium.c
-    cut_sin2, _ = scene.transducer.beam(c)
-    pairs = _group_pairs(sensors, int(p.tx[0]))
-    T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
-    path, q = curve_paths(p.params, p.x0, T, R)
-    ok = (in_beams(q, T, sensors.axes[pairs[:, 0]], cut_sin2)
-          & in_beams(q, R, sensors.axes[pairs[:, 1]], cut_sin2) & np.isfinite(path))
-    ka = scene.transducer.beam(c)[1]
-    beams = (q, T, sensors.axes[pairs[:, 0]], R, sensors.axes[pairs[:, 1]])
+    echo there (:func:`_silent_beyond`, :data:`SILENCE_PAIRS` pairs of the group at a
+    time)."""
+    first, last = float(p.u.min()), float(p.u.max())
+    if lo >= first and hi <= last:
+        return lo, hi  # nothing a silent pair could cut
+    ka = scene.transducer.beam(scene.medium.c)[1]
     weakest = two_way(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
                       sensors.axes[p.rx], ka).min()
-    ok &= two_way(*beams, ka) >= weakest * (1.0 - 1e-9)
+    below = above = False
+    for pairs in _group_pairs(sensors, int(p.tx[0])):
+        u = _silent_beyond(p, scene, sensors, heard, pairs, weakest)
+        below, above = below or bool((u < first).any()), above or bool((u > last).any())
+        if below and above:
+            break
+    return (max(lo, first) if below else lo), (min(hi, last) if above else hi)
+
+
+def _silent_beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
+                   pairs: np.ndarray, weakest: float) -> np.ndarray:
+    """The coordinates of the reflection points, beyond the patch's own, of the ``pairs``
+    that would hear the surface there at least as well as the patch's weakest detection
+    and heard nothing (tests in order of cost: each on the pairs the last one kept)."""
+    c = scene.medium.c
+    cut_sin2, ka = scene.transducer.beam(c)
+    T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
+    axT, axR = sensors.axes[pairs[:, 0]], sensors.axes[pairs[:, 1]]
+    path, q = curve_paths(p.params, p.x0, T, R)
+    ok = np.flatnonzero(in_beams(q, T, axT, cut_sin2) & in_beams(q, R, axR, cut_sin2)
+                        & np.isfinite(path))
+    u = coordinates(p.params, p.x0, q[ok])
+    ok, u = ok[(u < p.u.min()) | (u > p.u.max())], u[(u < p.u.min()) | (u > p.u.max())]
+    beams = (q[ok], T[ok], axT[ok], R[ok], axR[ok])
+    louder = two_way(*beams, ka) >= weakest * (1.0 - 1e-9)
+    ok, u, beams = ok[louder], u[louder], tuple(b[louder] for b in beams)
     # a plane is heard at a mirror's strength; a curve's echo may be weaker or stronger
     least = (mirror_floor(*beams, mirror_echo(scene), ka, scene.signal.noise_std)
-             if p.straight else np.full(len(pairs), -np.inf))
-    heard = _heard(loci, pairs, path, c, least)
-    silent = ok & ~heard
-    if not silent.any():
-        return lo, hi
-    u = coordinates(p.params, p.x0, q[silent])
-    first, last = float(p.u.min()), float(p.u.max())
-    below, above = u[u < first], u[u > last]
-    if len(below):
-        lo = max(lo, first)
-    if len(above):
-        hi = min(hi, last)
-    return lo, hi
+             if p.straight else np.full(len(ok), -np.inf))
+    return u[~_heard(heard, pairs[ok], path[ok], least)]
 
 
-def _group_pairs(sensors: SensorArray, sensor: int) -> np.ndarray:
-    """[p, 2] the pairs (T ≤ R) of the group of ``sensor``."""
+#: Pairs of a group the silence test takes at a time (its memory; about 100 MB).
+SILENCE_PAIRS = 1 << 18
+
+
+def _group_pairs(sensors: SensorArray, sensor: int) -> Iterator[np.ndarray]:
+    """[p, 2] the pairs (T ≤ R) of the group of ``sensor``, about :data:`SILENCE_PAIRS`
+    at a time."""
     members = np.flatnonzero(sensors.groups == sensors.groups[sensor])
-    i, j = np.triu_indices(len(members))
-    return np.stack([members[i], members[j]], axis=-1)
+    n = len(members)
+    rows = max(1, SILENCE_PAIRS // max(n, 1))
+    for i0 in range(0, n, rows):
+        i, j = _triangle_rows(n, i0, min(i0 + rows, n))
+        yield np.stack([members[i], members[j]], axis=-1)
+
+
+def _triangle_rows(n: int, i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(i, j)`` of the upper triangle (j ≥ i) of an n × n matrix, rows i0 … i1 − 1."""
+    width = n - np.arange(i0, i1)
+    i = np.repeat(np.arange(i0, i1), width)
+    j = np.arange(int(width.sum())) - np.repeat(np.cumsum(width) - width, width) + i
+    return i, j
 
 
 #: A pair heard the surface where one of its detections lies within this of the
@@ -213,33 +240,48 @@ def mirror_echo(scene: Scene) -> float:
     return scene.transducer.amplitude * scene.echo.reflection_coefficient
 
 
-def _heard(loci: Loci, pairs: np.ndarray, path: np.ndarray, c: float,
+@dataclass(frozen=True)
+class Heard:
+    """The detections by pair (either direction), sorted once for :func:`_heard`:
+    ``key`` = min(T, R)·base + max(T, R), their path c·τ and amplitude."""
+
+    base: int
+    key: np.ndarray
+    path: np.ndarray
+    amplitude: np.ndarray
+
+
+def heard_index(loci: Loci, sensors: SensorArray, c: float) -> Heard:
+    """:class:`Heard` of ``loci`` (speed of sound ``c``)."""
+    base = len(sensors.positions) + 1
+    key = np.minimum(loci.tx, loci.rx) * base + np.maximum(loci.tx, loci.rx)
+    order = np.argsort(key, kind="stable")
+    return Heard(base, key[order], c * loci.tof_s[order], loci.amplitude[order])
+
+
+def _heard(heard: Heard, pairs: np.ndarray, path: np.ndarray,
            least: np.ndarray) -> np.ndarray:
     """Whether each pair has a detection (either direction) within :data:`HEARD_TOL_M` of
     ``path`` and of at least ``least`` amplitude (the surface's echo)."""
-    lo_ix = np.minimum(loci.tx, loci.rx)
-    hi_ix = np.maximum(loci.tx, loci.rx)
-    base = int(max(hi_ix.max(initial=0), pairs.max(initial=0))) + 1
-    key = lo_ix * base + hi_ix
-    order = np.argsort(key, kind="stable")
-    key, detected, amplitude = key[order], c * loci.tof_s[order], loci.amplitude[order]
-    want = pairs[:, 0] * base + pairs[:, 1]
-    start = np.searchsorted(key, want, side="left")
-    count = np.searchsorted(key, want, side="right") - start
+    want = pairs[:, 0] * heard.base + pairs[:, 1]
+    start = np.searchsorted(heard.key, want, side="left")
+    count = np.searchsorted(heard.key, want, side="right") - start
     pair = np.repeat(np.arange(len(pairs)), count)  # each of the pairs' detections
     row = np.arange(len(pair)) - np.repeat(np.cumsum(count) - count, count) \
         + np.repeat(start, count)
-    near = (np.abs(detected[row] - path[pair]) <= HEARD_TOL_M) & (amplitude[row] >= least[pair])
+    near = ((np.abs(heard.path[row] - path[pair]) <= HEARD_TOL_M)
+            & (heard.amplitude[row] >= least[pair]))
     return np.bincount(pair[near], minlength=len(pairs)) > 0
 
 
-def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci) -> Patch:
-    """``p`` over its regions of constant depth, cut where the array heard nothing."""
+def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard) -> Patch:
+    """``p`` over its regions of constant depth, cut where the array heard nothing (the
+    detections ``heard``, :func:`heard_index`)."""
     c = scene.medium.c
     cut_sin2, _ = scene.transducer.beam(c)
     resolution = c * scene.transducer.pulse_sigma_s
     lo, hi = extents(p, sensors, cut_sin2, resolution)
-    lo, hi = _clamp_to_silence(p, scene, sensors, loci, lo, hi)
+    lo, hi = _clamp_to_silence(p, scene, sensors, heard, lo, hi)
     reach = _trusted_reach(p)
     return replace(p, lo=min(max(lo, p.lo - reach), p.lo), hi=max(min(hi, p.hi + reach), p.hi))
 

@@ -23,6 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .. import steps
 from ..physics import MAX_FOCUS_GAIN
 from ..scene import Scene
 from ..scene.settings import chosen
@@ -140,7 +141,7 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
             continue
         windows = _windows(scene, sensors, loci, rows, origin, direction)
         explained = np.zeros(len(loci), dtype=bool)
-        for w in windows:
+        for w in steps.each(f"array {g}: stretches", windows):
             found, free = find_families(w, resolution)
             families += found
             left.append(w.rows[free])

@@ -4,9 +4,12 @@ kernels do without materialising A-scans: see :mod:`clsonar.signals`)."""
 from __future__ import annotations
 
 import math
+import time
+from collections.abc import Iterator
 
 import numpy as np
 
+from .. import steps
 from ..echoes import EchoTable
 from ..opencl import (
     PRECISIONS,
@@ -52,6 +55,21 @@ WORK_GROUP = 32
 #: Work items per launch and candidate slots per launch (pairs are split into launches).
 ITEMS_PER_LAUNCH = 1 << 20
 SLOTS_PER_LAUNCH = 1 << 22
+
+#: Pair slots of a scan's first launch; later launches are sized from the time it took so
+#: that each lasts about LAUNCH_S seconds: a run can report progress and stop (the GUI's
+#: Cancel) between two launches. The split never changes a detection: every pair slot is
+#: scanned on its own.
+FIRST_LAUNCH_SLOTS = 1024
+LAUNCH_S = 0.2
+
+
+def launch_size(size: int, seconds: float, most: int) -> int:
+    """The pair slots of the next launch after one of ``size`` slots took ``seconds``:
+    scaled to last :data:`LAUNCH_S`, at most 4× larger or smaller than the last, between
+    1 and ``most``."""
+    scaled = size * LAUNCH_S / max(seconds, 1e-6)
+    return int(min(max(scaled, size / 4.0, 1.0), size * 4.0, most))
 
 
 def _program(context, precision: str, box: int, span: int, demod_period: int):
@@ -155,13 +173,22 @@ class Runner:
         """The rows (tx, rx, first echo, end of echoes) of pair ``slots`` on the device."""
         return read_only_buffer(self.ctx, self.table[slots], np.int32)
 
-    def blocks(self, slots: np.ndarray, n_chunks: int, width: int):
+    def blocks(self, slots: np.ndarray, n_chunks: int, width: int) -> Iterator[np.ndarray]:
         """Split ``slots`` so each launch has at most ITEMS_PER_LAUNCH items and
-        SLOTS_PER_LAUNCH output slots of ``width`` each."""
-        step = max(1, min(ITEMS_PER_LAUNCH // max(n_chunks, 1),
+        SLOTS_PER_LAUNCH output slots of ``width`` each, and lasts about
+        :data:`LAUNCH_S` (:func:`launch_size`, timing the work done on each block before
+        the next is asked for), telling :func:`clsonar.steps.step` the pairs done."""
+        most = max(1, min(ITEMS_PER_LAUNCH // max(n_chunks, 1),
                           SLOTS_PER_LAUNCH // max(width, 1)))
-        for i in range(0, len(slots), step):
-            yield slots[i:i + step]
+        size, done = min(most, FIRST_LAUNCH_SLOTS), 0
+        while done < len(slots):
+            steps.step("pairs", done, len(slots))
+            block = slots[done:done + size]
+            start = time.perf_counter()
+            yield block
+            size = launch_size(size, time.perf_counter() - start, most)
+            done += len(block)
+        steps.step("pairs", len(slots), len(slots))
 
     def scan(self, slots: np.ndarray, capacity: int, floor: np.ndarray | None,
              histogram: bool) -> tuple[np.ndarray, Candidates, np.ndarray]:
