@@ -136,31 +136,46 @@ def _pieces(curves: list[np.ndarray]) -> tuple[list[Wall], list[np.ndarray]]:
 def merge_collinear(walls: list[Wall], max_gap: float) -> list[Wall]:
     """Walls on one line (within :data:`COLLINEAR_DEG`, and the shorter's ends within
     :data:`COLLINEAR_M` of the longer's line) whose spans overlap or lie within ``max_gap``
-    of each other become one wall, refitted."""
+    of each other become one wall, refitted: the first such pair in order (by index, then
+    by the second's) each time, until none is left. A pair found apart stays apart until
+    one of its walls is refitted, so each pair is tested once per refit, and only those
+    whose directions are within a hair of parallel (:func:`_merges` decides)."""
     walls = list(walls)
     cos_tol = math.cos(math.radians(COLLINEAR_DEG))
-    merged = True
-    while merged:
-        merged = False
-        for i in range(len(walls)):
-            for j in range(i + 1, len(walls)):
-                a, b = walls[i], walls[j]
-                if abs(a.direction @ b.direction) < cos_tol:
-                    continue
-                long, short = (a, b) if a.length >= b.length else (b, a)
-                if max(long.offset(short.at(short.lo)), long.offset(short.at(short.hi))
-                       ) > COLLINEAR_M:
-                    continue
-                t = (b.points - a.centre) @ a.direction
-                if t.min() > a.hi + max_gap or t.max() < a.lo - max_gap:
-                    continue
-                walls[i] = Wall.fit(np.concatenate([a.points, b.points]))
-                del walls[j]
-                merged = True
+
+    def near_parallel(directions: np.ndarray) -> np.ndarray:
+        """[walls, k] bool: a superset of the walls :func:`_merges` finds parallel to each of
+        ``directions`` [2, k]."""
+        return np.abs(np.array([w.direction for w in walls]).reshape(-1, 2) @ directions
+                      ) >= cos_tol - 1e-9
+
+    maybe = np.triu(near_parallel(np.array([w.direction for w in walls]).reshape(-1, 2).T), 1)
+    while True:
+        for flat in np.flatnonzero(maybe):
+            i, j = divmod(int(flat), len(walls))
+            if _merges(walls[i], walls[j], cos_tol, max_gap):
                 break
-            if merged:
-                break
-    return walls
+            maybe[i, j] = False
+        else:
+            return walls
+        walls[i] = Wall.fit(np.concatenate([walls[i].points, walls[j].points]))
+        del walls[j]
+        maybe = np.delete(np.delete(maybe, j, axis=0), j, axis=1)
+        row = near_parallel(walls[i].direction[:, None])[:, 0]
+        maybe[:i, i], maybe[i, i + 1:] = row[:i], row[i + 1:]
+
+
+def _merges(a: Wall, b: Wall, cos_tol: float, max_gap: float) -> bool:
+    """Whether :func:`merge_collinear` joins ``a`` and ``b`` (``a`` first): their
+    directions within ``cos_tol``, the shorter's ends near the longer's line, their spans
+    overlapping or within ``max_gap``."""
+    if abs(a.direction @ b.direction) < cos_tol:
+        return False
+    long, short = (a, b) if a.length >= b.length else (b, a)
+    if max(long.offset(short.at(short.lo)), long.offset(short.at(short.hi))) > COLLINEAR_M:
+        return False
+    t = (b.points - a.centre) @ a.direction
+    return not (t.min() > a.hi + max_gap or t.max() < a.lo - max_gap)
 
 
 def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
@@ -313,19 +328,20 @@ def find_circles(pieces: list[np.ndarray]) -> tuple[list[Arc], list[np.ndarray]]
     while len(left) >= MIN_CIRCLE_PIECES:
         best: list[int] = []
         best_circle = None
+        on_circle = _OnCircle([pieces[k] for k in left])
         for n, i in enumerate(left):
             for j in left[n + 1:]:
                 circle = _circle_through(fits[i], fits[j])
                 if circle is None:
                     continue
-                members = [k for k in left if _on_circle(pieces[k], *circle)]
+                members = [k for k, on in zip(left, on_circle(*circle), strict=True) if on]
                 if len(members) > len(best):
                     best, best_circle = members, circle
         if len(best) < MIN_CIRCLE_PIECES or best_circle is None:
             break
         centre, radius = _refine_circle(np.concatenate([pieces[k] for k in best]),
                                         *best_circle)
-        on = [k for k in left if _on_circle(pieces[k], centre, radius)]
+        on = [k for k, yes in zip(left, on_circle(centre, radius), strict=True) if yes]
         arc = Arc(centre, radius, np.concatenate([pieces[k] for k in on or best]))
         near = [k for k in left if arc.holds(pieces[k])]
         arcs.append(arc)
@@ -334,11 +350,33 @@ def find_circles(pieces: list[np.ndarray]) -> tuple[list[Arc], list[np.ndarray]]
     return arcs, [p for k, p in enumerate(pieces) if k not in used]
 
 
-def _on_circle(points: np.ndarray, centre: np.ndarray, radius: float) -> bool:
-    """Whether the median distance of ``points`` to the circle is within
-    :data:`CIRCLE_RESIDUAL_M`."""
-    d = np.abs(np.hypot(*(points - centre).T) - radius)
-    return bool(np.median(d) <= CIRCLE_RESIDUAL_M)
+class _OnCircle:
+    """Which of some pieces (each of 1 point or more) lie on a circle: the median distance
+    of each piece's points to it within :data:`CIRCLE_RESIDUAL_M`, every piece at once.
+    The median is decided by counting the points within (more than half: on; fewer than
+    half: not), and only for a piece of an even count with exactly half within, from its
+    two middle distances' mean as :func:`numpy.median` takes it: the same answer as
+    ``np.median(d) <= CIRCLE_RESIDUAL_M`` piece by piece."""
+
+    def __init__(self, pieces: list[np.ndarray]) -> None:
+        self.points = np.concatenate(pieces) if pieces else np.zeros((0, 2))
+        self.counts = np.array([len(p) for p in pieces], dtype=np.int64)
+        self.starts = np.r_[0, np.cumsum(self.counts)[:-1]].astype(np.int64)
+
+    def __call__(self, centre: np.ndarray, radius: float) -> np.ndarray:
+        """[pieces] bool: each piece on the circle of ``centre`` and ``radius``."""
+        if len(self.counts) == 0:
+            return np.zeros(0, dtype=bool)
+        d = np.abs(np.hypot(*(self.points - centre).T) - radius)
+        within = d <= CIRCLE_RESIDUAL_M
+        twice = 2 * np.add.reduceat(within.astype(np.int64), self.starts)
+        on = twice > self.counts
+        tie = twice == self.counts
+        if tie.any():
+            below = np.maximum.reduceat(np.where(within, d, -np.inf), self.starts)[tie]
+            above = np.minimum.reduceat(np.where(within, np.inf, d), self.starts)[tie]
+            on[tie] = np.mean(np.stack([below, above]), axis=0) <= CIRCLE_RESIDUAL_M
+        return on
 
 
 def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) -> Profile:
