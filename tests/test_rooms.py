@@ -20,7 +20,18 @@ from clsonar import sight as sight_module
 from clsonar.geometry import EDGE, build_geometry, true_vertices
 from clsonar.mapping import Loci, envelope_links, scan_envelope, tangent_points
 from clsonar.metrics import VERTEX_FOUND_M, cylinder_coverage, evaluate, vertex_errors
-from clsonar.post.walls import Arc, Wall, find_circles, join_walls, merge_collinear, split_straight
+from clsonar.post.walls import (
+    CIRCLE_RESIDUAL_M,
+    COLLINEAR_DEG,
+    Arc,
+    Wall,
+    _merges,
+    _OnCircle,
+    find_circles,
+    join_walls,
+    merge_collinear,
+    split_straight,
+)
 from clsonar.scene import scene_from_dict
 from clsonar.sensors import SensorArray
 from clsonar.sight import (
@@ -268,6 +279,65 @@ def test_merge_collinear_bridges_gaps_up_to_max_gap_only():
     # nor do pieces at an angle (10°) merge
     tilted = Wall.fit(segment((1.1, 1.0), (2.1, 1.0 + math.tan(math.radians(10.0)))))
     assert len(merge_collinear([left, tilted], max_gap=1.0)) == 2
+
+
+def merge_collinear_by_rescans(walls: list[Wall], max_gap: float) -> list[Wall]:
+    """merge_collinear as it was written first: every pair tested again after each merge."""
+    walls = list(walls)
+    cos_tol = math.cos(math.radians(COLLINEAR_DEG))
+    merged = True
+    while merged:
+        merged = False
+        for i in range(len(walls)):
+            for j in range(i + 1, len(walls)):
+                if _merges(walls[i], walls[j], cos_tol, max_gap):
+                    walls[i] = Wall.fit(np.concatenate([walls[i].points, walls[j].points]))
+                    del walls[j]
+                    merged = True
+                    break
+            if merged:
+                break
+    return walls
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(0, 40), gap=st.floats(0.0, 0.5))
+def test_merge_collinear_is_the_pairwise_rescan(seed, n, gap):
+    """Short pieces on a few lines (some nearly parallel, some offset by 1-4 cm): the same
+    walls, in the same order, as rescanning every pair after each merge."""
+    rng = np.random.default_rng(seed)
+    walls = []
+    for _ in range(n):
+        line = int(rng.integers(3))
+        heading = math.radians(line * 60.0 + rng.choice([0.0, 1.0, 4.0]))
+        u = np.array([math.cos(heading), math.sin(heading)])
+        start = np.array([0.0, line * 0.5 + rng.choice([0.0, 0.01, 0.04])]) + rng.uniform(0, 3) * u
+        walls.append(Wall.fit(segment(tuple(start), tuple(start + rng.uniform(0.2, 1.0) * u))))
+    want = merge_collinear_by_rescans(walls, gap)
+    got = merge_collinear(walls, gap)
+    assert len(got) == len(want)
+    for a, b in zip(got, want, strict=True):
+        np.testing.assert_array_equal(a.points, b.points)
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), pieces=st.integers(0, 8))
+def test_on_circle_of_every_piece_at_once_is_the_median_test(seed, pieces):
+    """Pieces of 1-8 points at distances 0, ±1 and ±2 residuals (times 0.5-1.5) from a
+    circle, ties of an even piece included: the median of each piece's distances within
+    the residual, as np.median decides it."""
+    rng = np.random.default_rng(seed)
+    parts = []
+    for _ in range(pieces):
+        k = int(rng.integers(1, 9))
+        a = rng.uniform(0.0, 2 * math.pi, k)
+        r = 1.0 + (rng.choice([0.0, 1.0, -1.0, 2.0], k) * rng.choice([0.5, 1.0, 1.5], k)
+                   * CIRCLE_RESIDUAL_M)
+        parts.append(np.stack([2.0 + r * np.cos(a), 3.0 + r * np.sin(a)], axis=1))
+    got = _OnCircle(parts)(np.array([2.0, 3.0]), 1.0)
+    want = [bool(np.median(np.abs(np.hypot(*(p - (2.0, 3.0)).T) - 1.0)) <= CIRCLE_RESIDUAL_M)
+            for p in parts]
+    assert got.tolist() == want
 
 
 def _ends(w: Wall) -> list[np.ndarray]:
