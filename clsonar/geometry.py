@@ -61,7 +61,7 @@ class Geometry:
     vertex_right: np.ndarray  # [V] kind code seen from the right
     diffractors: np.ndarray  # [D, 6] vertex x, y; unit vector to previous point; to next
     diffractor_vertex: np.ndarray  # [D] index into vertices
-    corner_pairs: np.ndarray  # [S, S] bool, symmetric
+    corner_walls: np.ndarray  # [Q, 2] the two walls meeting at each concave corner
     corners: np.ndarray  # [Q, 6] vertex x, y; unit normals of both walls to the concave side
     corner_vertex: np.ndarray  # [Q] index into vertices
     circles: np.ndarray  # [C, 3]
@@ -124,7 +124,7 @@ def build_geometry(scene: Scene) -> Geometry:
     left = np.asarray(parts.vleft, dtype=np.int8)
     right = np.asarray(parts.vright, dtype=np.int8)
     corner_idx = np.flatnonzero((left == CORNER) | (right == CORNER))
-    corner_pairs, corners = _corners(walls, vertices, vertex_walls, left, corner_idx)
+    corners = _corners(walls, vertices, vertex_walls, left, corner_idx)
     diff_idx = np.flatnonzero((left == EDGE) | (right == EDGE))
     circles = [(s.center[0], s.center[1], s.radius) for s in scene.surfaces
                if isinstance(s, Circle)]
@@ -140,7 +140,7 @@ def build_geometry(scene: Scene) -> Geometry:
         vertex_right=right,
         diffractors=_diffractors(walls, vertices, vertex_walls, diff_idx),
         diffractor_vertex=diff_idx.astype(np.int64),
-        corner_pairs=corner_pairs,
+        corner_walls=vertex_walls[corner_idx].reshape(-1, 2),
         corners=corners,
         corner_vertex=corner_idx.astype(np.int64),
         circles=np.asarray(circles, dtype=np.float64).reshape(-1, 3),
@@ -151,20 +151,29 @@ def build_geometry(scene: Scene) -> Geometry:
 
 
 def _corners(walls: np.ndarray, vertices: np.ndarray, vertex_walls: np.ndarray,
-             left: np.ndarray, corner_idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(corner_pairs [S, S], corners [Q, 6])`` of the concave vertices ``corner_idx``
-    (see :class:`Geometry`)."""
-    corner_pairs = np.zeros((len(walls), len(walls)), dtype=bool)
+             left: np.ndarray, corner_idx: np.ndarray) -> np.ndarray:
+    """``corners [Q, 6]`` of the concave vertices ``corner_idx`` (see :class:`Geometry`)."""
     corners = np.zeros((len(corner_idx), 6))
     for row, v in enumerate(corner_idx):
         a, b = vertex_walls[v]
-        corner_pairs[a, b] = corner_pairs[b, a] = True
         side = 1.0 if left[v] == CORNER else -1.0  # left normals point to the concave side?
         corners[row, :2] = vertices[v]
         for col, w in ((2, a), (4, b)):
             d = _unit(walls[w, 2:] - walls[w, :2])
             corners[row, col:col + 2] = side * np.array([-d[1], d[0]])
-    return corner_pairs, corners
+    return corners
+
+
+def meet_at_corner(geom: Geometry, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Whether walls ``a`` and ``b`` (arrays of wall indices) meet at a concave corner, in
+    either order (a sorted list of the corners' wall pairs, not an [S, S] matrix: a room
+    drawn with 45,000 walls)."""
+    n = len(geom.walls) + 1
+    w = geom.corner_walls
+    keys = np.unique(np.r_[w[:, 0] * n + w[:, 1], w[:, 1] * n + w[:, 0]])
+    want = np.asarray(a, dtype=np.int64) * n + np.asarray(b, dtype=np.int64)
+    at = np.minimum(np.searchsorted(keys, want), max(len(keys) - 1, 0))
+    return (keys[at] == want) if len(keys) else np.zeros(want.shape, dtype=bool)
 
 
 def _diffractors(walls: np.ndarray, vertices: np.ndarray, vertex_walls: np.ndarray,
@@ -407,6 +416,11 @@ def inside_polygon(poly: np.ndarray, p: np.ndarray) -> np.ndarray:
     return (np.count_nonzero(straddle & (x < xc), axis=1) % 2) == 1
 
 
+#: Point-to-segment distances :func:`nearest_surface_point` computes at once (each of its
+#: [points, segments] arrays then takes at most 16 MB).
+NEAREST_BLOCK = 1 << 21
+
+
 def nearest_surface_point(geom: Geometry, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Distance from each of ``points`` [M, 2] to the nearest surface, and that surface point.
 
@@ -416,6 +430,10 @@ def nearest_surface_point(geom: Geometry, points: np.ndarray) -> tuple[np.ndarra
     in ``geom.occluder_frames``.)
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    block = max(1, NEAREST_BLOCK // max(len(geom.occluders), len(geom.circles), 1))
+    if len(p) > block:  # bounded memory: a few points × every segment at a time
+        parts = [nearest_surface_point(geom, p[i:i + block]) for i in range(0, len(p), block)]
+        return np.concatenate([d for d, _ in parts]), np.concatenate([q for _, q in parts])
     rows = np.arange(len(p))
     best = np.full(len(p), np.inf)
     near = np.full((len(p), 2), np.nan)

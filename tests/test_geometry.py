@@ -15,6 +15,7 @@ from clsonar.geometry import (
     build_geometry,
     curve_derivatives,
     curve_point,
+    meet_at_corner,
     nearest_surface_point,
     ray_distance,
 )
@@ -43,7 +44,7 @@ def test_room_interior_is_the_front_and_the_reflex_vertex_is_an_edge(points):
     assert sorted(interior.tolist()) == [CORNER] * 5 + [EDGE]
     assert set(outside.tolist()) == {SOLID}
     assert g.diffractors.shape == (1, 6) and tuple(g.diffractors[0, :2]) == (3.0, 3.0)
-    assert g.corner_pairs.sum() == 2 * 5
+    assert len(g.corner_walls) == 5
 
 
 BOX = ((2.0, 2.0), (4.0, 2.0), (4.0, 3.0), (2.0, 3.0))
@@ -85,13 +86,14 @@ def test_open_polyline_vertices_from_both_sides():
     assert g.vertex_left.tolist() == [END, CORNER, END]
     assert g.vertex_right.tolist() == [END, EDGE, END]
     assert len(g.diffractors) == 1  # seen as an edge from behind
-    assert g.corner_pairs[0, 1] and g.corner_pairs[1, 0]
+    met = meet_at_corner(g, np.array([0, 1, 0]), np.array([1, 0, 0]))
+    assert met.tolist() == [True, True, False]
 
 
 def test_collinear_vertex_is_flat():
     g = _geom(Polyline(((0, 0), (1, 0), (2, 0))))
     assert g.vertex_left[1] == FLAT and g.vertex_right[1] == FLAT
-    assert len(g.diffractors) == 0 and not g.corner_pairs.any()
+    assert len(g.diffractors) == 0 and len(g.corner_walls) == 0
 
 
 def test_sinusoid_sampling_density_and_analytic_curve():

@@ -116,3 +116,12 @@ def test_a_loops_time_left_is_its_rate_so_far():
     assert loop.update("pairs", 25, 100, now=11.0) == pytest.approx(3.0)
     assert loop.update("patches", 5, 10, now=12.0) is None  # a new loop starts over
     assert loop.update("patches", 6, 10, now=13.0) == pytest.approx(4.0)
+
+
+def test_poll_tells_the_last_step_again():
+    seen: list[tuple[str, int, int]] = []
+    with steps.watching(lambda *a: seen.append(a)):
+        steps.poll()  # nothing told yet: nothing again
+        steps.step("patches", 3, 9)
+        steps.poll()
+    assert seen == [("patches", 3, 9), ("patches", 3, 9)]

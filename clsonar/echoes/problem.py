@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import physics
-from ..geometry import Geometry, build_geometry
+from ..geometry import Geometry, build_geometry, meet_at_corner
 from ..scene import Scene
 from ..sensors import SensorArray, pairs, place_sensors
 
@@ -94,7 +94,7 @@ def _sequence_kinds(geom: Geometry, seq: np.ndarray, max_order: int
     for j in range(1, max_order):
         both = (seq[:, j] >= 0)
         a, b = seq[both, j - 1], seq[both, j]
-        corner[both] &= geom.corner_pairs[a, b]
+        corner[both] &= meet_at_corner(geom, a, b)
     return order, corner
 
 

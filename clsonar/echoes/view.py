@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 
+from .. import steps
 from ..geometry import dot
 from .problem import EchoProblem
 
@@ -86,6 +87,7 @@ def pairs_in_view(pb: EchoProblem, block: int = 4096) -> np.ndarray:
     if np.any(pb.sequence_order >= 2) or len(pb.corners):  # multi-bounce paths exist
         keep = sees[t].any(axis=1) & sees[r].any(axis=1)
     for i in range(0, n, block):
+        steps.step("pairs in view", i, n)
         sl = slice(i, min(n, i + block))
         cand = sees[t[sl]] & sees[r[sl]]
         rows = np.flatnonzero(cand.any(axis=1) & ~keep[sl])

@@ -27,6 +27,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from .. import steps
 from ..scene import Scene
 from ..sensors import SensorArray
 from .envelope import in_beams
@@ -177,6 +178,7 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard
                       sensors.axes[p.rx], ka).min()
     below = above = False
     for pairs in _group_pairs(sensors, int(p.tx[0])):
+        steps.poll()
         u = _silent_beyond(p, scene, sensors, heard, pairs, weakest)
         below, above = below or bool((u < first).any()), above or bool((u > last).any())
         if below and above:

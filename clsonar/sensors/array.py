@@ -94,6 +94,9 @@ def _fired_pairs(sensors: SensorArray) -> np.ndarray:
         tx, rx = np.meshgrid(members, members, indexing="ij")
         out.append(np.stack([tx.ravel(), rx.ravel()], axis=-1))
     result = np.concatenate(out)
+    key = result[:, 0] * len(g) + result[:, 1]
+    if np.all(key[1:] > key[:-1]):  # groups of consecutive transducers: already in order
+        return result
     return result[np.lexsort((result[:, 1], result[:, 0]))]
 
 
