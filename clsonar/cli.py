@@ -267,14 +267,15 @@ def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
     outputs written and summed up."""
     from . import cost, outputs, pipeline
 
+    names = SKIP_NAMES
+    off = names if "all" in args.no_skip else args.no_skip
+    skips = Skips(**{name: name not in off for name in names})
+    pipeline.check_work(pipeline.apply_preset(scene, args.preset), skips, where=args.scene)
     if args.dry_run:
         print("\n".join(f"{scene.name}: {line}"
                         for line in cost.lines(cost.estimate(scene, args.preset))))
         return 0
     outputs.check_out(args.out)  # and so does an --out that cannot be written
-    names = SKIP_NAMES
-    off = names if "all" in args.no_skip else args.no_skip
-    skips = Skips(**{name: name not in off for name in names})
     line = ProgressLine(not args.quiet)
     try:
         with steps.watching(line.step):

@@ -11,11 +11,12 @@ import math
 from dataclasses import asdict, dataclass
 
 from . import regions
+from .echoes import scene_walls
 from .geometry import build_geometry
 from .mapping import PAIR_BYTES, grid
 from .mapping.grid import memory_limit as memory_limit  # clsonar run --max-memory
 from .pipeline import MOSAIC_BYTES_PER_CELL, PIPELINE_BYTES_PER_CELL, RunResult, apply_preset
-from .scene import Scene
+from .scene import MAX_WALL_SEQUENCES, Scene
 from .sensors import SensorArray, place_sensors
 from .signals import signal_model
 from .survey import choose_settings, survey
@@ -30,6 +31,8 @@ class Estimate:
     samples_per_pair: int
     cells: int
     rooms: int  # mapped one by one (0: the scene is mapped whole)
+    walls: int  # walls of the map (the room) with the most: its echoes go among them
+    max_order: int
     pair_bytes: float
     map_bytes: float
     available_bytes: int | None
@@ -53,8 +56,13 @@ def estimate(scene: Scene, preset: str | None = None) -> Estimate:
 
 def of_run(result: RunResult) -> Estimate:
     """The estimate :func:`estimate` gives for the scene ``result`` ran, from its placed
-    transducers and chosen settings (nothing placed again)."""
-    return _estimate(result.scene, result.sensors)
+    transducers and chosen settings (nothing placed again; a floor mapped room by room,
+    whose rooms chose their own, has the floor's chosen as :func:`estimate` does)."""
+    scene = result.scene
+    if result.counts.get("rooms_mapped"):
+        scene, _ = choose_settings(scene, survey(scene, result.sensors, result.geometry),
+                                   geom=result.geometry)
+    return _estimate(scene, result.sensors)
 
 
 def peak_bytes() -> int:
@@ -76,9 +84,11 @@ def _estimate(scene: Scene, sensors: SensorArray) -> Estimate:
     rooms = regions.split_rooms(scene)
     per_cell = MOSAIC_BYTES_PER_CELL if rooms else PIPELINE_BYTES_PER_CELL
     pairs = sensors.pair_count
+    walls = max(scene_walls(part) for part in ([r.scene for r in rooms] if rooms else [scene]))
     return Estimate(transducers=len(sensors), pairs=pairs,
                     samples_per_pair=signal_model(scene).n_samples, cells=ny * nx,
-                    rooms=len(rooms) if rooms else 0, pair_bytes=float(pairs) * PAIR_BYTES,
+                    rooms=len(rooms) if rooms else 0, walls=walls,
+                    max_order=scene.echo.max_order, pair_bytes=float(pairs) * PAIR_BYTES,
                     map_bytes=float(ny) * nx * per_cell,
                     available_bytes=grid.host_available_bytes())
 
@@ -92,6 +102,10 @@ def lines(e: Estimate) -> list[str]:
             f"received signal {e.samples_per_pair:,} samples a pair "
             f"({float(e.pairs) * e.samples_per_pair:.3g} at most in all)",
             f"map {e.cells:,} cells, mapped {mapped}",
+            f"echoes among {e.walls:,} walls (the most of one map) to order {e.max_order}: "
+            f"at most {float(e.walls) ** e.max_order:.3g} mirror sequences"
+            + ("" if float(e.walls) ** e.max_order <= MAX_WALL_SEQUENCES else
+               f", more than {MAX_WALL_SEQUENCES:.0e}: the run would be refused"),
             f"memory: pairs about {size(e.pair_bytes)} ({PAIR_BYTES} B a pair), maps about "
             f"{size(e.map_bytes)}; available {free}: "
             + ("fits" if e.fits else "does not fit: the run would be refused")]

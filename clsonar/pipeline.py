@@ -24,7 +24,7 @@ from typing import TypeVar, cast
 import numpy as np
 
 from . import checks, mapping, metrics, post, regions, sight, signals
-from .echoes import EchoTable, compute_echoes
+from .echoes import EchoTable, check_sequences, compute_echoes
 from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
 from .mapping import Votes
@@ -166,10 +166,21 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     scene = apply_preset(scene, preset)
     given = "file" if preset is None else f"preset {preset}"
     ctx = context if context is not None else get_context(device)
-    rooms = regions.split_rooms(scene) if skips.rooms else None
+    rooms = check_work(scene, skips)
     if rooms is not None:
         return _run_rooms(scene, rooms, ctx, skips, progress, given)
     return _run_whole(scene, ctx, skips, cache, progress, given)
+
+
+def check_work(scene: Scene, skips: Skips = Skips(), where: str | None = None
+               ) -> list[regions.Region] | None:
+    """The rooms ``scene`` is mapped by (:func:`clsonar.regions.split_rooms`; None: whole),
+    once each map's echo model is known to fit (:func:`~clsonar.echoes.check_sequences`,
+    its one line beginning with ``where``): refused before any work."""
+    rooms = regions.split_rooms(scene) if skips.rooms else None
+    for part in [scene] if rooms is None else [room.scene for room in rooms]:
+        check_sequences(part, where)
+    return rooms
 
 
 def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,

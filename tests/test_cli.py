@@ -198,7 +198,8 @@ def test_a_scene_whose_pairs_cannot_be_held_is_refused_in_one_line(tmp_path, cap
 
 def test_dry_run_prints_the_cost_and_writes_nothing(tmp_path, capsys, monkeypatch):
     """Issue 19: ``clsonar run --dry-run`` places the transducers and prints the pairs,
-    samples, cells and memory; with too little memory it says the run would be refused."""
+    samples, cells, mirror sequences and memory; with too little memory it says the run
+    would be refused."""
     from clsonar.mapping import grid
 
     room = ROOT / "scenes" / "room.json"
@@ -206,7 +207,9 @@ def test_dry_run_prints_the_cost_and_writes_nothing(tmp_path, capsys, monkeypatc
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "room: transducers 512, fired pairs 4,096"
     assert "82,364 samples a pair" in out[1] and "map 1,000,000 cells" in out[2]
-    assert out[3].endswith("fits")
+    assert out[3] == ("room: echoes among 8 walls (the most of one map) to order 2: at most "
+                      "64 mirror sequences")
+    assert out[4].endswith("fits")
     monkeypatch.setattr(grid, "host_available_bytes", lambda: 1 << 20)
     assert main(["run", str(room), "--out", str(tmp_path / "out"), "--dry-run"]) == 0
     assert capsys.readouterr().out.rstrip().endswith("does not fit: the run would be refused")

@@ -40,7 +40,9 @@ from .problem import (
     BISECT_ITERATIONS,
     OCCLUSION_EPS_M,
     EchoProblem,
+    check_sequences,
     prepare_problem,
+    scene_walls,
     wall_sequences,
 )
 from .reference import reference_echoes
@@ -48,5 +50,7 @@ from .table import CORNER, CURVED, EDGE, KINDS, SPECULAR, EchoTable
 from .view import pairs_in_view
 
 __all__ = ["BISECT_ITERATIONS", "CORNER", "CURVED", "EDGE", "KERNEL_NAMES", "KINDS",
-           "OCCLUSION_EPS_M", "SPECULAR", "EchoProblem", "EchoTable", "compute_echoes",
-           "pairs_in_view", "prepare_problem", "reference_echoes", "wall_sequences"]
+           "OCCLUSION_EPS_M", "SPECULAR", "EchoProblem", "EchoTable", "check_sequences",
+           "compute_echoes",
+           "pairs_in_view", "prepare_problem", "reference_echoes", "scene_walls",
+           "wall_sequences"]

@@ -10,8 +10,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import physics
+from ..errors import ClsonarError
 from ..geometry import Geometry, build_geometry, meet_at_corner
-from ..scene import Scene
+from ..scene import MAX_WALL_SEQUENCES, Polyline, Scene
 from ..sensors import SensorArray, pairs, place_sensors
 
 #: A leg crossing an occluder (or entering a circle) within this many metres of either end is
@@ -64,6 +65,26 @@ class EchoProblem:
         return {"mirror": len(self.sequences), "vertex": len(self.corners),
                 "edge": len(self.diffractors),
                 "circle": len(self.circles), "curve": len(self.interval_s)}
+
+
+def scene_walls(scene: Scene) -> int:
+    """How many walls (polyline segments) ``scene`` has."""
+    return sum(len(s.points) - (0 if s.closed else 1)
+               for s in scene.surfaces if isinstance(s, Polyline))
+
+
+def check_sequences(scene: Scene, where: str | None = None) -> None:
+    """Refuse (one line, :class:`~clsonar.errors.ClsonarError`) a scene whose mirror
+    sequences (:func:`wall_sequences`: at most walls^``echo.max_order``) could be more than
+    :data:`~clsonar.scene.MAX_WALL_SEQUENCES`. A floor mapped room by room is checked room
+    by room (:func:`clsonar.pipeline.check_work`): each room's echoes stay among its own
+    walls. The line begins with ``where`` (the scene file), else the scene's name."""
+    walls = scene_walls(scene)
+    if float(walls) ** scene.echo.max_order > MAX_WALL_SEQUENCES:
+        raise ClsonarError(f"{where or scene.name}: echo.max_order: {walls} walls to the power "
+                           f"{scene.echo.max_order} are more than the "
+                           f"{MAX_WALL_SEQUENCES:.0e} reflection sequences clsonar can hold "
+                           "in one map: use a lower max_order or fewer polyline points")
 
 
 def wall_sequences(n_walls: int, max_order: int) -> np.ndarray:
@@ -121,6 +142,7 @@ def _shifted(rows: np.ndarray, origin: np.ndarray) -> np.ndarray:
 def prepare_problem(scene: Scene, sensors: SensorArray | None = None,
                     geom: Geometry | None = None) -> EchoProblem:
     """Build the :class:`EchoProblem` of ``scene`` (``sensors`` default: place_sensors)."""
+    check_sequences(scene)
     geom = geom if geom is not None else build_geometry(scene)
     sensors = sensors if sensors is not None else place_sensors(scene, geom)
     xmin, ymin, xmax, ymax = scene.extent

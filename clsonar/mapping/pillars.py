@@ -15,6 +15,8 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from .. import steps
+
 #: Candidate loci whose middle-of-arc points lie within this of each other are fitted
 #: together, metres.
 CLUSTER_M = 1.0
@@ -45,7 +47,8 @@ def _directions(x: np.ndarray, T: np.ndarray) -> np.ndarray:
 
 
 def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
-    """Least-squares circle ``(C, R)`` with |C − T_k| = ρ_k + R, and the residuals."""
+    """Least-squares circle ``(C, R)`` with |C − T_k| = ρ_k + R (:func:`_gauss_newton`
+    from ``start`` and R = 0.1 m), and the residuals."""
 
     def residual(x: np.ndarray) -> np.ndarray:
         return np.hypot(*(x[:2] - T).T) - rho - x[2]
@@ -53,10 +56,37 @@ def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray,
     def jacobian(x: np.ndarray) -> np.ndarray:
         return np.column_stack([_directions(x[:2], T), -np.ones(len(T))])
 
-    from scipy.optimize import least_squares  # imported when a pillar is first fitted
+    x, r = _gauss_newton(residual, jacobian, np.r_[start, 0.1])
+    return x[:2], float(x[2]), r
 
-    x = least_squares(residual, np.r_[start, 0.1], jac=jacobian).x
-    return x[:2], float(x[2]), residual(x)
+
+def _gauss_newton(residual: Callable[[np.ndarray], np.ndarray],
+                  jacobian: Callable[[np.ndarray], np.ndarray], start: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, residual(x))``: least squares by Gauss–Newton from ``start``, each step halved
+    until the cost falls, to a step of :data:`GN_STEP_M` (two or three unknowns: a
+    solver's set-up would cost more than the solve, and this runs once per seed set)."""
+    x = np.asarray(start, dtype=np.float64)
+    r = residual(x)
+    for _ in range(GN_ITERATIONS):
+        step = np.linalg.lstsq(jacobian(x), r, rcond=None)[0]
+        for _ in range(30):  # halve the step until the cost falls
+            trial = x - step
+            r_trial = residual(trial)
+            if r_trial @ r_trial <= r @ r:
+                break
+            step = 0.5 * step
+        else:
+            break
+        x, r = trial, r_trial
+        if float(np.linalg.norm(step)) <= GN_STEP_M:
+            break
+    return x, r
+
+
+#: Gauss–Newton steps of :func:`_gauss_newton`, and the step (metres) at which it stops.
+GN_ITERATIONS = 30
+GN_STEP_M = 1e-10
 
 
 def fit_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray
@@ -132,6 +162,7 @@ def _seed_sets(middles: np.ndarray) -> Iterator[np.ndarray]:
     tried: set[bytes] = set()
     sets = [np.flatnonzero(np.hypot(*(middles - m).T) <= SEED_M) for m in middles]
     for near in [*sets, np.arange(len(middles))]:
+        steps.poll()
         if len(near) >= MIN_PILLAR_LOCI and near.tobytes() not in tried:
             tried.add(near.tobytes())
             yield near
@@ -178,35 +209,10 @@ def _positions(T: np.ndarray) -> int:
 def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
     """Least-squares point V on the loci (|V − T_k| + |V − R_k|)/2 = a_k (a corner or an
-    edge seen from several positions; T = R: |V − T_k| = ρ_k), and the residuals:
-    Gauss–Newton from ``start``, each step halved until the cost falls (two unknowns: a
-    solver's set-up would cost more than the solve, and this runs once per seed set)."""
-
-    def residual(v: np.ndarray) -> np.ndarray:
-        return _point_residual(v, T, R, a)
-
-    v = np.asarray(start, dtype=np.float64)
-    r = residual(v)
-    for _ in range(POINT_ITERATIONS):
-        J = 0.5 * (_directions(v, T) + _directions(v, R))
-        step = np.linalg.lstsq(J, r, rcond=None)[0]
-        for _ in range(30):  # halve the step until the cost falls
-            trial = v - step
-            r_trial = residual(trial)
-            if r_trial @ r_trial <= r @ r:
-                break
-            step = 0.5 * step
-        else:
-            break
-        v, r = trial, r_trial
-        if float(np.hypot(*step)) <= POINT_STEP_M:
-            break
-    return v, r
-
-
-#: Gauss–Newton steps of :func:`_point_from`, and the step (metres) at which it stops.
-POINT_ITERATIONS = 30
-POINT_STEP_M = 1e-10
+    edge seen from several positions; T = R: |V − T_k| = ρ_k), and the residuals
+    (:func:`_gauss_newton` from ``start``)."""
+    return _gauss_newton(lambda v: _point_residual(v, T, R, a),
+                         lambda v: 0.5 * (_directions(v, T) + _directions(v, R)), start)
 
 
 def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,
@@ -278,7 +284,7 @@ def _one_by_one(middles: np.ndarray, best: Callable[[np.ndarray], tuple | None]
     ``middles``: ``best(members)`` gives the one that explains most of ``members`` (its
     last item the mask of those it explains) or None; yields it with the loci it explains,
     then searches the rest of the cluster."""
-    for members in _clusters(middles):
+    for members in steps.each("clusters", _clusters(middles)):
         while len(members) >= MIN_PILLAR_LOCI:
             found = best(members)
             if found is None:

@@ -25,7 +25,6 @@ from .limits import (
     MAX_DEPTH,
     MAX_EXPLICIT_PAIRS,
     MAX_SEPARATORS,
-    MAX_WALL_SEQUENCES,
     MIN_LENGTH_M,
 )
 from .model import (
@@ -410,14 +409,9 @@ def scene_from_dict(data: Any, source: str = "<scene>") -> Scene:
 
 
 def _check_work(r: JsonReader, scene: Scene) -> None:
-    """Refuse a scene whose echo model would need more memory than any machine has."""
-    walls = sum(len(s.points) - (0 if s.closed else 1)
-                for s in scene.surfaces if isinstance(s, Polyline))
-    if float(walls) ** scene.echo.max_order > MAX_WALL_SEQUENCES:
-        raise r.fail("echo.max_order", f"{walls} walls to the power {scene.echo.max_order} "
-                                       f"are more than the {MAX_WALL_SEQUENCES:.0e} reflection "
-                                       "sequences clsonar can hold: use a lower max_order or "
-                                       "fewer polyline points")
+    """Refuse a scene whose echo model would need more memory than any machine has (the
+    mirror sequences are counted where they are built, room by room on a floor:
+    :func:`clsonar.echoes.check_sequences`)."""
     samples = sum(math.dist(s.start, s.end) for s in scene.surfaces
                   if isinstance(s, Sinusoid)) / scene.echo.curve_step_m
     if samples > MAX_CURVE_SAMPLES:
