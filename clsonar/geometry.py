@@ -519,3 +519,14 @@ def cell_centres(extent: tuple[float, ...], cell: float, iy: np.ndarray, ix: np.
     this convention is written; every map stage converts cells to metres through it."""
     iy, ix = np.asarray(iy), np.asarray(ix)
     return np.stack([extent[0] + (ix + 0.5) * cell, extent[1] + (iy + 0.5) * cell], axis=-1)
+
+
+def point_cells(extent: tuple[float, ...], cell: float, points: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """``(iy, ix)`` [n] int64: the map cells holding ``points`` [n, 2] (the inverse of
+    :func:`cell_centres`; cells outside the grid are not clipped), in the points' own
+    precision."""
+    points = np.asarray(points).reshape(-1, 2)
+    ix = np.floor((points[:, 0] - extent[0]) / cell).astype(np.int64)
+    iy = np.floor((points[:, 1] - extent[1]) / cell).astype(np.int64)
+    return iy, ix

@@ -26,7 +26,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import physics, steps
-from .geometry import Geometry, curve_point, nearest_surface_point, true_vertices
+from .geometry import Geometry, curve_point, nearest_surface_point, point_cells, true_vertices
 from .scene import Polyline, Scene, Sinusoid
 from .sensors import SensorArray
 
@@ -72,6 +72,13 @@ def truth_points(scene: Scene, geom: Geometry, spacing: float) -> np.ndarray:
     return pts[inside]
 
 
+def heard(scene: Scene, echoes, min_amplitude: float | None = None) -> np.ndarray:
+    """[n] bool: the echo returns :func:`insonified` reads, those at least
+    ``min_amplitude`` (default 10 % of the transmitted amplitude)."""
+    floor = 0.1 * scene.transducer.amplitude if min_amplitude is None else min_amplitude
+    return np.asarray(echoes.amplitude) >= floor
+
+
 def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
                min_amplitude: float | None = None) -> np.ndarray:
     """[M] bool: which ``points`` of the true geometry lie on the locus of an echo return.
@@ -85,8 +92,7 @@ def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
     """
     t = scene.transducer
     c = scene.medium.c
-    floor = 0.1 * t.amplitude if min_amplitude is None else min_amplitude
-    keep = np.asarray(echoes.amplitude) >= floor
+    keep = heard(scene, echoes, min_amplitude)
     tx, rx = np.asarray(echoes.tx)[keep], np.asarray(echoes.rx)[keep]
     path = np.asarray(echoes.tof_s)[keep] * c
     cut_sin2 = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
@@ -298,3 +304,50 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
     if len(geom.circles):
         out["cylinders"] = cylinder_coverage(geom, points, spacing)
     return out
+
+
+#: A true full cell is detected when the map marks a cell within this many cells of it
+#: (Chebyshev distance: the 3 × 3 block around it), and a marked cell this near the true
+#: surface is not a wrongly marked empty cell (:func:`cell_rates`).
+CELL_TOLERANCE = 1
+
+
+def surface_cells(scene: Scene, geom: Geometry, sensors: SensorArray, echoes
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """``(full, surface)``, [ny, nx] bool each, at the map's cells: the cells holding a
+    point of the insonified true surface (:func:`truth_points` every ``min(cell, 5 mm)``,
+    :func:`insonified`: the full cells a perfect map would mark, Barshan 2007), and those
+    holding any point of the true surface."""
+    truth = truth_points(scene, geom, min(scene.cell, 0.005))
+    lit = insonified(scene, sensors, echoes, truth) if len(truth) else np.zeros(0, bool)
+    out = []
+    for pts in (truth[lit], truth):
+        grid = np.zeros(scene.grid_shape, dtype=bool)
+        iy, ix = point_cells(scene.extent, scene.cell, pts)
+        ok = (iy >= 0) & (iy < grid.shape[0]) & (ix >= 0) & (ix < grid.shape[1])
+        grid[iy[ok], ix[ok]] = True
+        out.append(grid)
+    return out[0], out[1]
+
+
+def cell_rates(full: np.ndarray, surface: np.ndarray, region: np.ndarray, marked: np.ndarray,
+               tolerance: int = CELL_TOLERANCE) -> tuple[float | None, float | None]:
+    """The rates of correctly detected full and empty cells of the map ``marked`` (Kurt,
+    MSc, Bilkent 2005; Barshan, IJRR 26(8), 2007, beside the map's mean absolute error),
+    all arguments [ny, nx] bool at the map's cells:
+
+    - full: the share of the true full cells ``full`` (the insonified true surface's,
+      :func:`surface_cells`) with a marked cell within ``tolerance`` cells (the
+      (2·tolerance + 1)² block around it);
+    - empty: the share of the truly empty cells of ``region`` (the cells the echoes
+      sounded, :func:`clsonar.mapping.sounded_cells`) left unmarked, truly empty meaning
+      farther than ``tolerance`` cells from every cell of the true surface ``surface``.
+
+    Each None where there is no such cell."""
+    from scipy.ndimage import binary_dilation
+
+    block = np.ones((2 * tolerance + 1, 2 * tolerance + 1), dtype=bool)
+    near_marked = binary_dilation(marked, block)
+    empty = region & ~binary_dilation(surface, block)
+    return (float(np.mean(near_marked[full])) if full.any() else None,
+            float(np.mean(~marked[empty])) if empty.any() else None)

@@ -142,6 +142,7 @@ __all__ = [
     "reflector_points",
     "reflector_votes",
     "scan_envelope",
+    "sounded_cells",
     "tangent_map",
     "tangent_points",
     "tangent_votes",
@@ -172,6 +173,7 @@ from .launch import (
     accumulate_with_stats,
     backproject,
     occupancy_grid,
+    sounded_cells,
 )
 from .loci import (
     WEIGHTS,

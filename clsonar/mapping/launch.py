@@ -354,3 +354,19 @@ def occupancy_grid(scene: Scene, sensors: SensorArray, loci, *, context=None,
     check_map_memory(scene, precision, ctx.devices[0])
     return _run(ctx, prepare_occupancy(scene, sensors, loci, settings), precision,
                 "occupancy_map")
+
+
+def sounded_cells(scene: Scene, sensors: SensorArray, loci, *, context=None,
+                  device: str | None = None) -> np.ndarray:
+    """[ny, nx] bool: the cells inside the sonar cone of some locus of ``loci`` — inside
+    both beams and no farther than the locus' band (|p − T| + |p − R| ≤ c·τ + band/2): the
+    region the echoes sounded, by the occupancy grid's sensor model (Elfes 1987,
+    :mod:`clsonar.mapping.occupancy`) with every locus' occupied and empty evidence 1, so
+    that no reading cancels another. The region of the rate of correctly detected empty
+    cells (Barshan 2007; :func:`clsonar.metrics.cell_rates`)."""
+    precision = scene.mapping.precision
+    ctx = context_for(context, device, precision)
+    check_map_memory(scene, precision, ctx.devices[0])
+    pb = prepare_occupancy(scene, sensors, loci)
+    pb.rows[:, 9:11] = 1.0
+    return _run(ctx, pb, precision, "occupancy_map") > 0

@@ -6,17 +6,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry import point_cells
 from ..scene import Scene
 
 #: Empty cells kept around the points' cells by :func:`points_window`.
 POINTS_WINDOW_MARGIN = 8
-
-
-def _point_cells(scene: Scene, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    xmin, ymin = scene.extent[:2]
-    ix = np.floor((points[:, 0] - xmin) / scene.cell).astype(np.int64)
-    iy = np.floor((points[:, 1] - ymin) / scene.cell).astype(np.int64)
-    return iy, ix
 
 
 def points_window(scene: Scene, points: np.ndarray) -> tuple[int, int, int, int]:
@@ -24,7 +18,7 @@ def points_window(scene: Scene, points: np.ndarray) -> tuple[int, int, int, int]
     :data:`POINTS_WINDOW_MARGIN`, starting at an even row and column (thinning's subfields
     go by parity) and clipped to the grid (at least one cell)."""
     ny, nx = scene.grid_shape
-    iy, ix = _point_cells(scene, np.asarray(points, dtype=np.float64).reshape(-1, 2))
+    iy, ix = point_cells(scene.extent, scene.cell, np.asarray(points, dtype=np.float64))
     ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
     if not ok.any():
         return 0, 0, 1, 1
@@ -42,7 +36,7 @@ def point_map(scene: Scene, points: np.ndarray,
     the sum of their coordinates (for sub-cell positions); over the grid's ``window``
     ``(row0, col0, ny, nx)`` only when given (points outside it are left out)."""
     ny, nx = scene.grid_shape
-    iy, ix = _point_cells(scene, points)
+    iy, ix = point_cells(scene.extent, scene.cell, points)
     if window is not None:
         row0, col0, ny, nx = window
         iy, ix = iy - row0, ix - col0
