@@ -513,6 +513,18 @@ def test_the_mapping_selector_lists_every_method(window):
     assert set(mode.opts["limits"]) == set(METHODS) and len(METHODS) == 10
 
 
+def test_every_mapping_method_can_be_chosen(window):
+    """Choosing each method in the panel sets the scene's ``mapping.mode`` (issue 15), and
+    the panel shows the choice."""
+    from clsonar.mapping import METHODS
+
+    for name in METHODS:
+        window.params.set("mapping", "mode", name)
+        assert window.doc.scene.mapping.mode == name
+        window.params.refresh()  # the panel rebuilt from the scene
+        assert window.params.params.child("mapping", "mode").value() == name
+
+
 def test_job_cancel_inside_a_stage(qtbot, monkeypatch):
     """Cancel stops a real run at the detection's next launch, not at the end of the stage:
     the launches are one pair each, and the first one cancels."""

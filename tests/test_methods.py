@@ -475,16 +475,32 @@ def test_the_comparison_runs_every_mode_on_the_same_detections(tmp_path):
                          "--modes", ",".join(modes)]) == 0
     rows = json.loads((tmp_path / "methods.json").read_text())
     assert [r["mode"] for r in rows] == list(modes)
+    assert {r["kind"] for r in rows} == {"shapes"}
     assert len({r["detections"] for r in rows}) == 1 and rows[0]["detections"] == 14
     by_mode = {r["mode"]: r for r in rows}
     assert by_mode["point-marking"]["accuracy_m"] is None  # no profile: a dozen points
     assert by_mode["point-marking"]["map_error_m"] < 0.05  # but they lie on the wall
     assert by_mode["occupancy"]["accuracy_m"] < 0.1
+    # the occupancy grid marks nearly all of the wall's full cells, point marking a few
+    assert by_mode["occupancy"]["full_rate"] > 0.9 > 0.2 > by_mode["point-marking"]["full_rate"]
+    assert all(0.99 < r["empty_rate"] <= 1.0 for r in rows)
     table = (tmp_path / "methods.md").read_text()
-    assert "## plane-2m" in table and table.count("| 0 | `") == 3
-    assert "**shapes**, front (fastest first)" in table
+    assert "### plane-2m" in table and table.count("| 0 | `") == 3
+    assert "## Who wins where" in table and "**shapes** (1 run of each mode)" in table
+    assert "### shapes" in table
     if (tmp_path / "methods-pareto-shapes.png").exists():
         assert "(methods-pareto-shapes.png)" in table
+
+
+def summary_row(scene, mode, seconds, error, full=0.9, kind=None):
+    """A row of the comparison: ``seconds`` of map (post-processing 1 s more), its map
+    error and full-cell rate."""
+    from clsonar.tools import methods
+
+    return {"scene": scene, "kind": kind or methods.load_case(scene)[1], "mode": mode,
+            "map_s": None if seconds is None else seconds - 1.0,
+            "post_s": 1.0, "map_error_m": error, "full_rate": full, "empty_rate": 0.99,
+            "accuracy_m": error, "completeness_2cm": full}
 
 
 def test_the_pareto_front_keeps_the_modes_nothing_beats():
@@ -495,15 +511,141 @@ def test_the_pareto_front_keeps_the_modes_nothing_beats():
     cost = np.array([1.0, 1.0, 2.0, 3.0, 0.5])
     error = np.array([5.0, 6.0, 5.0, 1.0, 9.0])
     assert methods.pareto_front(cost, error).tolist() == [4, 0, 3]
-    rows = [{"scene": s, "mode": m, "map_s": ms, "post_s": 1.0, "map_error_m": e,
-             "completeness_2cm": c}
-            for s, m, ms, e, c in (("room", "a", 1.0, 0.02, 0.9), ("room-l", "a", 3.0, 0.04, 0.7),
-                                   ("room", "b", None, None, None),
-                                   ("plane-2m", "a", 0.0, 0.5, None),
-                                   ("plane-2m", "c", 0.0, 0.1, 0.1))]
+    rows = [summary_row("room", "a", 2.0, 0.02, 0.9), summary_row("room-l", "a", 4.0, 0.04, 0.7),
+            summary_row("room", "b", 1.0, None, 0.0),
+            summary_row("plane-2m", "a", 1.0, 0.5, None),
+            summary_row("plane-2m", "c", 1.0, 0.1, 0.1)]
     rooms = methods.mode_summary(rows, "rooms")
-    assert rooms == {"a": (3.0, pytest.approx(0.03), pytest.approx(0.8))}
+    assert list(rooms) == ["a"]  # b gave no map
+    assert (rooms["a"].seconds, rooms["a"].mapped, rooms["a"].rows) == (3.0, 2, 2)
+    assert rooms["a"].map_error_m == pytest.approx(0.03)
+    assert rooms["a"].full_rate == pytest.approx(0.8)
     shapes = methods.mode_summary(rows, "shapes")
-    assert shapes == {"a": (1.0, 0.5, 0.0), "c": (1.0, 0.1, 0.1)}
-    # c is as fast and more accurate, but maps 10 %: the second front has neither
+    assert shapes["a"].full_rate == 0.0 and shapes["c"].full_rate == 0.1
+    # c is as fast and more accurate, but marks 10 % of the full cells: the second front
+    # has neither
     assert methods.fronts(shapes) == (["c"], [])
+
+
+def test_the_verdict_names_the_winners_and_why_the_default_is_off_a_front():
+    """Three modes by hand: ``reflectors`` (the default) 0.5 s, 0.30 cm, 90 % of the full
+    cells; ``tangents`` 0.4 s, 0.30 cm, 80 %; ``point-marking`` 0.1 s, 0.20 cm, 5 %."""
+    from clsonar.tools import methods
+
+    rows = [summary_row("room", "reflectors", 0.5, 0.003, 0.9),
+            summary_row("room", "tangents", 0.4, 0.003, 0.8),
+            summary_row("room", "point-marking", 0.1, 0.002, 0.05)]
+    summary = methods.mode_summary(rows, "rooms")
+    (text,) = methods.verdict("rooms", summary)
+    assert "most accurate of the modes that mark ≥ 50 % of the full cells: `reflectors`" in text
+    assert "(90 % of the full cells), tied with `tangents` (0.30 cm)." in text
+    assert "Lowest map error of any mode: `point-marking` (0.20 cm), marking 5 %" in text
+    assert "Fastest: `point-marking` (0.10 s a run), 5.0× faster than the default" in text
+    # tangents dominates the default on time at the same map error
+    assert ("not on the front of the maps ≥ 50 % full: `tangents` is 20 % faster (0.40 "
+            "against 0.50 s) with as low a map error (0.30 cm), marking 80 % of the full "
+            "cells against 90 %") in text
+    assert "not on the front of all modes: `tangents` is 20 % faster" in text
+    assert ("; `point-marking` is 5.0× faster (0.10 against 0.50 s) with 0.10 cm lower map "
+            "error (0.20 against 0.30 cm), marking 5 % of the full cells against 90 %.") in text
+    # tangents drawing the default's very maps: the default is off by its seconds alone
+    (text,) = methods.verdict("rooms", summary, twins=["tangents"])
+    assert ("`tangents` draws the same maps on every run (the same cells) and is 20 % "
+            "faster (0.40 against 0.50 s): the default is off the front by its seconds "
+            "alone") in text
+    # a faster, more accurate reflectors is on both fronts
+    rows[0] = summary_row("room", "reflectors", 0.05, 0.001, 0.9)
+    (text,) = methods.verdict("rooms", methods.mode_summary(rows, "rooms"))
+    assert "0.20 cm (3.0×) below the next, `tangents`" in text
+    assert "Fastest: `reflectors` (0.05 s a run)." in text
+    assert text.count("is on the front") == 2
+
+
+def test_same_maps_are_equal_on_every_run():
+    from clsonar.tools import methods
+
+    rows = [{**summary_row(scene, mode, 1.0, 0.01), "noise": 0.0, "map_cells": cells}
+            for scene, mode, cells in (("room", "a", 5), ("room", "b", 5), ("room", "c", 5),
+                                       ("room-l", "a", 7), ("room-l", "b", 7),
+                                       ("room-l", "c", 8))]
+    assert methods.same_maps(rows, "rooms", "a") == ["b"]
+    assert methods.same_maps(rows, "shapes", "a") == []
+
+
+def test_cell_rates_of_a_map_by_hand():
+    """A 5 × 7 map whose true surface is row 2, insonified at columns 1-5; the echoes
+    sounded columns 0-3. Marked: (1, 1) beside the surface, (4, 3) two cells from it, (0, 6)
+    outside the sounded region. Within one cell: the full cells of columns 1 and 2 are
+    found (2 of 5); the truly empty sounded cells are rows 0 and 4, columns 0-3 (8), one
+    of them marked (7 of 8). Within no cell: no full cell is marked, and the truly empty
+    sounded cells are every row but 2 (16), two of them marked."""
+    from clsonar.metrics import cell_rates
+
+    surface = np.zeros((5, 7), bool)
+    surface[2] = True
+    full = np.zeros_like(surface)
+    full[2, 1:6] = True
+    region = np.zeros_like(surface)
+    region[:, :4] = True
+    marked = np.zeros_like(surface)
+    marked[1, 1] = marked[4, 3] = marked[0, 6] = True
+    assert cell_rates(full, surface, region, marked) == (0.4, 0.875)
+    assert cell_rates(full, surface, region, marked, tolerance=0) == (0.0, 0.875)
+    assert cell_rates(full, surface, region, np.zeros_like(surface)) == (0.0, 1.0)
+    assert cell_rates(np.zeros_like(surface), surface, surface, marked) == (None, None)
+
+
+def test_sounded_cells_are_the_cone_of_a_locus():
+    """A transducer at (0.5, 1) facing +x and its echo from 1.5 m: the cells inside its
+    beam out to 1.5 m (and the band's half) are sounded, none behind it, beyond the echo
+    or outside the beam; their area is the beam's sector, r²·θ."""
+    scene = scene_of()
+    sensors = sensors_of([(0.5, 1.0, 0.0)])
+    region = mapping.sounded_cells(scene, sensors, loci_of(scene, [(0, 0, 3.0)]),
+                                   context=context())
+
+    def at(x, y):
+        return bool(region[math.floor(y / scene.cell), math.floor(x / scene.cell)])
+
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+    half = math.asin(math.sqrt(cut_sin2))
+    assert at(1.0, 1.0) and at(1.98, 1.0) and at(1.5, 1.0 + 0.9 * math.tan(half))
+    assert not at(0.4, 1.0) and not at(2.05, 1.0) and not at(1.5, 1.0 + 1.1 * math.tan(half))
+    area = region.sum() * scene.cell**2
+    assert area == pytest.approx(1.5**2 * half, rel=0.03)
+
+
+def test_a_case_is_a_bundled_scene_or_a_zoo_case():
+    from clsonar.tools import methods
+
+    assert methods.load_case("room-l")[1] == "rooms"
+    assert methods.load_case("plane-2m.json")[1] == "shapes"
+    scene, kind = methods.load_case("zoo:0:post:2")
+    assert kind == "zoo" and scene.name.startswith("post-02")
+    for bad in ("nope", "zoo:0:post", "zoo:x:post:1", "zoo:0:dragon:1"):
+        with pytest.raises(ValueError):
+            methods.load_case(bad)
+
+
+def test_clsonar_bench_methods_writes_the_comparison(tmp_path, capsys):
+    """clsonar bench --methods on plane-2m, σ 0, three modes: the tool's files, its command
+    line in the page; a mode or scene that does not exist is one line, before any work."""
+    from clsonar.cli import main
+
+    out = tmp_path / "bench"
+    assert main(["bench", "--methods", "--out", str(out), "--scenes", "plane-2m", "--noise",
+                 "0", "--modes", "reflectors,point-marking,occupancy"]) == 0
+    rows = json.loads((out / "methods.json").read_text())
+    assert [r["mode"] for r in rows] == ["reflectors", "point-marking", "occupancy"]
+    assert rows[0]["full_rate"] > 0.9 and rows[0]["map_error_m"] < 0.01
+    page = (out / "methods.md").read_text()
+    assert (f"clsonar bench --out {out} --scenes plane-2m --noise 0 --modes "
+            "reflectors,point-marking,occupancy --methods") in page
+    assert "The default `reflectors` is on the front of the maps ≥ 50 % full" in page
+    for args, flag in ((["--modes", "loci,dragon"], "--modes"),
+                       (["--scenes", "plane-2m,zoo:0:dragon:1"], "--scenes"),
+                       (["--noise", "0,-1"], "--noise")):
+        capsys.readouterr()
+        assert main(["bench", "--methods", "--out", str(tmp_path / "no"), *args]) == 2
+        assert capsys.readouterr().err.startswith(f"clsonar: error: {flag}")
+        assert not (tmp_path / "no").exists()
