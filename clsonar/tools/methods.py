@@ -273,7 +273,7 @@ FRONT_NAMES = ("front of all modes", f"front of the maps ≥ {percent(COMPLETE)}
 def pareto_png(summary: dict[str, ModeSummary], kind: str) -> bytes:
     """The modes' mean seconds against mean map error (log–log), hollow where they mark
     less than :data:`COMPLETE` of the full cells, both Pareto fronts (:func:`fronts`)
-    joined."""
+    joined, their modes ringed."""
     from ..plots import figure, png_bytes
 
     fig = figure((6.5, 4.5), 120)
@@ -281,12 +281,19 @@ def pareto_png(summary: dict[str, ModeSummary], kind: str) -> bytes:
     for modes, style, label in zip(fronts(summary), ("--", "-"), FRONT_NAMES, strict=True):
         ax.plot([summary[m].seconds for m in modes],
                 [100 * summary[m].map_error_m for m in modes], style,
-                color="0.5", zorder=1, label=label)
+                color="0.5", zorder=1, label=label, marker="o", markersize=10,
+                markerfacecolor="none")
+    placed: list[tuple[float, float]] = []
     for m, s in summary.items():
-        ax.scatter([s.seconds], [100 * s.map_error_m], zorder=2, color="C0",
+        x, y = max(s.seconds, 1e-6), max(100 * s.map_error_m, 1e-6)
+        ax.scatter([x], [y], zorder=2, color="C0",
                    facecolors="C0" if s.full_rate >= COMPLETE else "none")
-        ax.annotate(m, (s.seconds, 100 * s.map_error_m), textcoords="offset points",
-                    xytext=(4, 3), fontsize=7)
+        # a label below those of the modes already drawn at about the same point
+        near = sum(abs(np.log10(x / a)) < 0.15 and abs(np.log10(y / b)) < 0.1
+                   for a, b in placed)
+        placed.append((x, y))
+        ax.annotate(m, (x, y), textcoords="offset points", xytext=(4, 3 - 9 * near),
+                    fontsize=7)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("mean seconds (map + post-processing)")
@@ -346,7 +353,8 @@ def verdict(kind: str, summary: dict[str, ModeSummary],
         return [f"**{kind}**: no mode gave a map."]
     n = max(s.rows for s in summary.values())
     out = [f"**{kind}** ({n} run{'s' if n != 1 else ''} of each mode):"]
-    ranked = sorted(complete_modes(summary), key=lambda m: summary[m].map_error_m)
+    ranked = sorted(complete_modes(summary),
+                    key=lambda m: (summary[m].map_error_m, summary[m].seconds))
     if ranked:
         best = summary[ranked[0]]
         out.append(f"most accurate of the modes that mark ≥ {percent(COMPLETE)} of the full "
@@ -379,7 +387,10 @@ def verdict(kind: str, summary: dict[str, ModeSummary],
     for name, front, among in zip(FRONT_NAMES, fronts(summary),
                                   (list(summary), complete_modes(summary)), strict=True):
         if default in front:
-            out.append(f"The default `{default}` is on the {name}.")
+            out.append(f"The default `{default}` is on the {name}"
+                       + "".join(f" (`{m}` draws the same maps on every run, "
+                                 f"{summary[m].seconds - mine.seconds:.2f} s slower)"
+                                 for m in twins if m in among and m not in front) + ".")
         elif default not in among:
             out.append(f"The default `{default}` is not on the {name}: it marks "
                        f"{percent(mine.full_rate)} of the full cells.")
