@@ -111,6 +111,7 @@ def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
     seen: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     axes = sensors.axes
     for s in np.unique(np.concatenate([tx, rx])):
+        steps.poll()
         origin, axis = sensors.positions[s], axes[s]
         index = _near_beam(pts, origin, axis, float(reach[s]), cut_sin2)
         d = pts[index] - origin
@@ -284,6 +285,7 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
         "insonified_m": len(lit) * spacing,
         "coverage": len(lit) / len(truth) if len(truth) else None,
     }
+    steps.poll()
     if len(points) and len(truth):
         dist, _ = nearest_surface_point(geom, points)
         out["accuracy_m"] = {"rms": float(np.sqrt(np.mean(dist**2))),
@@ -292,6 +294,7 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
     else:
         out["accuracy_m"] = {"rms": None, "p95": None}
         out["spurious_share"] = None
+    steps.poll()
     if len(lit):
         gap = cKDTree(points).query(lit)[0] if len(points) else np.full(len(lit), np.inf)
         out["completeness"] = {f"{round(r * 100)}cm": float(np.mean(gap <= r))

@@ -23,7 +23,7 @@ from typing import TypeVar, cast
 
 import numpy as np
 
-from . import checks, mapping, metrics, post, regions, sight, signals
+from . import checks, mapping, metrics, post, regions, sight, signals, steps
 from .echoes import EchoTable, check_sequences, compute_echoes
 from .errors import ClsonarError
 from .geometry import Geometry, build_geometry
@@ -265,6 +265,7 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
                 progress(stage, k * n + i, len(rooms) * n)
 
         r = _run_whole(room.scene, ctx, inner, None, tell, given)
+        steps.poll()
         _add_to_mosaic(maps, r, room)
         for stage, t in r.seconds.items():
             seconds[stage] += t

@@ -20,6 +20,7 @@ import math
 
 import numpy as np
 
+from . import steps
 from .geometry import cell_centres
 from .mapping import point_map, points_window
 from .post import extract_profile, filter_and_thin
@@ -186,6 +187,7 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
     farthest = np.maximum.reduceat(dist, starts)
     step = max(1, SIGHT_PAIRS_AT_ONCE // len(occluders))
     for first in range(0, len(starts), step):  # a group of transducers at a time
+        steps.step("transducers", first, len(starts))
         a = starts[first]
         b = starts[first + step] if first + step < len(starts) else len(sensor)
         group = np.repeat(np.arange(len(starts[first:first + step])),
@@ -196,6 +198,7 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
                                farthest[first:first + step] - margin, wanted)
         hidden = dist[a:b] > hits[group, where[a:b]] + margin
         keep[point[a:b][hidden]] = False
+    steps.step("transducers", len(starts), len(starts))
     return keep
 
 

@@ -6,8 +6,8 @@ patches, a floor's rooms — also call :func:`step` with how much of the loop is
 runs the pipeline listens with :func:`watching` (the command line's progress line, the GUI's
 job): its callback sees ``(what, done, total)`` and may raise to stop the run there (the
 GUI's Cancel), so a run stops within one step, not at the end of its stage; where one
-step is long, :func:`poll` inside it tells the last step again (a point to stop at, the
-numbers unchanged). With nobody watching, :func:`step` costs one lookup. The listener is
+step is long, :func:`poll` inside it is a point to stop at that shows nothing new
+(``total`` 0). With nobody watching, :func:`step` costs one lookup. The listener is
 per thread (a context variable): two runs in two threads each report to their own.
 """
 
@@ -23,32 +23,21 @@ Step = Callable[[str, int, int], None]
 
 T = TypeVar("T")
 
-class _Watch:
-    """A listener and the last step told to it."""
-
-    def __init__(self, listener: Step) -> None:
-        self.listener = listener
-        self.last: tuple[str, int, int] | None = None
-
-
-_watch: ContextVar[_Watch | None] = ContextVar("clsonar_steps", default=None)
+_listener: ContextVar[Step | None] = ContextVar("clsonar_step_listener", default=None)
 
 
 def step(what: str, done: int, total: int) -> None:
     """Tell the listener (if any) that ``done`` of ``total`` units of ``what`` are done;
     raises whatever the listener raises (a cancelled run)."""
-    watch = _watch.get()
-    if watch is not None:
-        watch.last = (what, done, total)
-        watch.listener(what, done, total)
+    listener = _listener.get()
+    if listener is not None:
+        listener(what, done, total)
 
 
 def poll() -> None:
-    """Tell the listener (if any) the last step again: inside a long step, a point where
-    the run can be stopped."""
-    watch = _watch.get()
-    if watch is not None and watch.last is not None:
-        watch.listener(*watch.last)
+    """Inside a long step: a point where the run can be stopped, with nothing new to show
+    (the listener is told ``("", 0, 0)``)."""
+    step("", 0, 0)
 
 
 def each(what: str, items: Iterable[T], total: int | None = None) -> Iterator[T]:
@@ -65,11 +54,11 @@ def each(what: str, items: Iterable[T], total: int | None = None) -> Iterator[T]
 @contextmanager
 def watching(listener: Step | None) -> Iterator[None]:
     """:func:`step` calls ``listener`` inside the ``with`` block (in this thread)."""
-    token = _watch.set(None if listener is None else _Watch(listener))
+    token = _listener.set(listener)
     try:
         yield
     finally:
-        _watch.reset(token)
+        _listener.reset(token)
 
 
 __all__ = ["Step", "each", "poll", "step", "watching"]

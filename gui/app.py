@@ -242,6 +242,7 @@ class MainWindow(QMainWindow):
     # ------------------------------------------------------------------ document
     def _connect_doc(self) -> None:
         self.doc.sceneChanged.connect(self._scene_changed)
+        self.doc.recoveryFailed.connect(lambda text: self.show_message(text, error=True))
         self.doc.undo.cleanChanged.connect(self._clean_changed)
         self._title()
 

@@ -45,6 +45,7 @@ class Document(QObject):
     """The scene being edited, its file, its undo stack and its recovery file."""
 
     sceneChanged = Signal(object)  # the new Scene
+    recoveryFailed = Signal(str)  # one line: the recovery file could not be written
 
     def __init__(self, scene: Scene, path: str | None = None,
                  recovery_dir: str | os.PathLike[str] | None = None) -> None:
@@ -111,8 +112,11 @@ class Document(QObject):
         if not self.modified:
             f.unlink(missing_ok=True)
             return
-        f.parent.mkdir(parents=True, exist_ok=True)
-        save_scene(self.scene, f)
+        try:  # written whole or not at all: the last one written stays (clsonar.files)
+            f.parent.mkdir(parents=True, exist_ok=True)
+            save_scene(self.scene, f)
+        except OSError as e:  # a full disk, a folder that cannot be written
+            self.recoveryFailed.emit(f"unsaved changes not kept for recovery: {e}")
 
     def discard_recovery(self) -> None:
         """Forget the recovery file (the user closed without saving, on purpose)."""

@@ -68,7 +68,7 @@ class Job(QThread):
         if self._cancel.is_set():
             raise Cancelled
         now = time.perf_counter()
-        if now - self._stepped >= 0.1 or done >= total:
+        if total and (now - self._stepped >= 0.1 or done >= total):
             self._stepped = now
             self.stepped.emit(what, done, total)
 

@@ -54,5 +54,5 @@ def test_the_corpus_scenes_load_as_files(tmp_path):
     for path in corpus.write_scenes(tmp_path, list(corpus.SCENES), [300]):
         assert load_scene(path).name == path.stem
     (big,) = corpus.write_scenes(tmp_path, [], [10_000])
-    with pytest.raises(ClsonarError, match="sensors.transducers"):
+    with pytest.raises(ClsonarError, match=r"sensors\.transducers"):
         load_scene(big)

@@ -544,3 +544,26 @@ def test_job_cancel_inside_a_stage(qtbot, monkeypatch):
         job.start()
     job.wait()
     assert job.stages[-1] == "detection"
+
+
+def test_recovery_file_holds_every_edit_and_survives_a_full_disk(qtbot, tmp_path):
+    """After each edit the recovery file holds the scene as edited; where the disk is full
+    the edit stays in the window, the status bar says so in one line, and the file keeps
+    the last edit written, whole; the next edit with space writes it again."""
+    from clsonar.tools.faults.harness import disk_full
+
+    w = make_window(qtbot, tmp_path)
+    first = edits.add_transducer(w.doc.scene, (5.0, 5.0), 45.0)
+    w.doc.apply(first, "place transducer")
+    assert load_scene(str(w.doc.recovery_file)) == w.doc.scene
+    second = edits.add_transducer(w.doc.scene, (6.0, 5.0), 90.0)
+    with disk_full(tmp_path / "recovery", 1):
+        w.doc.apply(second, "place transducer")
+    assert w.doc.scene == second
+    assert "not kept for recovery" in w.statusBar().currentMessage()
+    assert "No space left on device" in w.statusBar().currentMessage()
+    assert load_scene(str(w.doc.recovery_file)) == first
+    third = edits.add_transducer(w.doc.scene, (7.0, 5.0), 0.0)
+    w.doc.apply(third, "place transducer")
+    assert load_scene(str(w.doc.recovery_file)) == third
+    assert [p.name for p in (tmp_path / "recovery").iterdir()] == [w.doc.recovery_file.name]

@@ -450,3 +450,18 @@ def test_noise_stays_quiet_ten_noise_scales_below_every_threshold():
         assert sig.noise_stays_quiet(model) == quiet, (noise, floor)
     for noise, quiet in ((0.4, True), (0.41, False)):
         assert sig.noise_stays_quiet(sig.signal_model(scene("threshold", noise))) == quiet
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 50), st.integers(1, 400))
+def test_echo_ranges_of_pairs_in_order_are_searchsorteds(seed, n_echoes, n_pairs):
+    """The echoes of each pair, looked up echo by echo among many ordered pairs, are the
+    ranges searchsorted gives pair by pair (echoes of pairs not listed included)."""
+    from clsonar.signals.synthesis import _echo_ranges
+
+    rng = np.random.default_rng(seed)
+    pkey = np.unique(rng.integers(0, 500, n_pairs))
+    ekey = np.sort(rng.integers(0, 520, n_echoes))
+    lo, hi = _echo_ranges(ekey, pkey)
+    np.testing.assert_array_equal(lo, np.searchsorted(ekey, pkey, side="left"))
+    np.testing.assert_array_equal(hi, np.searchsorted(ekey, pkey, side="right"))

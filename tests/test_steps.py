@@ -118,10 +118,13 @@ def test_a_loops_time_left_is_its_rate_so_far():
     assert loop.update("patches", 6, 10, now=13.0) == pytest.approx(4.0)
 
 
-def test_poll_tells_the_last_step_again():
+def test_a_poll_is_a_step_with_nothing_to_show():
     seen: list[tuple[str, int, int]] = []
     with steps.watching(lambda *a: seen.append(a)):
-        steps.poll()  # nothing told yet: nothing again
         steps.step("patches", 3, 9)
         steps.poll()
-    assert seen == [("patches", 3, 9), ("patches", 3, 9)]
+    assert seen == [("patches", 3, 9), ("", 0, 0)]
+    out = _Terminal()
+    line = ProgressLine(stream=out)
+    line.step("", 0, 0)
+    assert out.getvalue() == ""

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from .. import physics
+from .. import physics, steps
 from ..opencl import (
     PRECISIONS,
     beam_series_defines,
@@ -81,6 +81,7 @@ def compute_echoes(scene: Scene, sensors: SensorArray | None = None, *, context=
     """
     ctx = context_for(context, device, precision)
     pb = prepare_problem(scene, sensors)
+    steps.poll()
     n_pairs = len(pb.pairs)
     if skip_empty_pairs:
         pb = dataclasses.replace(pb, pairs=pb.pairs[pairs_in_view(pb)])

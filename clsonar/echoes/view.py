@@ -84,11 +84,13 @@ def pairs_in_view(pb: EchoProblem, block: int = 4096) -> np.ndarray:
     sees = _meets(planes, prims)  # [N, n]: surfaces meeting each sensor's beam
     keep = np.zeros(n, dtype=bool)
     t, r = pb.pairs[:, 0], pb.pairs[:, 1]
-    if np.any(pb.sequence_order >= 2) or len(pb.corners):  # multi-bounce paths exist
-        keep = sees[t].any(axis=1) & sees[r].any(axis=1)
+    bounces = bool(np.any(pb.sequence_order >= 2) or len(pb.corners))  # multi-bounce paths
+    either = sees.any(axis=1)  # [N]: the sensor's beam meets some surface
     for i in range(0, n, block):
         steps.step("pairs in view", i, n)
         sl = slice(i, min(n, i + block))
+        if bounces:
+            keep[sl] = either[t[sl]] & either[r[sl]]
         cand = sees[t[sl]] & sees[r[sl]]
         rows = np.flatnonzero(cand.any(axis=1) & ~keep[sl])
         if len(rows):

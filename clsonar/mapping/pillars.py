@@ -35,6 +35,8 @@ def _clusters(points: np.ndarray) -> list[np.ndarray]:
     """Single-linkage groups (index arrays) of ``points`` within :data:`CLUSTER_M`."""
     label = np.arange(len(points))
     for i in range(len(points)):
+        if i % 64 == 0:
+            steps.poll()
         near = np.flatnonzero(np.hypot(*(points - points[i]).T) <= CLUSTER_M)
         label[np.isin(label, label[near])] = label[i]
     return [np.flatnonzero(label == k) for k in np.unique(label)]
@@ -160,12 +162,19 @@ def _seed_sets(middles: np.ndarray) -> Iterator[np.ndarray]:
     has its stubs all round it, farther apart than SEED_M), each set once and only with
     :data:`MIN_PILLAR_LOCI` loci or more."""
     tried: set[bytes] = set()
-    sets = [np.flatnonzero(np.hypot(*(middles - m).T) <= SEED_M) for m in middles]
+    sets = [_near(middles, m, k) for k, m in enumerate(middles)]
     for near in [*sets, np.arange(len(middles))]:
         steps.poll()
         if len(near) >= MIN_PILLAR_LOCI and near.tobytes() not in tried:
             tried.add(near.tobytes())
             yield near
+
+
+def _near(middles: np.ndarray, m: np.ndarray, k: int) -> np.ndarray:
+    """The loci whose middles lie within :data:`SEED_M` of ``m`` (the ``k``-th)."""
+    if k % 64 == 0:
+        steps.poll()
+    return np.flatnonzero(np.hypot(*(middles - m).T) <= SEED_M)
 
 
 def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,

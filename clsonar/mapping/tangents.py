@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import steps
 from ..scene import Scene
 from ..sensors import SensorArray
 from .envelope import ENVELOPE_ARC_BIAS_M, element_scans, envelope_links, in_beams, scan_envelope
@@ -371,6 +372,8 @@ def tangent_map(scene: Scene, sensors: SensorArray, loci,
     source: list[np.ndarray] = []
     crossed = np.zeros(len(loci), dtype=bool)
     for i in range(len(loci)):
+        if i % 64 == 0:
+            steps.step("loci", i, len(loci))
         others = _neighbours(s, groups, i, max_bias_m)
         if len(others) == 0:
             continue

@@ -91,8 +91,10 @@ def _fired_pairs(sensors: SensorArray) -> np.ndarray:
     bounds = np.flatnonzero(np.diff(g[order])) + 1
     for members in np.split(order, bounds):
         members = np.sort(members)
-        tx, rx = np.meshgrid(members, members, indexing="ij")
-        out.append(np.stack([tx.ravel(), rx.ravel()], axis=-1))
+        pair = np.empty((len(members), len(members), 2), dtype=np.int64)
+        pair[:, :, 0] = members[:, None]  # (tx, rx) row by row: tx, then rx, ascending
+        pair[:, :, 1] = members[None, :]
+        out.append(pair.reshape(-1, 2))
     result = np.concatenate(out)
     key = result[:, 0] * len(g) + result[:, 1]
     if np.all(key[1:] > key[:-1]):  # groups of consecutive transducers: already in order

@@ -8,6 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .. import steps
 from ..errors import SceneError
 from ..geometry import Geometry, nearest_surface_point
 from ..scene import Circular, Scene, WallFollowing
@@ -101,7 +102,9 @@ def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
     max_substeps = int(max_length / (0.25 * h)) + 100
     path, arc, left, point = [p0], [0.0], False, p0
     checks = _SubstepChecks(scene, geom, fail)
-    for _ in range(max_substeps):
+    for k in range(max_substeps):
+        if k % 64 == 0:
+            steps.poll()
         try:
             nxt, next_wall, step = _substep(geom, point, wall, sweep, h, c, fail)
         except SceneError:

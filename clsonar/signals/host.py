@@ -318,10 +318,12 @@ def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, cont
     as :func:`detect_reference`.
     """
     model, pe = inputs(scene, sensors, echoes, window_s)
+    steps.poll()
     slots = scanned_slots(model, pe) if skip_silent else np.arange(len(pe.pairs))
     samples = {"scanned": 0, "skipped": 0}
     found = empty_detections()
     if len(slots):
+        steps.poll()
         run = Runner(model, pe, _context(context, device), precision, chunk, work_group,
                      skip_quiet)
         found = _detect(model, pe, run, capacity, slots)

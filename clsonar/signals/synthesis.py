@@ -47,14 +47,27 @@ def pair_echoes(model: SignalModel, sensors: SensorArray, echoes: EchoTable,
         raise ValueError("echo times of flight must be finite and ≥ 0, amplitudes finite")
     ekey = tx * n_sensors + rx
     pkey = pr[:, 0] * n_sensors + pr[:, 1]
-    lo = np.searchsorted(ekey, pkey, side="left")
-    hi = np.searchsorted(ekey, pkey, side="right")
+    lo, hi = _echo_ranges(ekey, pkey)
     x = tof * model.fs
     ek = np.floor(x)
     if len(ek) and ek.max() > 2**31 - 2**24:
         raise ValueError("an echo arrives too late for the sample index range")
-    return PairEchoes(pr, lo.astype(np.int64), hi.astype(np.int64), ek.astype(np.int64),
-                      x - ek, amp * model.k_norm, tof, amp)
+    return PairEchoes(pr, lo, hi, ek.astype(np.int64), x - ek, amp * model.k_norm, tof, amp)
+
+
+def _echo_ranges(ekey: np.ndarray, pkey: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(lo, hi)``: the echoes (sorted keys ``ekey``) of each pair (keys ``pkey``) are
+    ``lo[p]:hi[p]`` — ``np.searchsorted(ekey, pkey)`` left and right. Pairs in order (the
+    pipeline's) look each echo up among the pairs instead, far fewer than the pairs of a
+    large array: the echoes below pair p are those whose key no pair key before p reaches."""
+    if len(pkey) < 2 * len(ekey) or np.any(pkey[1:] < pkey[:-1]):
+        return (np.searchsorted(ekey, pkey, side="left").astype(np.int64),
+                np.searchsorted(ekey, pkey, side="right").astype(np.int64))
+    n = len(pkey) + 1
+    below = np.bincount(np.searchsorted(pkey, ekey, side="right"), minlength=n)
+    upto = np.bincount(np.searchsorted(pkey, ekey, side="left"), minlength=n)
+    return (np.cumsum(below)[:-1].astype(np.int64, copy=False),
+            np.cumsum(upto)[:-1].astype(np.int64, copy=False))
 
 
 def inputs(scene: Scene, sensors: SensorArray | None, echoes: EchoTable,

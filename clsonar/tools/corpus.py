@@ -27,6 +27,8 @@ PATH]`` writes the scene files, ``corpus.json`` and a table.
 from __future__ import annotations
 
 import argparse
+import functools
+import itertools
 import json
 import math
 import os
@@ -49,9 +51,11 @@ SceneDict = dict[str, Any]
 
 
 def _scene(name: str, extent: tuple[float, float, float, float], surfaces: list[SceneDict],
-           sensors: SceneDict, cell: float = 0.01, **blocks: SceneDict) -> SceneDict:
+           sensors: SceneDict, cell: float = 0.01, blocks: SceneDict | None = None
+           ) -> SceneDict:
+    """A scene file's contents; ``blocks``: settings blocks (``{"echo": {...}}``)."""
     return {"clsonar": 1, "name": name, "extent": list(extent), "cell": cell,
-            "surfaces": surfaces, "sensors": sensors, **blocks}
+            "surfaces": surfaces, "sensors": sensors, **(blocks or {})}
 
 
 def _box(x0: float, y0: float, x1: float, y1: float) -> SceneDict:
@@ -84,11 +88,11 @@ def outline(vertices: int = 45_000, max_order: int | None = 1) -> SceneDict:
     a ring at 1 m from its centre; ``max_order`` None leaves the file's default."""
     pts = [[round(5.0 + 4.0 * math.cos(a), 7), round(5.0 + 4.0 * math.sin(a), 7)]
            for a in (2.0 * math.pi * k / vertices for k in range(vertices))]
-    extra = {} if max_order is None else {"echo": {"max_order": max_order}}
+    extra = None if max_order is None else {"echo": {"max_order": max_order}}
     name = f"outline-{vertices // 1000}k" + ("" if max_order is not None else "-order-2")
     return _scene(name, (0.5, 0.5, 9.5, 9.5), [{"type": "polyline", "points": pts,
                                                 "closed": True}],
-                  {"transducers": _ring(6.0, 5.0, 0)}, **extra)
+                  {"transducers": _ring(6.0, 5.0, 0)}, blocks=extra)
 
 
 def sinusoid_1m() -> SceneDict:
@@ -97,11 +101,11 @@ def sinusoid_1m() -> SceneDict:
     wall = {"type": "sinusoid", "from": [0.0, 3.0], "to": [10.0, 3.0], "amplitude": 0.1,
             "period": 1.0}
     return _scene("sinusoid-1M", (0.0, 0.0, 10.0, 4.0), [wall], {"transducers": array},
-                  echo={"curve_step_m": 1e-5})
+                  blocks={"echo": {"curve_step_m": 1e-5}})
 
 
 def floor(name: str, columns: int, rows: int, room_m: float, cell: float, step_m: float,
-          **blocks: SceneDict) -> SceneDict:
+          blocks: SceneDict | None = None) -> SceneDict:
     """A floor of ``columns`` × ``rows`` square rooms ``room_m`` apart (walls 0.2 m thick),
     one wall-following ring per room every ``step_m``."""
     surfaces, rings = [], []
@@ -113,7 +117,7 @@ def floor(name: str, columns: int, rows: int, room_m: float, cell: float, step_m
             rings.append({"type": "wall-following", "start": [x0 + 0.6, (y0 + y1) / 2],
                           "step_m": step_m})
     return _scene(name, (0.0, 0.0, columns * room_m, rows * room_m), surfaces,
-                  {"placements": rings}, cell=cell, **blocks)
+                  {"placements": rings}, cell=cell, blocks=blocks)
 
 
 def array(elements: int, pitch: float = 0.017) -> SceneDict:
@@ -134,7 +138,7 @@ SCENES: dict[str, Callable[[], SceneDict]] = {
     "sinusoid-1M": sinusoid_1m,
     "floor-1km": lambda: floor("floor-1km", 10, 1, 100.0, 0.05, 2.0),
     "floor-20-order-4": lambda: floor("floor-20-order-4", 5, 4, 5.0, 0.01, 0.5,
-                                      echo={"max_order": 4}),
+                                      blocks={"echo": {"max_order": 4}}),
 }
 
 
@@ -150,6 +154,7 @@ class Outcome:
     message: str
     lines: int  # lines on stderr
     estimate_bytes: float | None  # the larger of the pairs' and the maps' estimates
+    limit_bytes: float | None  # what the run could count on (available, or --max-memory)
     profile_points: int | None
     accuracy_m: float | None
     completeness_2cm: float | None
@@ -176,19 +181,45 @@ def run_scene(path: Path, out: Path, extra: tuple[str, ...] = ()) -> Outcome:
     cost = data.get("cost") or {}
     metrics = data.get("metrics") or {}
     lines = [ln for ln in err.splitlines() if ln.strip()]
-    return Outcome(path.stem, int(child.returncode), seconds, peak, lines[0] if lines else "",
+    message = lines[0].replace(str(path), path.name) if lines else ""
+    return Outcome(path.stem, int(child.returncode), seconds, peak, message,
                    len(lines),
                    max(cost["pair_bytes"], cost["map_bytes"]) if cost else None,
+                   cost.get("available_bytes"),
                    (data.get("counts") or {}).get("profile_points"),
                    (metrics.get("accuracy_m") or {}).get("rms"),
                    (metrics.get("completeness") or {}).get("2cm"))
 
 
+def longest_silence(path: Path) -> dict[str, Any]:
+    """Run the scene ``path`` through the pipeline in this process, listening to its stages
+    and steps (:mod:`clsonar.steps`): the longest time between two reports — how long the
+    GUI's Cancel can wait — and the reports around it."""
+    from .. import steps
+    from ..pipeline import run
+    from ..scene import load_scene
+
+    marks: list[tuple[float, str]] = [(time.perf_counter(), "start")]
+
+    def stage(name: str, i: int, n: int) -> None:
+        marks.append((time.perf_counter(), f"stage {name}"))
+
+    def step(what: str, done: int, total: int) -> None:
+        marks.append((time.perf_counter(), f"{what} {done}/{total}"))
+
+    with steps.watching(step):
+        run(load_scene(path), progress=stage)
+    marks.append((time.perf_counter(), "end"))
+    gap, after, before = max((b[0] - a[0], a[1], b[1]) for a, b in itertools.pairwise(marks))
+    return {"scene": path.stem, "reports": len(marks) - 2, "longest_s": gap, "after": after,
+            "before": before}
+
+
 def write_scenes(folder: Path, names: list[str], arrays: list[int]) -> list[Path]:
     """The corpus' scene files in ``folder``."""
     folder.mkdir(parents=True, exist_ok=True)
-    made = {name: SCENES[name] for name in names}
-    made.update({f"array-{n}": (lambda n=n: array(n)) for n in arrays})
+    made: dict[str, Callable[[], SceneDict]] = {name: SCENES[name] for name in names}
+    made.update({f"array-{n}": functools.partial(array, n) for n in arrays})
     paths = []
     for name, make in made.items():
         path = folder / f"{name}.json"
@@ -202,13 +233,14 @@ def table(rows: list[Outcome]) -> list[str]:
     def mb(b: float | None) -> str:
         return "–" if b is None else f"{b / 1e6:,.0f} MB"
 
-    out = ["| scene | outcome | wall s | peak memory | estimate | profile points | "
-           "accuracy | ≤ 2 cm |", "|---|---|---:|---:|---:|---:|---:|---:|"]
+    out = ["| scene | outcome | wall s | peak memory | estimate | limit | profile points | "
+           "accuracy | ≤ 2 cm |", "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
     for r in rows:
         outcome = "mapped" if r.status == 0 else f"exit {r.status}: {r.message}"
         points = NONE if r.profile_points is None else f"{r.profile_points:,}"
         out.append(f"| {r.scene} | {outcome} | {r.seconds:.1f} | {mb(r.peak_bytes)} "
-                   f"| {mb(r.estimate_bytes)} | {points} | {cm(r.accuracy_m)} cm "
+                   f"| {mb(r.estimate_bytes)} | {mb(r.limit_bytes)} | {points} "
+                   f"| {cm(r.accuracy_m)} cm "
                    f"| {percent(r.completeness_2cm)} |")
     return out
 
@@ -220,7 +252,13 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenes", default=",".join(SCENES))
     p.add_argument("--arrays", default="", help="array sizes, e.g. 300,1000,3000,10000")
     p.add_argument("--markdown", help="write the table here too")
+    p.add_argument("--silence", metavar="SCENE.json",
+                   help="instead, run SCENE.json here and print the longest time between "
+                        "two progress reports (JSON)")
     args = p.parse_args(argv)
+    if args.silence:
+        print(json.dumps(longest_silence(Path(args.silence))))
+        return 0
     out = Path(args.out)
     names = [n for n in args.scenes.split(",") if n]
     arrays = [int(n) for n in args.arrays.split(",") if n]

@@ -47,6 +47,8 @@ class ProgressLine:
     def step(self, what: str, done: int, total: int) -> None:
         """Progress inside the stage (:data:`clsonar.steps.Step`): ``… detection  pairs
         300/1,000, 2 s left``, drawn at most 10 times a second."""
+        if not total:
+            return  # a poll (:func:`clsonar.steps.poll`): nothing new to show
         now = time.perf_counter()
         left = self.loop.update(what, done, total, now)
         if now - self.drawn < 0.1 and done < total:
