@@ -31,7 +31,6 @@ import functools
 import itertools
 import json
 import math
-import os
 import subprocess
 import sys
 import threading
@@ -160,22 +159,31 @@ class Outcome:
     completeness_2cm: float | None
 
 
+#: The child :func:`run_scene` starts: ``clsonar`` ARGV in-process, then its peak memory
+#: (:func:`clsonar.cost.peak_bytes`, this program's own) written to the file ARGV[1].
+_CHILD = ("import sys\nfrom clsonar import cost\nfrom clsonar.cli import main\n"
+          "try:\n    status = main(sys.argv[2:])\nfinally:\n"
+          "    open(sys.argv[1], 'w').write(str(cost.peak_bytes()))\nsys.exit(status)\n")
+
+
 def run_scene(path: Path, out: Path, extra: tuple[str, ...] = ()) -> Outcome:
     """``clsonar run PATH --out OUT --png none -q`` in a child process: its outcome, time
-    (wall) and peak memory (the child's rusage)."""
-    cmd = [sys.executable, "-m", "clsonar", "run", str(path), "--out", str(out),
+    (wall) and peak memory (its own high-water mark: a child's rusage would also count the
+    memory of this process, which started it)."""
+    peak_file = out.parent / f".{out.name}.peak"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    cmd = [sys.executable, "-c", _CHILD, str(peak_file), "run", str(path), "--out", str(out),
            "--png", "none", "-q", *extra]
     start = time.perf_counter()
     child = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                              text=True)
     timer = threading.Timer(HANG_S, child.kill)
     timer.start()
-    err = child.stderr.read() if child.stderr is not None else ""
-    _, status, usage = os.wait4(child.pid, 0)  # this child's own rusage
+    _, err = child.communicate()
     timer.cancel()
-    child.returncode = os.waitstatus_to_exitcode(status)
     seconds = time.perf_counter() - start
-    peak = int(usage.ru_maxrss) * 1024  # KiB on Linux
+    peak = int(peak_file.read_text()) if peak_file.exists() else 0
+    peak_file.unlink(missing_ok=True)
     report = out / "report.json"
     data = json.loads(report.read_text()) if child.returncode == 0 and report.exists() else {}
     cost = data.get("cost") or {}
