@@ -546,13 +546,13 @@ def test_job_cancel_inside_a_stage(qtbot, monkeypatch):
     assert job.stages[-1] == "detection"
 
 
-def test_recovery_file_holds_every_edit_and_survives_a_full_disk(qtbot, tmp_path):
+def test_recovery_file_holds_every_edit_and_survives_a_full_disk(window, tmp_path):
     """After each edit the recovery file holds the scene as edited; where the disk is full
     the edit stays in the window, the status bar says so in one line, and the file keeps
     the last edit written, whole; the next edit with space writes it again."""
     from clsonar.tools.faults.harness import disk_full
 
-    w = make_window(qtbot, tmp_path)
+    w = window
     first = edits.add_transducer(w.doc.scene, (5.0, 5.0), 45.0)
     w.doc.apply(first, "place transducer")
     assert load_scene(str(w.doc.recovery_file)) == w.doc.scene
