@@ -102,9 +102,7 @@ def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
     max_substeps = int(max_length / (0.25 * h)) + 100
     path, arc, left, point = [p0], [0.0], False, p0
     checks = _SubstepChecks(scene, geom, fail)
-    for k in range(max_substeps):
-        if k % 64 == 0:
-            steps.poll()
+    for _ in range(max_substeps):
         try:
             nxt, next_wall, step = _substep(geom, point, wall, sweep, h, c, fail)
         except SceneError:
@@ -211,7 +209,8 @@ def _substep(geom: Geometry, point: np.ndarray, wall: np.ndarray, sweep: np.ndar
     """One sub-step of the trace from ``point`` (nearest surface point ``wall``): the first
     point back at clearance ``c`` on the circle of radius ``h`` swept by the angles
     ``sweep`` from the direction of ``wall``, re-projected onto the curve. Returns the
-    point, its nearest surface point and the step's length."""
+    point, its nearest surface point and the step's length (a point to stop a run at)."""
+    steps.poll()
     to_wall = wall - point
     phi0 = math.atan2(to_wall[1], to_wall[0])
     angles = phi0 + sweep
