@@ -144,17 +144,12 @@ def _add_bench(sub: Subparsers) -> None:
                    help="also run the scene zoo with the default settings (a few minutes; "
                         "zoo.md and zoo.json in DIR)")
     p.add_argument("--methods", action="store_true",
-                   help="instead, every mapping mode side by side on the same echoes: the "
-                        "thesis' shapes, the rooms and a few zoo cases at noise σ "
-                        f"{_sizes(defaults.METHODS_NOISE)}, their seconds, errors and "
-                        "Pareto fronts (about 10 minutes; methods.md, methods.json and "
-                        "methods-pareto-KIND.png in DIR; --scenes also takes "
-                        "zoo:SEED:KIND:INDEX)")
-    p.add_argument("--noise", metavar="SIGMAS",
-                   help="with --methods: comma-separated noise σ (default "
-                        f"{_sizes(defaults.METHODS_NOISE)})")
-    p.add_argument("--modes", metavar="MODES",
-                   help="with --methods: comma-separated mapping modes (default all)")
+                   help="instead, every mapping mode side by side (docs/methods.md): "
+                        "methods.md, methods.json and PNGs in DIR; --scenes also takes "
+                        "zoo:SEED:KIND:INDEX")
+    p.add_argument("--noise", metavar="SIGMAS", help="with --methods: noise σ (default "
+                   f"{_sizes(defaults.METHODS_NOISE)})")
+    p.add_argument("--modes", metavar="MODES", help="with --methods: modes (default all)")
     _device_args(p)
     p.set_defaults(func=_cmd_bench)
 
@@ -369,28 +364,6 @@ def _cmd_reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
-def _bench_names(scenes: str | None) -> tuple[str, ...]:
-    """The bundled scenes ``--scenes`` names (default: ``tools.defaults.BENCH_SCENES``)."""
-    from .files import bundled_scenes
-
-    names = tuple(n.strip() for n in scenes.split(",")) if scenes else defaults.BENCH_SCENES
-    missing = [n for n in names if not (bundled_scenes() / f"{n}.json").is_file()]
-    if missing:
-        raise ClsonarError(f"--scenes: no bundled scene {', '.join(missing)}")
-    return names
-
-
-def _bench_floors(floors: str) -> tuple[float, ...]:
-    """The floor sizes ``--floors`` gives, each 5 to 1000 m."""
-    try:
-        sizes = tuple(float(x) for x in floors.split(",") if x.strip())
-    except ValueError:
-        raise ClsonarError(f"--floors: not a list of sizes in metres: {floors!r}") from None
-    if any(not 5.0 <= f <= 1000.0 for f in sizes):
-        raise ClsonarError(f"--floors: sizes must be 5 to 1000 m, not {floors!r}")
-    return sizes
-
-
 def _bench_command(args: argparse.Namespace) -> str:
     """The ``clsonar bench`` command line that regenerates the report (defaults left out)."""
     given = (("--scenes", args.scenes or None, None),
@@ -404,49 +377,16 @@ def _bench_command(args: argparse.Namespace) -> str:
         f" --{flag}" for flag in ("zoo", "methods") if getattr(args, flag, False))
 
 
-def _bench_methods(args: argparse.Namespace) -> int:
-    """``clsonar bench --methods``: every mapping mode side by side
-    (:mod:`clsonar.tools.methods`), every scene, σ and mode checked before any work."""
-    from .tools import methods
-
-    try:
-        noises = (tuple(float(x) for x in args.noise.split(",") if x.strip()) if args.noise
-                  else defaults.METHODS_NOISE)
-    except ValueError:
-        raise ClsonarError(f"--noise: not a list of numbers: {args.noise!r}") from None
-    if not noises or any(not 0.0 <= n < float("inf") for n in noises):
-        raise ClsonarError(f"--noise: σ must be finite and >= 0, not {args.noise!r}")
-    names = ([n.strip() for n in args.scenes.split(",") if n.strip()] if args.scenes
-             else defaults.METHODS_SCENES)
-    modes = ([m.strip() for m in args.modes.split(",") if m.strip()] if args.modes
-             else list(methods.METHODS))
-    try:
-        methods.check_modes(modes)
-    except ValueError as e:
-        raise ClsonarError(f"--modes: {e}") from None
-    try:
-        cases = [methods.load_case(name) for name in names]
-    except ValueError as e:
-        raise ClsonarError(f"--scenes: {e}") from None
-    line = ProgressLine()
-    try:
-        rows = methods.compare_cases(cases, noises, modes, device=args.device, progress=line)
-    finally:
-        line.done()
-    methods.write_report(rows, Path(args.out), _bench_command(args))
-    print(f"wrote {args.out}/methods.md, methods.json and the Pareto PNGs")
-    return 0
-
-
 def _cmd_bench(args: argparse.Namespace) -> int:
     from .tools import bench
 
     if args.methods:
-        return _bench_methods(args)
+        from .tools.methods import bench_methods
+
+        return bench_methods(args, _bench_command(args))
     if args.repeat < 1:
         raise ClsonarError(f"--repeat must be >= 1, not {args.repeat}")
-    names = _bench_names(args.scenes)
-    floors = _bench_floors(args.floors)
+    names, floors = bench.scene_names(args.scenes), bench.floor_sizes(args.floors)
     line = ProgressLine()
     try:
         bench.bench(Path(args.out), names=names, repeat=args.repeat, numpy=not args.no_numpy,

@@ -38,7 +38,8 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from ..files import write_atomic
+from ..errors import ClsonarError
+from ..files import bundled_scenes, write_atomic
 from ..outputs import metric, require_plots
 from ..pipeline import STAGES
 from ..scene import Scene, load_scene
@@ -59,6 +60,28 @@ from .tradeoff import (
 from .zoo.report import summary_markdown, zoo_report
 
 DEFAULT_SCENES = BENCH_SCENES  # tools/defaults.py
+
+
+def scene_names(scenes: str | None) -> tuple[str, ...]:
+    """The bundled scenes ``--scenes`` names (default :data:`DEFAULT_SCENES`);
+    :class:`~clsonar.errors.ClsonarError` for one that is not bundled."""
+    names = tuple(n.strip() for n in scenes.split(",")) if scenes else DEFAULT_SCENES
+    missing = [n for n in names if not (bundled_scenes() / f"{n}.json").is_file()]
+    if missing:
+        raise ClsonarError(f"--scenes: no bundled scene {', '.join(missing)}")
+    return names
+
+
+def floor_sizes(floors: str) -> tuple[float, ...]:
+    """The floor sizes ``--floors`` gives, each 5 to 1000 m (else
+    :class:`~clsonar.errors.ClsonarError`)."""
+    try:
+        sizes = tuple(float(x) for x in floors.split(",") if x.strip())
+    except ValueError:
+        raise ClsonarError(f"--floors: not a list of sizes in metres: {floors!r}") from None
+    if any(not 5.0 <= f <= 1000.0 for f in sizes):
+        raise ClsonarError(f"--floors: sizes must be 5 to 1000 m, not {floors!r}")
+    return sizes
 
 #: Settings compared in the pipeline table: the thesis' methods, and the scene's own (ours).
 SETTINGS = (("thesis", "thesis"), ("best", None))

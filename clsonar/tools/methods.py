@@ -33,6 +33,7 @@ from typing import Any, cast
 import numpy as np
 
 from .. import geometry, mapping, metrics
+from ..errors import ClsonarError
 from ..files import bundled_scenes, write_atomic
 from ..mapping import METHODS
 from ..outputs import metric, plots_available
@@ -40,7 +41,7 @@ from ..pipeline import RunResult, StageCache, run
 from ..scene import MappingMode, MappingSettings, Scene, load_scene
 from .defaults import METHODS_NOISE, METHODS_SCENES
 from .markdown import NONE, cm, percent
-from .progress import Progress
+from .progress import Progress, ProgressLine
 
 #: The scenes compared by default: the thesis' shapes, the bundled rooms, a few zoo cases
 #: (:data:`clsonar.tools.defaults.METHODS_SCENES`).
@@ -521,6 +522,45 @@ def write_report(rows: list[dict[str, Any]], out: Path, command: str,
             write_atomic(table.parent / images[kind], pareto_png(mode_summary(rows, kind), kind))
     write_atomic(table, (markdown(rows, command, images) + "\n").encode())
     return table
+
+
+def options(scenes: str | None, noise: str | None, modes: str | None
+            ) -> tuple[list[tuple[Scene, str]], tuple[float, ...], list[str]]:
+    """The cases (:func:`load_case`), noise σ and modes of ``clsonar bench --methods``'s
+    ``--scenes``, ``--noise`` and ``--modes`` (comma-separated; None: the defaults), every
+    one checked before any work: :class:`~clsonar.errors.ClsonarError` naming the option."""
+    try:
+        noises = (tuple(float(x) for x in noise.split(",") if x.strip()) if noise
+                  else METHODS_NOISE)
+    except ValueError:
+        raise ClsonarError(f"--noise: not a list of numbers: {noise!r}") from None
+    if not noises or any(not 0.0 <= n < float("inf") for n in noises):
+        raise ClsonarError(f"--noise: σ must be finite and >= 0, not {noise!r}")
+    chosen = [m.strip() for m in modes.split(",") if m.strip()] if modes else list(METHODS)
+    try:
+        check_modes(chosen)
+    except ValueError as e:
+        raise ClsonarError(f"--modes: {e}") from None
+    names = [n.strip() for n in scenes.split(",") if n.strip()] if scenes else METHODS_SCENES
+    try:
+        return [load_case(name) for name in names], noises, chosen
+    except ValueError as e:
+        raise ClsonarError(f"--scenes: {e}") from None
+
+
+def bench_methods(args: argparse.Namespace, command: str) -> int:
+    """``clsonar bench --methods``: :func:`compare_cases` of the command line's
+    :func:`options` on its ``--device``, with a progress line, and :func:`write_report`
+    into ``--out`` (``command``: the line that regenerates it)."""
+    cases, noises, modes = options(args.scenes, args.noise, args.modes)
+    line = ProgressLine()
+    try:
+        rows = compare_cases(cases, noises, modes, device=args.device, progress=line)
+    finally:
+        line.done()
+    write_report(rows, Path(args.out), command)
+    print(f"wrote {args.out}/methods.md, methods.json and the Pareto PNGs")
+    return 0
 
 
 def progress_line(row: dict[str, Any]) -> str:
