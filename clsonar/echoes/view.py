@@ -85,7 +85,7 @@ def pairs_in_view(pb: EchoProblem, block: int = 4096) -> np.ndarray:
     keep = np.zeros(n, dtype=bool)
     t, r = pb.pairs[:, 0], pb.pairs[:, 1]
     bounces = bool(np.any(pb.sequence_order >= 2) or len(pb.corners))  # multi-bounce paths
-    either = sees.any(axis=1)  # [N]: the sensor's beam meets some surface
+    either = np.any(sees, axis=1)  # [N]: the sensor's beam meets some surface
     for i in range(0, n, block):
         steps.step("pairs in view", i, n)
         sl = slice(i, min(n, i + block))
