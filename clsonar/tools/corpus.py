@@ -248,7 +248,7 @@ def table(rows: list[Outcome]) -> list[str]:
         points = NONE if r.profile_points is None else f"{r.profile_points:,}"
         out.append(f"| {r.scene} | {outcome} | {r.seconds:.1f} | {mb(r.peak_bytes)} "
                    f"| {mb(r.estimate_bytes)} | {mb(r.limit_bytes)} | {points} "
-                   f"| {cm(r.accuracy_m)} cm "
+                   f"| {NONE if r.accuracy_m is None else cm(r.accuracy_m) + ' cm'} "
                    f"| {percent(r.completeness_2cm)} |")
     return out
 
