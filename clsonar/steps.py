@@ -13,7 +13,7 @@ per thread (a context variable): two runs in two threads each report to their ow
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
 from typing import TypeVar
@@ -40,15 +40,13 @@ def poll() -> None:
     step("", 0, 0)
 
 
-def each(what: str, items: Iterable[T], total: int | None = None) -> Iterator[T]:
-    """``items`` one by one, telling :func:`step` before each (``0 … total − 1`` done) and
-    after the last (``total`` done); ``total`` defaults to ``len(items)``."""
-    n = len(items) if total is None else total  # type: ignore[arg-type]
-    k = 0
+def each(what: str, items: Sequence[T]) -> Iterator[T]:
+    """``items`` one by one, telling :func:`step` before each (``0 … n − 1`` done) and
+    after the last (``n`` done)."""
     for k, item in enumerate(items):
-        step(what, k, n)
+        step(what, k, len(items))
         yield item
-    step(what, n if n else k, n)
+    step(what, len(items), len(items))
 
 
 @contextmanager

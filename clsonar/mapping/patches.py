@@ -199,7 +199,8 @@ def _silent_beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     ok = np.flatnonzero(in_beams(q, T, axT, cut_sin2) & in_beams(q, R, axR, cut_sin2)
                         & np.isfinite(path))
     u = coordinates(p.params, p.x0, q[ok])
-    ok, u = ok[(u < p.u.min()) | (u > p.u.max())], u[(u < p.u.min()) | (u > p.u.max())]
+    beyond = (u < p.u.min()) | (u > p.u.max())
+    ok, u = ok[beyond], u[beyond]
     beams = (q[ok], T[ok], axT[ok], R[ok], axR[ok])
     louder = two_way(*beams, ka) >= weakest * (1.0 - 1e-9)
     ok, u, beams = ok[louder], u[louder], tuple(b[louder] for b in beams)
