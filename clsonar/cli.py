@@ -21,16 +21,17 @@ exits with status 1. Nothing is written to an output file that is not complete.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import io
 import os
 import shlex
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
 from . import steps
-from .errors import ClsonarError, DeviceError, one_line, save_traceback
+from .errors import ClsonarError, DeviceError, SceneError, one_line, save_traceback
 from .files import PNG_CHOICES
 from .opencl import INSTALL_HINT, PRECISIONS
 from .presets import PRESETS
@@ -265,8 +266,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
     except ValueError:
         raise ClsonarError(f"--max-memory {args.max_memory!r}: not a size (2G, 500M, "
                            "1.5e9)") from None
-    with cost.memory_limit(limit):
+    with cost.memory_limit(limit), _named_by_file(scene, args.scene):
         return _run_scene(args, scene)
+
+
+@contextlib.contextmanager
+def _named_by_file(scene: Scene, path: str) -> Iterator[None]:
+    """A :class:`~clsonar.errors.SceneError` about ``scene`` raised while it runs (beyond the
+    memory, a placement that cannot be made) names its file ``path``, as the loader's do."""
+    try:
+        yield
+    except SceneError as e:
+        if e.source != scene.name:
+            raise
+        raise SceneError(e.message, key=e.key, source=path) from None
 
 
 def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
@@ -277,7 +290,7 @@ def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
     names = SKIP_NAMES
     off = names if "all" in args.no_skip else args.no_skip
     skips = Skips(**{name: name not in off for name in names})
-    pipeline.check_work(pipeline.apply_preset(scene, args.preset), skips, where=args.scene)
+    pipeline.check_work(pipeline.apply_preset(scene, args.preset), skips)
     if args.dry_run:
         print("\n".join(f"{scene.name}: {line}"
                         for line in cost.lines(cost.estimate(scene, args.preset))))

@@ -172,14 +172,13 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     return _run_whole(scene, ctx, skips, cache, progress, given)
 
 
-def check_work(scene: Scene, skips: Skips = Skips(), where: str | None = None
-               ) -> list[regions.Region] | None:
+def check_work(scene: Scene, skips: Skips = Skips()) -> list[regions.Region] | None:
     """The rooms ``scene`` is mapped by (:func:`clsonar.regions.split_rooms`; None: whole),
-    once each map's echo model is known to fit (:func:`~clsonar.echoes.check_sequences`,
-    its one line beginning with ``where``): refused before any work."""
+    once each map's echo model is known to fit (:func:`~clsonar.echoes.check_sequences`):
+    refused before any work."""
     rooms = regions.split_rooms(scene) if skips.rooms else None
     for part in [scene] if rooms is None else [room.scene for room in rooms]:
-        check_sequences(part, where)
+        check_sequences(part)
     return rooms
 
 

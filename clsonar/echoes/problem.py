@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import physics
-from ..errors import ClsonarError
+from ..errors import SceneError
 from ..geometry import Geometry, build_geometry, meet_at_corner
 from ..scene import MAX_WALL_SEQUENCES, Polyline, Scene
 from ..sensors import SensorArray, pairs, place_sensors
@@ -73,18 +73,18 @@ def scene_walls(scene: Scene) -> int:
                for s in scene.surfaces if isinstance(s, Polyline))
 
 
-def check_sequences(scene: Scene, where: str | None = None) -> None:
-    """Refuse (one line, :class:`~clsonar.errors.ClsonarError`) a scene whose mirror
+def check_sequences(scene: Scene) -> None:
+    """Refuse (one line, :class:`~clsonar.errors.SceneError`) a scene whose mirror
     sequences (:func:`wall_sequences`: at most walls^``echo.max_order``) could be more than
     :data:`~clsonar.scene.MAX_WALL_SEQUENCES`. A floor mapped room by room is checked room
     by room (:func:`clsonar.pipeline.check_work`): each room's echoes stay among its own
-    walls. The line begins with ``where`` (the scene file), else the scene's name."""
+    walls."""
     walls = scene_walls(scene)
     if float(walls) ** scene.echo.max_order > MAX_WALL_SEQUENCES:
-        raise ClsonarError(f"{where or scene.name}: echo.max_order: {walls} walls to the power "
-                           f"{scene.echo.max_order} are more than the "
-                           f"{MAX_WALL_SEQUENCES:.0e} reflection sequences clsonar can hold "
-                           "in one map: use a lower max_order or fewer polyline points")
+        raise SceneError(f"{walls} walls to the power {scene.echo.max_order} are more than "
+                         f"the {MAX_WALL_SEQUENCES:.0e} reflection sequences clsonar can hold "
+                         "in one map: use a lower max_order or fewer polyline points",
+                         key="echo.max_order", source=scene.name)
 
 
 def wall_sequences(n_walls: int, max_order: int) -> np.ndarray:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import geometry
-from ..errors import ClsonarError
+from ..errors import SceneError
 from ..opencl import PRECISIONS, device_kind
 from ..scene import MappingSettings, Scene
 from ..sensors import SensorArray
@@ -150,17 +150,17 @@ PAIR_BYTES = 200
 
 
 def check_pair_memory(scene: Scene, sensors: SensorArray) -> None:
-    """Raise :class:`~clsonar.errors.ClsonarError` (one line, before any echo is computed)
-    when the fired pairs of ``sensors`` would take more memory than this machine has
-    available (:data:`PAIR_BYTES` a pair)."""
+    """Raise :class:`~clsonar.errors.SceneError` (one line, key ``sensors``, before any echo
+    is computed) when the fired pairs of ``sensors`` would take more memory than this
+    machine has available (:data:`PAIR_BYTES` a pair)."""
     count = sensors.pair_count
     needed = float(count) * PAIR_BYTES
     available = host_available_bytes()
     if available is not None and needed > available:
-        raise ClsonarError(
-            f"{scene.name}: {count:,} fired pairs ({len(sensors.groups):,} transducers) need "
-            f"about {format_bytes(needed)} of memory, more than {_available_text(available)}: "
-            "use fewer transducers or smaller pair groups")
+        raise SceneError(
+            f"{count:,} fired pairs ({len(sensors.groups):,} transducers) need about "
+            f"{format_bytes(needed)} of memory, more than {_available_text(available)}: use "
+            "fewer transducers or smaller pair groups", key="sensors", source=scene.name)
 
 
 def work_items(nx: int, ny: int, vec: int, wgx: int, wgy: int) -> tuple[int, int]:
@@ -171,13 +171,15 @@ def work_items(nx: int, ny: int, vec: int, wgx: int, wgy: int) -> tuple[int, int
     return ceil_div(ceil_div(nx, vec), wgx) * wgx, ceil_div(ny, wgy) * wgy
 
 
-def _grid_error(scene: Scene, problem: str) -> ClsonarError:
+def _grid_error(scene: Scene, problem: str) -> SceneError:
+    """The one line of a map that cannot be held (key ``cell``, the scene's name as its
+    source: the command line puts the file there)."""
     ny, nx = scene.grid_shape
     xmin, ymin, xmax, ymax = scene.extent
-    return ClsonarError(
-        f"{scene.name}: the map of {ny} × {nx} cells (extent {xmax - xmin:g} m × "
-        f"{ymax - ymin:g} m, cell {scene.cell:g} m) {problem}: use a larger cell or a "
-        "smaller extent")
+    return SceneError(
+        f"the map of {ny} × {nx} cells (extent {xmax - xmin:g} m × {ymax - ymin:g} m, cell "
+        f"{scene.cell:g} m) {problem}: use a larger cell or a smaller extent", key="cell",
+        source=scene.name)
 
 
 def _check_device_memory(scene: Scene, precision: str, device) -> None:
@@ -195,7 +197,7 @@ def _check_device_memory(scene: Scene, precision: str, device) -> None:
 
 def check_map_memory(scene: Scene, precision: str = "float32", device=None, *,
                      reference: bool = False, host_bytes_per_cell: float | None = None) -> None:
-    """Raise :class:`~clsonar.errors.ClsonarError` naming the size needed when the scene's
+    """Raise :class:`~clsonar.errors.SceneError` naming the size needed when the scene's
     map cannot be held: by ``device`` (a ``pyopencl.Device``: one buffer of the padded map),
     by this machine's free memory (the result, plus the reference's temporaries when
     ``reference``, or ``host_bytes_per_cell`` for a caller that holds several maps), or by
