@@ -290,8 +290,8 @@ def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
     names = SKIP_NAMES
     off = names if "all" in args.no_skip else args.no_skip
     skips = Skips(**{name: name not in off for name in names})
-    pipeline.check_work(pipeline.apply_preset(scene, args.preset), skips)
-    if args.dry_run:
+    if args.dry_run:  # (a run is checked by pipeline.run, before any work)
+        pipeline.check_work(pipeline.apply_preset(scene, args.preset), skips)
         print("\n".join(f"{scene.name}: {line}"
                         for line in cost.lines(cost.estimate(scene, args.preset))))
         return 0

@@ -68,11 +68,10 @@ def to_bytes(rgb: np.ndarray) -> np.ndarray:
     return np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
 
 
-def coloured(values: np.ndarray, binary: bool) -> np.ndarray:
-    """[h, w, 3] 8-bit :func:`colour` of ``values`` [h, w], computed only for the nonzero
-    cells (a map is mostly empty; every zero cell has the colour of 0)."""
+def coloured(values: np.ndarray, binary: bool, top: float) -> np.ndarray:
+    """[h, w, 3] 8-bit :func:`colour` of ``values`` [h, w] (viridis up to ``top``), computed
+    only for the nonzero cells (a map is mostly empty; every zero cell has the colour of 0)."""
     h, w = values.shape
-    top = float(values.max()) if values.size else 0.0
     row = np.tile(to_bytes(colour(np.zeros(1), binary, top))[0], w)  # one row, then copies
     rgb = np.broadcast_to(row, (h, 3 * w)).copy().reshape(h, w, 3)
     flat, cells = values.ravel(), np.flatnonzero(values)
@@ -121,9 +120,9 @@ def map_picture(scene: Scene, geom: Geometry, image: np.ndarray, *,
     ny, nx = image.shape
     block = max(1, math.ceil(max(nx, ny, 1) / MAX_SIDE))
     values = block_max(image, block)[::-1]
-    rgb = coloured(values, binary)
-    rows, cols = truth_pixels(scene, geom, values.shape, block * scene.cell)
     top = float(values.max()) if values.size else 0.0
+    rgb = coloured(values, binary, top)
+    rows, cols = truth_pixels(scene, geom, values.shape, block * scene.cell)
     rgb[rows, cols] = to_bytes(over_truth(colour(values[rows, cols], binary, top)))
     return png(rgb)
 

@@ -12,7 +12,7 @@ from .. import geometry
 from ..scene import Scene
 from ..sensors import SensorArray
 from .loci import as_loci
-from .tangents import LOCUS_SAMPLES, _locus_samples
+from .tangents import LOCUS_SAMPLES, run_starts, sample_loci
 
 
 def _run_middles(inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -21,9 +21,7 @@ def _run_middles(inside: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     sample 0; a row all in has its middle at (S − 1)/2)."""
     rows = np.flatnonzero(inside.any(axis=1))
     sub = inside[rows]
-    starts = sub & ~np.roll(sub, 1, axis=1)
-    first = np.where(starts.any(axis=1), np.argmax(starts, axis=1), 0)
-    return rows, first + 0.5 * (np.count_nonzero(sub, axis=1) - 1)
+    return rows, run_starts(sub) + 0.5 * (np.count_nonzero(sub, axis=1) - 1)
 
 
 def arc_middles(scene: Scene, sensors: SensorArray, loci) -> tuple[np.ndarray, np.ndarray]:
@@ -38,8 +36,9 @@ def arc_middles(scene: Scene, sensors: SensorArray, loci) -> tuple[np.ndarray, n
     loci = as_loci(loci)
     if len(loci) == 0:
         return np.zeros((0, 2)), np.zeros(0, dtype=np.int64)
-    p, inside, _ = _locus_samples(scene, sensors, loci)
-    rows, middle = _run_middles(inside)
+    s = sample_loci(scene, sensors, loci)
+    p = s.p
+    rows, middle = _run_middles(s.inside)
     lo = np.floor(middle).astype(np.int64) % LOCUS_SAMPLES
     hi = np.ceil(middle).astype(np.int64) % LOCUS_SAMPLES
     return 0.5 * (p[rows, lo] + p[rows, hi]), rows.astype(np.int64)

@@ -12,7 +12,7 @@ from scipy.spatial import cKDTree
 from ..scene import Scene
 from ..sensors import SensorArray
 from .loci import as_loci
-from .tangents import LOCUS_SAMPLES, SampledLoci, locus_crossings, sample_loci
+from .tangents import LOCUS_SAMPLES, SampledLoci, locus_crossings, run_starts, sample_loci
 
 #: TBF: the farthest apart two transmitters whose loci are intersected, metres (Wijk &
 #: Christensen's nearby sensor poses).
@@ -44,18 +44,11 @@ def _overlapping(boxes: np.ndarray, i: int, others: np.ndarray) -> np.ndarray:
     return others[(o[:, 0] <= b[2]) & (o[:, 2] >= b[0]) & (o[:, 1] <= b[3]) & (o[:, 3] >= b[1])]
 
 
-def _run_start(inside: np.ndarray) -> int:
-    """The first sample of a locus' run of samples in both beams (the run may wrap around
-    sample 0): arc angles are counted from it."""
-    starts = inside & ~np.roll(inside, 1)
-    return int(np.argmax(starts)) if starts.any() else 0
-
-
 def _median_on_arc(s: SampledLoci, i: int, q: np.ndarray, k: np.ndarray) -> np.ndarray:
     """The point of locus i at the median arc angle of its crossings ``q`` (between its
     samples ``k`` and k+1): a crossing itself for an odd count, else the point of the arc
     halfway (in angle) between the middle two."""
-    first = _run_start(s.inside[i])
+    first = int(run_starts(s.inside[i]))  # arc angles are counted from it
     p = s.p[i]
     step = np.hypot(*(p[(k + 1) % LOCUS_SAMPLES] - p[k]).T)
     t = np.hypot(*(q - p[k]).T) / np.maximum(step, 1e-300)

@@ -162,19 +162,13 @@ def _seed_sets(middles: np.ndarray) -> Iterator[np.ndarray]:
     has its stubs all round it, farther apart than SEED_M), each set once and only with
     :data:`MIN_PILLAR_LOCI` loci or more."""
     tried: set[bytes] = set()
-    sets = [_near(middles, m, k) for k, m in enumerate(middles)]
-    for near in [*sets, np.arange(len(middles))]:
+    for m in [*middles, None]:
         steps.poll()
+        near = (np.arange(len(middles)) if m is None
+                else np.flatnonzero(np.hypot(*(middles - m).T) <= SEED_M))
         if len(near) >= MIN_PILLAR_LOCI and near.tobytes() not in tried:
             tried.add(near.tobytes())
             yield near
-
-
-def _near(middles: np.ndarray, m: np.ndarray, k: int) -> np.ndarray:
-    """The loci whose middles lie within :data:`SEED_M` of ``m`` (the ``k``-th)."""
-    if k % 64 == 0:
-        steps.poll()
-    return np.flatnonzero(np.hypot(*(middles - m).T) <= SEED_M)
 
 
 def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,

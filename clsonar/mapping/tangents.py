@@ -118,6 +118,13 @@ def sample_loci(scene: Scene, sensors: SensorArray, loci) -> SampledLoci:
     return SampledLoci(loci, p, inside, a, T, R, 0.5 * (T + R), sensors.axes, cut_sin2)
 
 
+def run_starts(inside: np.ndarray) -> np.ndarray:
+    """[n] the first sample of each locus' run of samples in both beams (``inside`` [n, S];
+    the run may wrap around sample 0; 0 for a locus with none, or all, in)."""
+    starts = inside & ~np.roll(inside, 1, axis=-1)
+    return np.where(starts.any(axis=-1), np.argmax(starts, axis=-1), 0)
+
+
 def _neighbours(s: SampledLoci, groups: np.ndarray, i: int, max_bias_m: float) -> np.ndarray:
     """The later loci of i's viewpoint whose centres lie within sqrt(8·a·max_bias_m) of
     i's (none when i has no sample in its beams)."""

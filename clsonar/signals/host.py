@@ -323,7 +323,6 @@ def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, cont
     samples = {"scanned": 0, "skipped": 0}
     found = empty_detections()
     if len(slots):
-        steps.poll()
         run = Runner(model, pe, _context(context, device), precision, chunk, work_group,
                      skip_quiet)
         found = _detect(model, pe, run, capacity, slots)

@@ -42,6 +42,7 @@ from ..scene import MappingMode, MappingSettings, Scene, load_scene
 from .defaults import METHODS_NOISE, METHODS_SCENES
 from .markdown import NONE, cm, percent
 from .progress import Progress, ProgressLine
+from .tradeoff import pareto_front
 
 #: The scenes compared by default: the thesis' shapes, the bundled rooms, a few zoo cases
 #: (:data:`clsonar.tools.defaults.METHODS_SCENES`).
@@ -239,16 +240,6 @@ def mode_summary(rows: list[dict[str, Any]], kind: str) -> dict[str, ModeSummary
             empty_rate=_mean([r["empty_rate"] for r in mine]),
             mapped=sum(r["map_error_m"] is not None for r in mine), rows=len(mine))
     return out
-
-
-def pareto_front(cost: np.ndarray, error: np.ndarray) -> np.ndarray:
-    """The indices, by increasing cost, of the points that no other point dominates (as
-    cheap and as accurate, and better in one): the Pareto front of time against error."""
-    cost, error = np.asarray(cost, float), np.asarray(error, float)
-    dominated = ((cost[None] <= cost[:, None]) & (error[None] <= error[:, None])
-                 & ((cost[None] < cost[:, None]) | (error[None] < error[:, None]))).any(axis=1)
-    front = np.flatnonzero(~dominated)
-    return front[np.argsort(cost[front], kind="stable")]
 
 
 def fronts(summary: dict[str, ModeSummary]) -> tuple[list[str], list[str]]:

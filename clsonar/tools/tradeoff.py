@@ -110,14 +110,24 @@ def _error(row: TradeoffRow) -> float:
 
 def pareto(rows: list[TradeoffRow]) -> list[TradeoffRow]:
     """``rows`` with ``pareto`` set on those no other row of the same scene beats on both
-    time and error (ties count as beaten only when strictly better on one)."""
-    out = []
-    for r in rows:
-        beaten = any(o.scene == r.scene and o is not r
-                     and o.total_s <= r.total_s and _error(o) <= _error(r)
-                     and (o.total_s < r.total_s or _error(o) < _error(r)) for o in rows)
-        out.append(dataclasses.replace(r, pareto=not beaten))
-    return out
+    time and error (:func:`pareto_front`)."""
+    front: set[int] = set()
+    for scene in {r.scene for r in rows}:
+        mine = [i for i, r in enumerate(rows) if r.scene == scene]
+        at = pareto_front(np.array([rows[i].total_s for i in mine]),
+                          np.array([_error(rows[i]) for i in mine]))
+        front.update(mine[k] for k in at)
+    return [dataclasses.replace(r, pareto=i in front) for i, r in enumerate(rows)]
+
+
+def pareto_front(cost: np.ndarray, error: np.ndarray) -> np.ndarray:
+    """The indices, by increasing cost, of the points that no other point dominates (as
+    cheap and as accurate, and better in one): the Pareto front of time against error."""
+    cost, error = np.asarray(cost, float), np.asarray(error, float)
+    dominated = ((cost[None] <= cost[:, None]) & (error[None] <= error[:, None])
+                 & ((cost[None] < cost[:, None]) | (error[None] < error[:, None]))).any(axis=1)
+    front = np.flatnonzero(~dominated)
+    return front[np.argsort(cost[front], kind="stable")]
 
 
 def beats_thesis(rows: list[TradeoffRow]) -> list[str]:
@@ -198,4 +208,4 @@ def tradeoff_png(rows: list[TradeoffRow]) -> bytes:
 
 
 __all__ = ["KNOBS", "SkipRow", "TradeoffRow", "beats_thesis", "bench_skips", "bench_tradeoff",
-           "fastest_run", "identical", "pareto", "tradeoff_png"]
+           "fastest_run", "identical", "pareto", "pareto_front", "tradeoff_png"]
