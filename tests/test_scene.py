@@ -367,3 +367,35 @@ def test_precisions_are_the_kernels():
     from clsonar.scene import Precision
 
     assert set(typing.get_args(Precision)) == set(PRECISIONS)
+
+
+# --------------------------------------------------------------------------- detection.receiver
+
+
+@pytest.mark.parametrize(("detection", "expected"), [
+    ({"receiver": "polaroid"}, "detection.receiver: must be one of 'ideal', 'polaroid-6500'"),
+    ({"receiver": 6500}, "detection.receiver: must be one of"),
+    ({"mode": "threshold", "receiver": "polaroid-6500"},
+     'detection.receiver: "polaroid-6500" needs detection.mode "envelope"'),
+])
+def test_bad_detection_receiver_is_one_line_naming_file_and_key_exit_2(tmp_path, capsys,
+                                                                      detection, expected):
+    from clsonar.cli import main
+
+    f = tmp_path / "receiver.json"
+    f.write_text(json.dumps(dict(DESIGN_EXAMPLE, detection=detection)))
+    with pytest.raises(SceneError) as info:
+        load_scene(f)
+    assert str(info.value).startswith(f"{f}: ") and expected in str(info.value)
+    assert "\n" not in str(info.value)
+    assert main(["echoes", str(f), "-o", str(tmp_path / "e.csv")]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and expected in err[0]
+
+
+def test_detection_receiver_defaults_to_ideal_and_round_trips(tmp_path):
+    assert scene_from_dict(DESIGN_EXAMPLE, "x.json").detection.receiver == "ideal"
+    s = scene_from_dict(dict(DESIGN_EXAMPLE, detection={"receiver": "polaroid-6500"}), "x.json")
+    assert s.detection.receiver == "polaroid-6500" and s.detection.mode == "envelope"
+    save_scene(s, tmp_path / "p.json")
+    assert load_scene(tmp_path / "p.json") == s

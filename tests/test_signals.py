@@ -465,3 +465,113 @@ def test_echo_ranges_of_pairs_in_order_are_searchsorteds(seed, n_echoes, n_pairs
     lo, hi = _echo_ranges(ekey, pkey)
     np.testing.assert_array_equal(lo, np.searchsorted(ekey, pkey, side="left"))
     np.testing.assert_array_equal(hi, np.searchsorted(ekey, pkey, side="right"))
+
+
+# --------------------------------------------------------------------------- Polaroid 6500
+
+
+def polaroid(noise=0.0, *, seed=1) -> Scene:
+    return scene("envelope", noise, seed=seed, size=10.0, receiver="polaroid-6500")
+
+
+def test_polaroid_6500_gain_steps_and_threshold_table():
+    """The receiver of docs/detection.md: 15 gain states from the 2.38 ms blanking to the
+    35 ft window's end, 1.9 dB apart; the threshold is the level at each state's start and
+    rises as t/t_k within it (the stepped gain falls behind the ideal one); a wall at 35 ft
+    in air (1.66 dB/m over its 21.3 m path) meets it at the window's end."""
+    from clsonar.signals import polaroid as pol
+
+    model = sig.signal_model(polaroid())
+    rx = model.receiver
+    c = polaroid().medium.c
+    assert rx is not None and rx.blanking_s == 2.38e-3
+    assert rx.window_s == pytest.approx(2 * 35 * 0.3048 / c)
+    steps = np.asarray(rx.steps_s)
+    assert len(steps) == 15 and steps[0] == rx.blanking_s
+    ratio = steps[1:] / steps[:-1]
+    np.testing.assert_allclose(ratio, (rx.window_s / rx.blanking_s) ** (1 / 15))
+    assert 1.8 < 20 * np.log10(ratio[0]) < 2.0
+    np.testing.assert_allclose(rx.thresholds(steps), rx.level)
+    np.testing.assert_allclose(rx.thresholds(steps[1:] * (1 - 1e-12)), rx.level * ratio)
+    wall = 5.0 * 0.9 * 10 ** (-1.66 * 2 * 35 * 0.3048 / 20)
+    assert rx.thresholds(np.array([rx.window_s]))[0] == pytest.approx(wall)
+    assert np.all(np.isinf(rx.thresholds(np.array([0.0, 2.37e-3, rx.window_s * 1.0001]))))
+    assert sig_detection.envelope_floor(model) == rx.level
+    np.testing.assert_array_equal(sig_detection.thresholds_of(model, np.array([0.3, 9.0])),
+                                  [rx.level, rx.level])
+    assert pol.first_per_pair(np.array([2, 2, 3, 5, 5, 5])).tolist() == [
+        True, False, True, True, False, False]
+
+
+def test_polaroid_6500_hand_known_echoes():
+    """A wall 2 m away (11.7 ms) is detected at its time of flight with its amplitude; an
+    echo inside the blanking is not; an echo below the stepped threshold is not, nor one just
+    above the level where the state has fallen behind (its end), while one just above the
+    threshold at its state's start is; after the window nothing; only the first echo of a
+    firing is reported (single-echo mode), for every pair."""
+    model = sig.signal_model(polaroid())
+    rx = model.receiver
+    steps = np.asarray(rx.steps_s)
+    wall = 2 * 2.0 / polaroid().medium.c
+    late = steps[9] * 1.0005  # the 10th state's start: the threshold ≈ the level
+    end = steps[10] * 0.998  # its end: the threshold ≈ 1.89 dB above the level
+    later = steps[12] * 1.0005  # the 13th state's start
+    lvl = rx.level
+    ech = table([
+        (0, 0, 1.0e-3, 4.5), (0, 0, wall, 4.5), (0, 0, wall + 5e-3, 4.5),  # blanking, wall
+        (0, 1, 5e-3, 0.9 * lvl), (0, 1, end, 1.1 * lvl), (0, 1, later, 1.1 * lvl),
+        (1, 0, late, 1.1 * lvl), (1, 0, late + 5e-3, 4.5),
+        (1, 1, rx.window_s + 1e-3, 4.5),  # after the window
+    ])
+    for d in (sig.detect_reference(polaroid(), sensors(2), ech, window_s=0.08),
+              sig.detect(polaroid(), sensors(2), ech, context=context(), window_s=0.08)):
+        got = {(int(a), int(b)): (tof, amp) for a, b, tof, amp in rows(d)}
+        assert set(got) == {(0, 0), (0, 1), (1, 0)}, got
+        assert got[(0, 0)][0] == pytest.approx(wall, abs=1e-6)
+        assert got[(0, 0)][1] == pytest.approx(4.5, rel=0.02)
+        assert got[(0, 1)][0] == pytest.approx(later, abs=1e-6)
+        assert got[(1, 0)][0] == pytest.approx(late, abs=1e-6)
+        assert got[(1, 0)][1] == pytest.approx(1.1 * lvl, rel=0.02)
+
+
+def test_polaroid_6500_changes_nothing_of_the_ideal_receiver():
+    """The default receiver is the ideal one: the option is off unless asked for."""
+    assert sig.signal_model(scene()).receiver is None
+    assert DetectionSettings().receiver == "ideal"
+    with pytest.raises(ValueError, match="envelope"):
+        sig.signal_model(scene("threshold", receiver="polaroid-6500"))
+
+
+@st.composite
+def polaroid_cases(draw):
+    noise = draw(st.sampled_from([0.0, 0.005, 0.01, 0.02]))
+    n_sensors = draw(st.integers(1, 3))
+    window = 30e-3
+    echo_rows = []
+    for tx in range(n_sensors):
+        for rx in range(n_sensors):
+            for _ in range(draw(st.integers(0, 4))):
+                tof = draw(st.floats(0.5e-3, window))
+                amp = 10 ** draw(st.floats(-1.6, 0.7))  # 0.025 … 5 units: around the level
+                echo_rows.append((tx, rx, tof, amp))
+    seed = draw(st.integers(0, 2**63 - 1))
+    chunk = draw(st.sampled_from([None, 257, 3000]))
+    capacity = draw(st.sampled_from([None, 1, 3]))
+    return noise, n_sensors, echo_rows, seed, chunk, capacity, window
+
+
+@settings(max_examples=30, deadline=None)
+@given(polaroid_cases())
+def test_polaroid_6500_kernel_matches_reference(case):
+    """The kernels with the Polaroid receiver's threshold table against the NumPy float64
+    reference, on echoes around its level, with and without noise (which the fixed
+    comparator, unlike the ideal receiver's noise-adaptive threshold, may report)."""
+    noise, n_sensors, echo_rows, seed, chunk, capacity, window = case
+    sc = polaroid(noise, seed=seed)
+    sen, ech = sensors(n_sensors), table(echo_rows)
+    ref = sig.detect_reference(sc, sen, ech, window_s=window)
+    got = sig.detect(sc, sen, ech, context=context(), window_s=window, chunk=chunk,
+                     capacity=capacity)
+    assert_sorted(ref)
+    assert len({(a, b) for a, b, *_ in rows(ref)}) == len(ref)  # one echo per pair
+    assert_same(ref, got)

@@ -58,6 +58,7 @@ from .settings import (
     PostFilter,
     PostSettings,
     Precision,
+    Receiver,
     Reciprocal,
     Signal,
     Thinning,
@@ -131,7 +132,17 @@ def _read_detection(r: JsonReader, d: Any) -> DetectionSettings:
         sample_rate_hz=r.number(d, "sample_rate_hz", k, ds.sample_rate_hz, gt=0),
         false_alarm_sigmas=r.number(d, "false_alarm_sigmas", k, ds.false_alarm_sigmas, gt=0),
         min_envelope=r.optional_number(d, "min_envelope", k, ge=0),
+        receiver=_receiver(r, d, k, ds),
     )
+
+
+def _receiver(r: JsonReader, d: Any, k: str, ds: type[DetectionSettings]) -> Receiver:
+    """``detection.receiver``; a receiver other than the ideal one needs the envelope
+    detector (its gain and comparator act on the envelope, clsonar.signals.polaroid)."""
+    receiver = r.literal(d, "receiver", k, Receiver, ds.receiver)
+    if receiver != "ideal" and d.get("mode", ds.mode) != "envelope":
+        raise r.fail(f"{k}.receiver", f'"{receiver}" needs detection.mode "envelope"')
+    return receiver
 
 
 def _read_mapping(r: JsonReader, d: Any) -> MappingSettings:

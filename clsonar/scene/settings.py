@@ -26,6 +26,8 @@ EdgeModel = Literal["estimate", "utd"]
 
 #: How times of flight are found (:class:`DetectionSettings`).
 DetectionMode = Literal["threshold", "envelope"]
+#: ``detection.receiver``: the receiver's gain and comparator (clsonar.signals.polaroid).
+Receiver = Literal["ideal", "polaroid-6500"]
 
 #: How detections become a map (:class:`MappingSettings`).
 MappingMode = Literal["loci", "tangents", "backprojection", "reflectors", "point-marking",
@@ -134,12 +136,17 @@ class DetectionSettings:
     noise-adaptive threshold (``false_alarm_sigmas`` times the estimated envelope noise, at
     least ``min_envelope`` units) give the time of flight as peak − 3σ (no threshold bias).
     ``min_envelope`` null: chosen from the scene (:mod:`clsonar.survey`).
+    ``receiver`` (``envelope`` only): ``"ideal"`` (its time-varying gain undoes spreading
+    exactly, the threshold as above) or ``"polaroid-6500"`` (the Polaroid 6500 ranging
+    module's stepped gain, fixed comparator, blanking, 35 ft window and single-echo mode:
+    :mod:`clsonar.signals.polaroid`, docs/detection.md).
     """
 
     mode: DetectionMode = "envelope"
     sample_rate_hz: float = 1.0e6
     false_alarm_sigmas: float = 6.0
     min_envelope: float | None = None
+    receiver: Receiver = "ideal"
 
 
 @dataclass(frozen=True)

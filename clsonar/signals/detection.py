@@ -12,6 +12,7 @@ import numpy as np
 from ..scene import DetectionMode
 from .dsp import noise_scale, refine
 from .model import SignalModel
+from .polaroid import first_per_pair
 from .synthesis import PairEchoes
 
 #: Envelope thresholds are at least this fraction of the transmitted amplitude A0: below it,
@@ -57,8 +58,10 @@ def join_candidates(mode: DetectionMode, parts: list[Candidates]) -> Candidates:
 
 
 def envelope_floor(model: SignalModel) -> float:
-    """The lowest envelope threshold: ``min_envelope``, and at least :data:`ENVELOPE_FLOOR`·A0."""
-    return max(model.min_envelope, ENVELOPE_FLOOR * model.amplitude)
+    """The lowest envelope threshold: ``min_envelope`` (the Polaroid receiver: its
+    comparator's level), and at least :data:`ENVELOPE_FLOOR`·A0."""
+    low = model.min_envelope if model.receiver is None else model.receiver.floor
+    return max(low, ENVELOPE_FLOOR * model.amplitude)
 
 
 #: Noise cannot reach a threshold this many of its standard scales away (σn for the
@@ -94,7 +97,11 @@ def envelope_thresholds(model: SignalModel, hist: np.ndarray) -> np.ndarray:
 
 
 def thresholds_of(model: SignalModel, scales: np.ndarray) -> np.ndarray:
-    """:func:`envelope_thresholds` from the pairs' noise scales ŝ."""
+    """:func:`envelope_thresholds` from the pairs' noise scales ŝ; the Polaroid receiver's
+    comparator is fixed (TL851: a 1.2 V level detector), so it ignores them: its floor,
+    then its time-dependent threshold per echo (:func:`finish_envelope`)."""
+    if model.receiver is not None:
+        return np.full(len(scales), envelope_floor(model))
     return np.maximum(envelope_floor(model), model.false_alarm_sigmas * scales)
 
 
@@ -124,9 +131,14 @@ def finish_threshold(model: SignalModel, pe: PairEchoes, cand: Candidates) -> De
 
 def finish_envelope(model: SignalModel, pe: PairEchoes, cand: Candidates,
                     thresholds: np.ndarray) -> Detections:
-    """Threshold, non-maximum suppression within one pulse length, peak refinement."""
+    """Threshold, non-maximum suppression within one pulse length, peak refinement; the
+    Polaroid receiver: its threshold at each candidate's echo time, then the first echo of
+    each pair (single-echo mode)."""
     vals = np.asarray(cand.values, dtype=np.float64).reshape(-1, 3)
-    keep = vals[:, 1] >= thresholds[cand.slot] if len(vals) else np.zeros(0, bool)
+    thr = thresholds[cand.slot]
+    if model.receiver is not None:
+        thr = np.maximum(thr, model.receiver.thresholds((cand.n - model.delay) / model.fs))
+    keep = vals[:, 1] >= thr if len(vals) else np.zeros(0, bool)
     slot, m, vals = cand.slot[keep], cand.n[keep], vals[keep]
     order = np.lexsort((m, slot))
     slot, m, vals = slot[order], m[order], vals[order]
@@ -147,6 +159,9 @@ def finish_envelope(model: SignalModel, pe: PairEchoes, cand: Candidates,
     slot, tof, amp = slot[ok], tof[ok], amp[ok]
     order = np.lexsort((tof, slot))
     slot, tof, amp = slot[order], tof[order], amp[order]
+    if model.receiver is not None:
+        first = first_per_pair(slot)
+        slot, tof, amp = slot[first], tof[first], amp[first]
     return Detections(pe.pairs[slot, 0].copy(), pe.pairs[slot, 1].copy(), tof, amp)
 
 

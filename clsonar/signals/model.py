@@ -14,6 +14,7 @@ from ..scene import DetectionMode, Scene
 from ..scene.settings import chosen
 from .dsp import envelope_sq_raw, refine
 from .philox import philox_key
+from .polaroid import Polaroid6500, polaroid_6500
 
 #: Longest box of the envelope filter, samples (private rings in the kernel).
 MAX_BOX = 4096
@@ -44,6 +45,7 @@ class SignalModel:
     false_alarm_sigmas: float
     min_envelope: float
     demod_period: int  # samples per carrier period if whole (table-free exact phase), else 0
+    receiver: Polaroid6500 | None = None  # detection.receiver "polaroid-6500"; None: ideal
 
     @property
     def key(self) -> tuple[int, int]:
@@ -112,8 +114,20 @@ def signal_model(scene: Scene, window_s: float | None = None) -> SignalModel:
         box=box, span=span, calibration=1.0, peak_bias=0.0, n_env=n_env,
         false_alarm_sigmas=float(d.false_alarm_sigmas),
         min_envelope=float(chosen(d.min_envelope, "detection.min_envelope")),
-        demod_period=_demod_period(ratio))
+        demod_period=_demod_period(ratio), receiver=_receiver(scene))
     return _with_calibration(model)
+
+
+def _receiver(scene: Scene) -> Polaroid6500 | None:
+    """The module of ``detection.receiver`` (None: the ideal receiver), its level set on a
+    wall of the scene's transducer and reflection coefficient (clsonar.signals.polaroid)."""
+    if scene.detection.receiver == "ideal":
+        return None
+    if scene.detection.mode != "envelope":
+        raise ValueError(f'detection.receiver "{scene.detection.receiver}" needs '
+                         'detection.mode "envelope"')
+    wall = scene.transducer.amplitude * scene.echo.reflection_coefficient
+    return polaroid_6500(scene.medium.c, wall)
 
 
 def _with_calibration(m: SignalModel) -> SignalModel:
