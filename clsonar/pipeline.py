@@ -141,16 +141,27 @@ STAGE_KEYS = {
 
 
 def stage_keys(scene: Scene, device: str, skips: Skips) -> dict[str, str]:
-    """The cache key of each front stage: a hash of the scene keys it and the stages before
-    it read (:data:`STAGE_KEYS`), the device and the skips. No front stage reads a
-    post-processing setting."""
-    data = scene_to_dict(scene)
+    """The cache key of each stage: a hash of the scene keys it and the stages before it
+    read (:data:`STAGE_KEYS`; ``post`` for :func:`post_process`), the device and the skips.
+    A noise-free run is the same run whatever its noise seed (:func:`_drawn_seeds`). No
+    front stage reads a post-processing setting."""
+    data = _drawn_seeds(scene_to_dict(scene))
     keys: dict[str, str] = {}
     seen: list[object] = [device, repr(skips)]
-    for stage, names in STAGE_KEYS.items():
+    for stage, names in {**STAGE_KEYS, "post": ("post",)}.items():
         seen += [data.get(n) for n in names]
         keys[stage] = hashlib.sha256(json.dumps(seen, sort_keys=True).encode()).hexdigest()
     return keys
+
+
+def _drawn_seeds(data: dict) -> dict:
+    """The scene file ``data`` without the noise seed of a noise-free signal, which draws
+    nothing (only ``random-lines`` and ``per-wall`` placements have seeds, and they draw
+    positions)."""
+    signal = data.get("signal") or {}
+    if signal.get("noise_std"):
+        return data
+    return {**data, "signal": {k: v for k, v in signal.items() if k != "seed"}}
 
 
 def run(scene: Scene, *, device: str | None = None, context=None, preset: str | None = None,
@@ -189,7 +200,26 @@ def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
     mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
                              host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
     front = _run_front(scene, ctx, skips, cache, progress, given)
-    return post_process(front, progress=progress, skips=skips)
+    if cache is None:
+        return post_process(front, progress=progress, skips=skips)
+    key = stage_keys(scene, front.device, skips)["post"]
+    done = cache.get("post", key)
+    if not isinstance(done, RunResult):
+        done = post_process(front, progress=progress, skips=skips)
+        cache.put("post", key, done)
+        return done
+    return _post_reused(front, done)
+
+
+def _post_reused(front: RunResult, done: RunResult) -> RunResult:
+    """``front`` with the post-processing of an earlier run whose every input was the same
+    (``done``): its maps, profile, metrics and warnings, this run's front seconds and the
+    post-processing stages at 0 s."""
+    seconds = {**front.seconds, **dict.fromkeys(STAGES[len(FRONT_STAGES):], 0.0)}
+    counts = {**done.counts, "stages_reused": len(STAGES)}
+    return dataclasses.replace(done, scene=front.scene, asked=front.asked,
+                               settings_why=front.settings_why, seconds=seconds,
+                               counts=counts)
 
 
 def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,

@@ -74,8 +74,13 @@ def test_stage_cache_reuses_only_unchanged_stages():
     first = clsonar.run(scene, context=ctx, cache=cache)
     assert first.counts["stages_reused"] == 0
     again = clsonar.run(scene, context=ctx, cache=cache)
-    assert again.counts["stages_reused"] == 4
+    assert again.counts["stages_reused"] == 9  # every stage: post-processing too
     _same(first, again)
+    # a noise-free signal draws nothing: another noise seed is the same run
+    reseeded = dataclasses.replace(scene, signal=dataclasses.replace(scene.signal, seed=7))
+    same = clsonar.run(reseeded, context=ctx, cache=cache)
+    assert same.counts["stages_reused"] == 9 and same.scene.signal.seed == 7
+    _same(same, clsonar.run(reseeded, context=ctx))
     thin_post = dataclasses.replace(scene, post=dataclasses.replace(scene.post, filter="none"))
     assert clsonar.run(thin_post, context=ctx, cache=cache).counts["stages_reused"] == 4
     noisy = dataclasses.replace(scene, signal=dataclasses.replace(scene.signal, noise_std=0.5))
@@ -83,6 +88,8 @@ def test_stage_cache_reuses_only_unchanged_stages():
     assert r.counts["stages_reused"] == 2  # sensors and echoes
     fresh = clsonar.run(noisy, context=ctx)
     _same(r, fresh)
+    other_noise = dataclasses.replace(noisy, signal=dataclasses.replace(noisy.signal, seed=7))
+    assert clsonar.run(other_noise, context=ctx, cache=cache).counts["stages_reused"] == 2
     # line of sight reads the post settings, but it runs after the votes (pipeline.sight):
     # the votes are reused and the result is a fresh run's
     room = clsonar.load_scene(SCENES / "room-l.json")

@@ -98,10 +98,13 @@ def fit_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndar
     ``(centre, radius, explained)``, or None when fewer than :data:`MIN_PILLAR_LOCI` loci
     from as many positions agree or the radius is not a pillar's."""
     keep = np.ones(len(T), dtype=bool)
+    fitted = b""
     for loose in (27.0, 9.0, 3.0, 1.0, 1.0):  # outliers dropped, the bar lowered
         if np.count_nonzero(keep) < MIN_PILLAR_LOCI:
             return None
-        centre, radius, _ = _fit(T[keep], rho[keep], middles[keep].mean(axis=0))
+        if keep.tobytes() != fitted:  # the same loci would give the same circle again
+            centre, radius, _ = _fit(T[keep], rho[keep], middles[keep].mean(axis=0))
+            fitted = keep.tobytes()
         keep = np.abs(np.hypot(*(centre - T).T) - rho - radius) <= loose * tol
     if (_positions(T[keep]) < MIN_PILLAR_LOCI
             or not PILLAR_RADII_M[0] <= radius <= PILLAR_RADII_M[1]
