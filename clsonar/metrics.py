@@ -266,8 +266,19 @@ def cylinder_coverage(geom: Geometry, points: np.ndarray, spacing: float) -> lis
     return out
 
 
+def lit_truth(scene: Scene, geom: Geometry, sensors: SensorArray, echoes
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """``(truth, lit)``: the points every ``min(cell, 5 mm)`` along the true surfaces
+    (:func:`truth_points`) and those of them the echoes insonify (:func:`insonified`):
+    what :func:`evaluate` scores a profile against, the same for every profile mapped from
+    these echoes."""
+    truth = truth_points(scene, geom, min(scene.cell, 0.005))
+    return truth, truth[insonified(scene, sensors, echoes, truth)] if len(truth) else truth
+
+
 def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
-             points: np.ndarray, vertices: np.ndarray | None = None) -> dict[str, object]:
+             points: np.ndarray, vertices: np.ndarray | None = None,
+             scored: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, object]:
     """All metrics of the estimated profile ``points`` [n, 2] (module docstring), as a
     JSON-ready dict: ``rms_m`` (eq. 2.6 or None), ``accuracy_m`` {rms, p95},
     ``completeness`` {"1cm", "2cm", "3cm", "5cm"}, ``spurious_share``, ``insonified_m``
@@ -275,11 +286,11 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
     ``points``, and
     for scenes with corners, edges or cylinders ``vertices`` (:func:`vertex_errors` of the
     located ``vertices``, with ``vertices_found`` and ``vertex_error_max_m``) and
-    ``cylinders`` (:func:`cylinder_coverage`)."""
+    ``cylinders`` (:func:`cylinder_coverage`). ``scored``: :func:`lit_truth` of the
+    scene, sensors and echoes when already computed."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     spacing = min(scene.cell, 0.005)
-    truth = truth_points(scene, geom, spacing)
-    lit = truth[insonified(scene, sensors, echoes, truth)] if len(truth) else truth
+    truth, lit = lit_truth(scene, geom, sensors, echoes) if scored is None else scored
     out: dict[str, object] = {
         "points": len(points), "rms_m": rms_along_wall(scene, points),
         "insonified_m": len(lit) * spacing,

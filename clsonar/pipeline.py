@@ -204,11 +204,22 @@ def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
         return post_process(front, progress=progress, skips=skips)
     key = stage_keys(scene, front.device, skips)["post"]
     done = cache.get("post", key)
-    if not isinstance(done, RunResult):
-        done = post_process(front, progress=progress, skips=skips)
-        cache.put("post", key, done)
-        return done
-    return _post_reused(front, done)
+    if isinstance(done, RunResult):
+        return _post_reused(front, done)
+    truth_key = f"{stage_keys(front.scene, front.device, skips)['echoes']} {scene.cell!r}"
+
+    def truth() -> tuple[np.ndarray, np.ndarray]:
+        """The truth the metrics score against: it reads the echoes, not the detections."""
+        found = cache.get("truth", truth_key)
+        if found is None:
+            found = metrics.lit_truth(front.scene, front.geometry, front.sensors,
+                                      front.echoes)
+            cache.put("truth", truth_key, found)
+        return cast(tuple[np.ndarray, np.ndarray], found)
+
+    done = post_process(front, progress=progress, skips=skips, truth=truth)
+    cache.put("post", key, done)
+    return done
 
 
 def _post_reused(front: RunResult, done: RunResult) -> RunResult:
@@ -422,10 +433,13 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
 
 
 def post_process(front: RunResult, *, progress: Progress | None = None,
-                 skips: Skips = Skips()) -> RunResult:
+                 skips: Skips = Skips(),
+                 truth: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None
+                 ) -> RunResult:
     """Every stage after the votes, on ``front`` (a result whose front stages are done):
     the line of sight and the raw map (``sight``), then filter → thinning → profile →
-    metrics. Reads ``front.scene.post``; nothing it computes feeds an earlier stage."""
+    metrics (``truth()``: :func:`clsonar.metrics.lit_truth` of ``front``, from a cache).
+    Reads ``front.scene.post``; nothing it computes feeds an earlier stage."""
     assert front.votes is not None
     scene = front.scene
     clock = _Stopwatch(progress)
@@ -439,7 +453,8 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
     profile = _reflectors_in(maps.profile, front.votes, drawn.seen, scene)
     clock.start("metrics")
     result_metrics = metrics.evaluate(scene, front.geometry, front.sensors, front.echoes,
-                                      profile.points, profile.vertices)
+                                      profile.points, profile.vertices,
+                                      None if truth is None else truth())
     seconds = {k: v for k, v in front.seconds.items() if k in FRONT_STAGES}
     seconds.update(clock.stop())
     counts = {**{k: v for k, v in front.counts.items() if k not in _POST_COUNTS},
