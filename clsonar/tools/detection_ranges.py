@@ -11,6 +11,12 @@ compensates spherical spreading), so they are heard as far as the ranging window
 (:func:`~clsonar.physics.edge_gain`, the uniform theory, and the default
 :func:`~clsonar.physics.edge_gain_estimate`); a cylinder's and a post's as
 sqrt(r/(r + d)) (:func:`~clsonar.physics.curved_gain`).
+
+The last column is ``detection.receiver`` ``"polaroid-6500"``
+(:mod:`clsonar.signals.polaroid`) in air: the echo, with air's absorption over its path,
+against the module's threshold at its time of flight 2d/c — infinite inside the blanking
+(0.41 m) and past the 35 ft window, the comparator's level times the stepped gain's
+shortfall t/t_k in between.
 """
 
 from __future__ import annotations
@@ -23,18 +29,15 @@ import numpy as np
 
 from .. import physics
 from ..scene import EchoModel, Medium, TransducerModel
+from ..signals.polaroid import AIR_ABSORPTION_DB_PER_M, WINDOW_M, Polaroid6500, polaroid_6500
 from ..survey import DEFAULT_MIN_ENVELOPE, OPEN_MIN_ENVELOPE
 
 #: Distances searched (m); a kind still heard at the last is reported as beyond it.
 DISTANCES = np.geomspace(0.1, 100.0, 4001)
 
 #: The Polaroid 6500 ranging module's window: 6 in to 35 ft (its data sheet).
-POLAROID_MAX_RANGE_M = 10.7
+POLAROID_MAX_RANGE_M = round(WINDOW_M, 1)
 
-#: Air's absorption at 50 kHz, 20 °C and 50 % relative humidity (ISO 9613-1), dB/m: what
-#: ``echo.absorption_db_per_m`` (default 0: the time-varying gain compensates it too) adds
-#: where the receiver's gain compensates spreading only.
-AIR_ABSORPTION_DB_PER_M = 1.66
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,7 @@ class Kind:
     name: str
     echo: Callable[[np.ndarray], np.ndarray]
     literature: str
+    polaroid_note: str = ""  # after the Polaroid receiver's range
 
 
 def _defaults() -> tuple[float, float, float]:
@@ -73,7 +77,7 @@ def kinds() -> list[Kind]:
     return [
         Kind("plane", lambda d: np.full(d.shape, mirror),
              f"{POLAROID_MAX_RANGE_M:g} m (Polaroid 6500 data sheet: 6 in to 35 ft); the "
-             "thesis: to 9 m"),
+             "thesis: to 9 m", " (its level's calibration)"),
         Kind("corner (double bounce)", lambda d: np.full(d.shape, mirror * rho),
              "the thesis: to 9 m"),
         Kind("convex edge, 90° (default model)", estimate, "the thesis: to 3–4 m"),
@@ -95,6 +99,26 @@ def max_range(echo: Callable[[np.ndarray], np.ndarray], floor: float,
     return math.inf if heard[-1] == len(DISTANCES) - 1 else float(DISTANCES[heard[-1]])
 
 
+def polaroid_range(echo: Callable[[np.ndarray], np.ndarray],
+                   receiver: Polaroid6500 | None = None) -> float:
+    """The largest of :data:`DISTANCES` whose echo, after air's absorption
+    (:data:`AIR_ABSORPTION_DB_PER_M`) over its two-way path, reaches the Polaroid 6500
+    receiver's threshold at its time of flight (``receiver`` default: the default medium's
+    and wall's, :func:`~clsonar.signals.polaroid.polaroid_6500`); 0: none."""
+    rx = receiver if receiver is not None else _default_receiver()
+    c = Medium().c
+    echo_at = echo(DISTANCES) * physics.absorption_factor(2.0 * DISTANCES,
+                                                          AIR_ABSORPTION_DB_PER_M)
+    heard = np.flatnonzero(echo_at >= rx.thresholds(2.0 * DISTANCES / c))
+    return float(DISTANCES[heard[-1]]) if len(heard) else 0.0
+
+
+def _default_receiver() -> Polaroid6500:
+    """The Polaroid 6500 receiver of the default medium, transducer and echo model."""
+    mirror, _, _ = _defaults()
+    return polaroid_6500(Medium().c, mirror)
+
+
 def _metres(r: float) -> str:
     if math.isinf(r):
         return f"beyond {DISTANCES[-1]:g} m (the ranging window's end)"
@@ -102,12 +126,13 @@ def _metres(r: float) -> str:
 
 
 def markdown() -> str:
-    """The table: each kind's echo at 1 m and its maximum range at either floor, and in
-    an open scene with air's absorption."""
+    """The table: each kind's echo at 1 m and its maximum range at either floor, in an
+    open scene with air's absorption, and with the Polaroid 6500 receiver in air."""
     lines = ["| reflector | echo at 1 m (units) | open scene (floor "
              f"{OPEN_MIN_ENVELOPE:g}) | room or rings (floor {DEFAULT_MIN_ENVELOPE:g}) | "
-             f"open scene, absorption {AIR_ABSORPTION_DB_PER_M:g} dB/m | literature |",
-             "| --- | ---: | --- | --- | --- | --- |"]
+             f"open scene, absorption {AIR_ABSORPTION_DB_PER_M:g} dB/m | `detection.receiver` "
+             f"polaroid-6500, absorption {AIR_ABSORPTION_DB_PER_M:g} dB/m | literature |",
+             "| --- | ---: | --- | --- | --- | --- | --- |"]
     air = AIR_ABSORPTION_DB_PER_M
     for kind in kinds():
         at_1m = float(kind.echo(np.ones(1))[0])
@@ -115,9 +140,10 @@ def markdown() -> str:
                      f"{_metres(max_range(kind.echo, OPEN_MIN_ENVELOPE))} | "
                      f"{_metres(max_range(kind.echo, DEFAULT_MIN_ENVELOPE))} | "
                      f"{_metres(max_range(kind.echo, OPEN_MIN_ENVELOPE, air))} | "
+                     f"{_metres(polaroid_range(kind.echo))}{kind.polaroid_note} | "
                      f"{kind.literature} |")
     return "\n".join(lines) + "\n"
 
 
 __all__ = ["AIR_ABSORPTION_DB_PER_M", "DISTANCES", "POLAROID_MAX_RANGE_M", "Kind", "kinds",
-           "markdown", "max_range"]
+           "markdown", "max_range", "polaroid_range"]

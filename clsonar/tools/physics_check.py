@@ -18,7 +18,8 @@ Transducers face the reflection point, with a uniform beam, a reflection coeffic
 and no absorption, so an echo's amplitude over A0 is the reflector's gain over a flat
 mirror at the same path (physics.py). ``python -m clsonar.tools.physics_check --out DIR``
 writes ``tables.md``, one plot per kind and ``ranges.md`` (each kind's detection range with
-the default settings, :mod:`clsonar.tools.detection_ranges`) into DIR.
+the default settings and with the Polaroid 6500 receiver, :mod:`clsonar.tools.detection_ranges`)
+into DIR.
 """
 
 from __future__ import annotations
