@@ -113,7 +113,9 @@ def test_throughput_section_counts_the_sweeps_runs_and_every_png_choice(tmp_path
     sweep = bench_sweep(scene, get_context(), seeds=2, noises=(0.0, 0.6))
     assert [(r.noise_std, r.runs) for r in sweep] == [(0.0, 2), (0.6, 2)]
     assert all(r.runs_per_s == pytest.approx(r.runs / r.seconds) for r in sweep)
+    assert all(r.computed_runs_per_s > 0 for r in sweep)  # every stage computed, measured
     process = bench_process(bundled_scenes() / "plane-2m.json", repeat=1)
     assert [r.png for r in process] == list(PNG_CHOICES)
     text = "\n".join(throughput_markdown("plane-2m", sweep, process))
     assert "## End to end: `plane-2m`" in text and "| stages |" in text
+    assert "every stage computed" in text
