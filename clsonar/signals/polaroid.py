@@ -16,9 +16,11 @@ What the data sheets give (their text; the sources are listed in docs/detection.
   230 mV input during gain step 2 is recommended", not below 50 mV; "a plot showing
   relative gain for the various gain steps versus time can be seen in Figure 2" — a plot
   only: no text gives the step times or the gain of each step.
-- Polaroid 6500 Series Sonar Ranging Module data sheet: 6 in to 35 ft, 16 cycles at
-  49.4 kHz, 2.38 ms blanking (0.41 m: the TL851's 1.3 ft), single-echo mode unless the
-  external blanking input BLNK is used (multiple-echo mode).
+- Polaroid 6500 Series Sonar Ranging Module data sheet, and *The Mechatronics Handbook*
+  (2002), p. 19-92, after Polaroid (1990): 6 in to 35 ft, 16 cycles at 49.4 kHz, 2.38 ms
+  blanking (0.41 m: the TL851's 1.3 ft), "returning echoes that exceed a fixed-threshold
+  value are recorded", single-echo mode (ECHO latches on the first echo) unless the
+  blanking input BLNK is toggled after each echo (multiple-echo mode).
 
 What no text found gives, and the model chosen for it (an assumption, stated as such in
 docs/detection.md):
