@@ -475,52 +475,54 @@ def polaroid(noise=0.0, *, seed=1) -> Scene:
 
 
 def test_polaroid_6500_gain_steps_and_threshold_table():
-    """The receiver of docs/detection.md: 15 gain states from the 2.38 ms blanking to the
-    35 ft window's end, 1.9 dB apart; the threshold is the level at each state's start and
-    rises as t/t_k within it (the stepped gain falls behind the ideal one); a wall at 35 ft
-    in air (1.66 dB/m over its 21.3 m path) meets it at the window's end."""
+    """The receiver of docs/detection.md: the TL851's step ends (2.38 … 38.04 ms) and the
+    TL852's relative gains (step 2 = 1); the threshold T0·c·t/g(t) is infinite inside the
+    2.38 ms blanking and past the 35 ft window, jumps down where the gain steps up, and a
+    wall at 35 ft in air (1.66 dB/m over its 21.3 m path) meets it at the window's end."""
     from clsonar.signals import polaroid as pol
 
     model = sig.signal_model(polaroid())
     rx = model.receiver
     c = polaroid().medium.c
-    assert rx is not None and rx.blanking_s == 2.38e-3
+    assert rx is not None and rx.blanking_s == 2.38e-3 and rx.c == c
     assert rx.window_s == pytest.approx(2 * 35 * 0.3048 / c)
-    steps = np.asarray(rx.steps_s)
-    assert len(steps) == 15 and steps[0] == rx.blanking_s
-    ratio = steps[1:] / steps[:-1]
-    np.testing.assert_allclose(ratio, (rx.window_s / rx.blanking_s) ** (1 / 15))
-    assert 1.8 < 20 * np.log10(ratio[0]) < 2.0
-    np.testing.assert_allclose(rx.thresholds(steps), rx.level)
-    np.testing.assert_allclose(rx.thresholds(steps[1:] * (1 - 1e-12)), rx.level * ratio)
+    assert len(pol.STEP_ENDS_S) == 11 and len(pol.RELATIVE_GAIN) == 12
+    assert pol.RELATIVE_GAIN[2] == 1.0 and np.all(np.diff(pol.RELATIVE_GAIN) > 0)
+    ends = np.asarray(pol.STEP_ENDS_S)
+    np.testing.assert_array_equal(rx.gain(ends - 1e-9), pol.RELATIVE_GAIN[:11])
+    np.testing.assert_array_equal(rx.gain(ends), pol.RELATIVE_GAIN[1:])
+    t = np.array([3e-3, 9e-3, 30e-3, 50e-3])
+    np.testing.assert_allclose(rx.thresholds(t),
+                               rx.level_per_m * c * t / np.array([0.5, 1.66, 8.4, 11.2]))
     wall = 5.0 * 0.9 * 10 ** (-1.66 * 2 * 35 * 0.3048 / 20)
     assert rx.thresholds(np.array([rx.window_s]))[0] == pytest.approx(wall)
     assert np.all(np.isinf(rx.thresholds(np.array([0.0, 2.37e-3, rx.window_s * 1.0001]))))
-    assert sig_detection.envelope_floor(model) == rx.level
+    starts = rx.thresholds(ends)
+    assert rx.floor == pytest.approx(starts.min()) and rx.floor == starts[7]  # 21.58 ms
+    assert np.all(rx.thresholds(np.linspace(2.38e-3, rx.window_s, 5001)) >= rx.floor)
+    assert 0.042 < rx.floor < 0.043 and 0.065 < starts[0] < 0.066
+    assert sig_detection.envelope_floor(model) == rx.floor
     np.testing.assert_array_equal(sig_detection.thresholds_of(model, np.array([0.3, 9.0])),
-                                  [rx.level, rx.level])
+                                  [rx.floor, rx.floor])
     assert pol.first_per_pair(np.array([2, 2, 3, 5, 5, 5])).tolist() == [
         True, False, True, True, False, False]
 
 
 def test_polaroid_6500_hand_known_echoes():
     """A wall 2 m away (11.7 ms) is detected at its time of flight with its amplitude; an
-    echo inside the blanking is not; an echo below the stepped threshold is not, nor one just
-    above the level where the state has fallen behind (its end), while one just above the
-    threshold at its state's start is; after the window nothing; only the first echo of a
-    firing is reported (single-echo mode), for every pair."""
+    echo inside the blanking is not; one 10 % above the threshold at 2.5 ms (gain step 1) is
+    detected there, the same echo at 4.9 ms (still step 1, twice the path) is not; after
+    the window nothing; only the first echo of a firing is reported (single-echo mode), for
+    every pair."""
     model = sig.signal_model(polaroid())
     rx = model.receiver
-    steps = np.asarray(rx.steps_s)
     wall = 2 * 2.0 / polaroid().medium.c
-    late = steps[9] * 1.0005  # the 10th state's start: the threshold ≈ the level
-    end = steps[10] * 0.998  # its end: the threshold ≈ 1.89 dB above the level
-    later = steps[12] * 1.0005  # the 13th state's start
-    lvl = rx.level
+    early = 1.1 * float(rx.thresholds(np.array([2.5e-3]))[0])
+    late = 1.1 * float(rx.thresholds(np.array([21.7e-3]))[0])
     ech = table([
-        (0, 0, 1.0e-3, 4.5), (0, 0, wall, 4.5), (0, 0, wall + 5e-3, 4.5),  # blanking, wall
-        (0, 1, 5e-3, 0.9 * lvl), (0, 1, end, 1.1 * lvl), (0, 1, later, 1.1 * lvl),
-        (1, 0, late, 1.1 * lvl), (1, 0, late + 5e-3, 4.5),
+        (0, 0, 1.0e-3, 4.5), (0, 0, wall, 4.5), (0, 0, 20e-3, 4.5),  # blanking, wall, later
+        (0, 1, 4.9e-3, early), (0, 1, 21.7e-3, late),
+        (1, 0, 2.5e-3, early), (1, 0, 8e-3, 4.5),
         (1, 1, rx.window_s + 1e-3, 4.5),  # after the window
     ])
     for d in (sig.detect_reference(polaroid(), sensors(2), ech, window_s=0.08),
@@ -529,9 +531,9 @@ def test_polaroid_6500_hand_known_echoes():
         assert set(got) == {(0, 0), (0, 1), (1, 0)}, got
         assert got[(0, 0)][0] == pytest.approx(wall, abs=1e-6)
         assert got[(0, 0)][1] == pytest.approx(4.5, rel=0.02)
-        assert got[(0, 1)][0] == pytest.approx(later, abs=1e-6)
-        assert got[(1, 0)][0] == pytest.approx(late, abs=1e-6)
-        assert got[(1, 0)][1] == pytest.approx(1.1 * lvl, rel=0.02)
+        assert got[(0, 1)][0] == pytest.approx(21.7e-3, abs=1e-6)
+        assert got[(1, 0)][0] == pytest.approx(2.5e-3, abs=1e-6)
+        assert got[(1, 0)][1] == pytest.approx(early, rel=0.02)
 
 
 def test_polaroid_6500_changes_nothing_of_the_ideal_receiver():

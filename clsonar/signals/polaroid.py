@@ -3,42 +3,29 @@
 blanking, its ranging window and its single-echo mode, expressed as a time-dependent
 threshold on clsonar's envelope (docs/detection.md, "The Polaroid 6500 receiver").
 
-What the data sheets give (their text; the sources are listed in docs/detection.md):
+The module is TI's TL851 (control) and TL852 (receiver). Their data sheets give:
 
-- TI TL851 *Sonar ranging control* (SLSS004, 1983, rev. 1988), the module's controller:
-  ranging from 6 in to 35 ft; a 420 kHz resonator; a burst of 16 pulses at 420/8.5 =
-  49.4 kHz; a *synchronous 4-bit gain control output* GCA–GCD (at most 16 gain states);
-  an *internal 1.2-V level detector* (a fixed comparator); internal blanking of the
-  receive input after INIT ("3.8 ms", but also "objects closer than 1.3 feet", which is
-  2.3 ms of round trip).
-- TI TL852 *Sonar ranging receiver* (SLSS003): the digitally controlled variable-gain
-  amplifier; its overall gain set by one resistor R1, "a nominal peak-to-peak value of
-  230 mV input during gain step 2 is recommended", not below 50 mV; "a plot showing
-  relative gain for the various gain steps versus time can be seen in Figure 2" — a plot
-  only: no text gives the step times or the gain of each step.
-- Polaroid 6500 Series Sonar Ranging Module data sheet, and *The Mechatronics Handbook*
-  (2002), p. 19-92, after Polaroid (1990): 6 in to 35 ft, 16 cycles at 49.4 kHz, 2.38 ms
-  blanking (0.41 m: the TL851's 1.3 ft), "returning echoes that exceed a fixed-threshold
-  value are recorded", single-echo mode (ECHO latches on the first echo) unless the
-  blanking input BLNK is toggled after each echo (multiple-echo mode).
+- TL851 *Sonar ranging control* (SLSS004, 1983, rev. 1988): ranging from 6 in to 35 ft;
+  16 pulses at 420 kHz/8.5 = 49.4 kHz; a synchronous 4-bit gain control output of 12
+  steps whose ends after INIT are its *Gain Control Output Table*
+  (:data:`STEP_ENDS_S`: 2.38, 5.12, … 38.04 ms; step 11 lasts until INIT falls); the
+  internal blanking interval of the receive input, 2.38 ms (its electrical
+  characteristics: the end of step 0); a receive level detector of fixed threshold
+  (1.2 V); single-echo mode unless BLNK is used.
+- TL852 *Sonar ranging receiver* (SLSS003): the relative receiver gain of each step, its
+  *Figure 2* (:data:`RELATIVE_GAIN`, step 2 = 1, read from the figure's drawing); the
+  detect level is inversely proportional to the gain; R1 sets the overall gain, "a
+  nominal peak-to-peak value of 230 mV input during gain step 2 is recommended".
 
-What no text found gives, and the model chosen for it (an assumption, stated as such in
-docs/detection.md):
-
-- **The gain steps.** The TL851 counts through at most 16 states; the 6500 data sheet
-  promises a wall to 35 ft, which is what the gain is for. The model: the 15 states after
-  the blanking start at times spaced evenly in log time from the blanking's end to the
-  window's end (:func:`gain_steps`, 1.9 dB a step at 343 m/s), and each holds the gain
-  that undoes spreading exactly at its start — clsonar's own ideal gain, sampled and held.
-  An echo at time t in the state that began at t_k thus reaches the comparator at
-  A·t_k/t of clsonar's amplitude A (spreading undone): never more than the ideal gain
-  gives, at most 1.9 dB less.
-- **The level.** The 230 mV recommendation fixes R1 in volts at the transducer; clsonar's
-  amplitudes are relative to a mirror, and turning volts into them needs the transducer's
-  source level and receive sensitivity, which no text found gives. The one free level is
-  therefore set on the module's own specification: a wall at normal incidence (clsonar's
-  A0·ρ) at the window's end, 35 ft, in air (ISO 9613-1 at 50 kHz, 20 °C, 50 % RH:
-  :data:`AIR_ABSORPTION_DB_PER_M`) just reaches the comparator (:func:`polaroid_6500`).
+With clsonar's amplitudes relative to a mirror with the spreading undone (docs/physics.md),
+an echo of amplitude A arriving at t has k·A/(c·t) volts at the receiver, k the
+transducer's volts per unit at 1 m of path, and the comparator trips where that times the
+step's gain reaches its level: A ≥ T0·c·t/g(t), T0 = V2/k with V2 the detect level of step
+2. The one free number T0 (R1, in units: clsonar has no volts, and no text found gives the
+transducer's source level and sensitivity) is set on the module's specification: a wall
+at normal incidence (A0·ρ) at 35 ft, with air's absorption (ISO 9613-1 at 50 kHz, 20 °C,
+50 % RH: :data:`AIR_ABSORPTION_DB_PER_M`) over its 70 ft path, just trips it
+(:func:`polaroid_6500`).
 """
 
 from __future__ import annotations
@@ -55,11 +42,20 @@ FOOT_M = 0.3048
 #: The 6500's ranging window ends at 35 ft (TL851 and 6500 data sheets), metres of range.
 WINDOW_M = 35.0 * FOOT_M
 
-#: The 6500's internal blanking after INIT (6500 data sheet), seconds.
-BLANKING_S = 2.38e-3
+#: TL851 Gain Control Output Table: the ends of gain steps 0–10 after INIT, seconds, for
+#: the nominal 420 kHz resonator; step 11 lasts until INIT falls.
+STEP_ENDS_S = (2.38e-3, 5.12e-3, 7.87e-3, 10.61e-3, 13.35e-3, 16.09e-3, 18.84e-3, 21.58e-3,
+               27.07e-3, 32.55e-3, 38.04e-3)
 
-#: The TL851's gain counter is 4 bits (GCA–GCD): at most 16 gain states.
-GAIN_STATES = 16
+#: TL852 Figure 2, relative receiver gain of steps 0–11 (step 2 = 1). Read from the figure's
+#: vector drawing: the plotted staircase's heights against the figure's own grid lines;
+#: eight lie on a grid line, 0.25, 1.66, 8.4 and 11.2 are interpolated logarithmically
+#: between the two nearest.
+RELATIVE_GAIN = (0.25, 0.5, 1.0, 1.66, 3.0, 4.0, 5.0, 6.0, 7.0, 8.4, 10.0, 11.2)
+
+#: The TL851's internal blanking interval of the receive input (its electrical
+#: characteristics, 420 kHz resonator): the end of gain step 0.
+BLANKING_S = STEP_ENDS_S[0]
 
 #: Air's absorption at 50 kHz, 20 °C and 50 % relative humidity (ISO 9613-1), dB/m: the
 #: air the module's level is set in (:func:`polaroid_6500`).
@@ -71,58 +67,56 @@ class Polaroid6500:
     """The module's receiver as clsonar sees it: echoes in units of a mirror's (spreading
     undone) against a threshold that depends on the echo's time of flight."""
 
-    blanking_s: float  # no echo before this time (internal blanking)
     window_s: float  # no echo after this time (2·35 ft / c)
-    steps_s: tuple[float, ...]  # start times of the gain states after the blanking
-    level: float  # comparator level, units, at a state's start (where the gain is ideal)
+    c: float  # speed of sound, m/s: an echo at t has travelled c·t
+    level_per_m: float  # T0: the threshold in units per metre of path at relative gain 1
+    step_ends_s: tuple[float, ...] = STEP_ENDS_S
+    gains: tuple[float, ...] = RELATIVE_GAIN
+
+    @property
+    def blanking_s(self) -> float:
+        """No echo before this time: the internal blanking, the end of gain step 0."""
+        return self.step_ends_s[0]
+
+    def gain(self, t: np.ndarray) -> np.ndarray:
+        """The relative gain (step 2 = 1) of the step holding at times ``t`` (s)."""
+        k = np.searchsorted(np.asarray(self.step_ends_s), np.asarray(t, float), side="right")
+        return np.asarray(self.gains)[k]
 
     def thresholds(self, t: np.ndarray) -> np.ndarray:
-        """The threshold in units for echoes at times ``t`` (s): level·t/t_k, t_k the start
-        of the gain state holding at t (the stepped gain is the ideal one, ∝ t, held from
-        t_k), infinite before the blanking ends and after the window."""
+        """The threshold in units for echoes at times ``t`` (s): T0·c·t/g(t) — the detect
+        level, inversely proportional to the step's gain (TL852), over the spreading the
+        module does not undo — infinite inside the blanking and after the window."""
         t = np.asarray(t, dtype=np.float64)
-        steps = np.asarray(self.steps_s)
-        k = np.clip(np.searchsorted(steps, t, side="right") - 1, 0, len(steps) - 1)
         inside = (t >= self.blanking_s) & (t <= self.window_s)
-        return np.where(inside, self.level * t / steps[k], np.inf)
+        return np.where(inside, self.level_per_m * self.c * t / self.gain(t), np.inf)
 
     @property
     def floor(self) -> float:
-        """The lowest threshold: the level, at the start of each gain state."""
-        return self.level
-
-
-def gain_steps(blanking_s: float, window_s: float, states: int = GAIN_STATES
-               ) -> tuple[float, ...]:
-    """Start times of the ``states − 1`` gain states after the blanking (state 0 holds
-    during it), evenly spaced in log time: t_k = t_b·r^(k−1), r = (t_w/t_b)^(1/(states−1)),
-    so the last state ends at the window's end one ratio r after its start. (The step
-    times are not in any data sheet text found: the assumption of this module.)"""
-    n = states - 1
-    ratio = (window_s / blanking_s) ** (1.0 / n)
-    return tuple(blanking_s * ratio**k for k in range(n))
+        """The lowest threshold over the window: at the start of a step (it rises as t
+        within each)."""
+        starts = np.array([t for t in self.step_ends_s if t < self.window_s])
+        return float(np.min(self.thresholds(starts)))
 
 
 def polaroid_6500(c: float, wall: float) -> Polaroid6500:
     """The receiver for sound speed ``c`` (m/s) and a wall's echo ``wall`` (units, A0·ρ):
-    the level is set so that the wall at 35 ft, with air's absorption over its 70 ft path,
-    reaches the threshold at the window's end, where the last gain state has fallen
-    behind the ideal gain by its full ratio r."""
+    T0 set so that the wall at 35 ft, with air's absorption over its 70 ft path, just
+    reaches the threshold at the window's end (in step 11)."""
     window_s = 2.0 * WINDOW_M / c
-    steps = gain_steps(BLANKING_S, window_s)
-    far_wall = wall * float(physics.absorption_factor(np.array(2.0 * WINDOW_M),
-                                                      AIR_ABSORPTION_DB_PER_M))
-    level = far_wall * steps[-1] / window_s
-    if not (math.isfinite(level) and level > 0):
+    path = np.array(2.0 * WINDOW_M)
+    far_wall = wall * float(physics.absorption_factor(path, AIR_ABSORPTION_DB_PER_M))
+    level_per_m = far_wall * RELATIVE_GAIN[-1] / (2.0 * WINDOW_M)
+    if not (math.isfinite(level_per_m) and level_per_m > 0):
         raise ValueError("the Polaroid 6500 receiver needs a wall echo > 0")
-    return Polaroid6500(BLANKING_S, window_s, steps, level)
+    return Polaroid6500(window_s, c, level_per_m)
 
 
 def first_per_pair(slot: np.ndarray) -> np.ndarray:
     """Mask of the first row of each run of equal ``slot`` (rows sorted by slot, then time):
-    the module's single-echo mode, where ECHO reports the first echo of a firing."""
+    the module's single-echo mode, where ECHO latches on the first echo of a firing."""
     return np.r_[True, slot[1:] != slot[:-1]] if len(slot) else np.zeros(0, bool)
 
 
-__all__ = ["AIR_ABSORPTION_DB_PER_M", "BLANKING_S", "FOOT_M", "GAIN_STATES", "WINDOW_M",
-           "Polaroid6500", "first_per_pair", "gain_steps", "polaroid_6500"]
+__all__ = ["AIR_ABSORPTION_DB_PER_M", "BLANKING_S", "FOOT_M", "RELATIVE_GAIN", "STEP_ENDS_S",
+           "WINDOW_M", "Polaroid6500", "first_per_pair", "polaroid_6500"]

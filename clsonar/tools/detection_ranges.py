@@ -15,8 +15,8 @@ sqrt(r/(r + d)) (:func:`~clsonar.physics.curved_gain`).
 The last column is ``detection.receiver`` ``"polaroid-6500"``
 (:mod:`clsonar.signals.polaroid`) in air: the echo, with air's absorption over its path,
 against the module's threshold at its time of flight 2d/c — infinite inside the blanking
-(0.41 m) and past the 35 ft window, the comparator's level times the stepped gain's
-shortfall t/t_k in between.
+(0.41 m) and past the 35 ft window, T0·c·t/g(t) in between, g the TL852's relative gain
+of the TL851's step holding at t.
 """
 
 from __future__ import annotations
@@ -119,10 +119,11 @@ def _default_receiver() -> Polaroid6500:
     return polaroid_6500(Medium().c, mirror)
 
 
-def _metres(r: float) -> str:
+def _metres(r: float, short: int = 1) -> str:
+    """A range for the table: ``short`` decimals below 1 m, one above."""
     if math.isinf(r):
         return f"beyond {DISTANCES[-1]:g} m (the ranging window's end)"
-    return "never" if r == 0 else f"{r:.1f} m"
+    return "never" if r == 0 else f"{r:.{short if r < 1 else 1}f} m"
 
 
 def markdown() -> str:
@@ -140,7 +141,7 @@ def markdown() -> str:
                      f"{_metres(max_range(kind.echo, OPEN_MIN_ENVELOPE))} | "
                      f"{_metres(max_range(kind.echo, DEFAULT_MIN_ENVELOPE))} | "
                      f"{_metres(max_range(kind.echo, OPEN_MIN_ENVELOPE, air))} | "
-                     f"{_metres(polaroid_range(kind.echo))}{kind.polaroid_note} | "
+                     f"{_metres(polaroid_range(kind.echo), 2)}{kind.polaroid_note} | "
                      f"{kind.literature} |")
     return "\n".join(lines) + "\n"
 
