@@ -425,38 +425,85 @@ def nearest_surface_point(geom: Geometry, points: np.ndarray) -> tuple[np.ndarra
     """Distance from each of ``points`` [M, 2] to the nearest surface, and that surface point.
 
     Walls and curve chords are exact segments, circles analytic. With no surfaces the
-    distance is ``inf`` and the point is NaN. (Called once per sub-step of a wall-following
-    trace, so written with few array operations: x and y apart, the segments' frames kept
-    in ``geom.occluder_frames``.)
+    distance is ``inf`` and the point is NaN (:func:`nearest_points` on this one scene).
     """
     p = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     block = max(1, NEAREST_BLOCK // max(len(geom.occluders), len(geom.circles), 1))
     if len(p) > block:  # bounded memory: a few points × every segment at a time
         parts = [nearest_surface_point(geom, p[i:i + block]) for i in range(0, len(p), block)]
         return np.concatenate([d for d, _ in parts]), np.concatenate([q for _, q in parts])
-    rows = np.arange(len(p))
-    best = np.full(len(p), np.inf)
-    near = np.full((len(p), 2), np.nan)
-    if len(geom.occluders):
-        a, ab, ab2 = geom.occluder_frames
-        px, py = p[:, 0:1], p[:, 1:2]
-        t = np.clip(((px - a[:, 0]) * ab[:, 0] + (py - a[:, 1]) * ab[:, 1]) / ab2, 0.0, 1.0)
-        qx, qy = a[:, 0] + t * ab[:, 0], a[:, 1] + t * ab[:, 1]
-        d = np.hypot(px - qx, py - qy)
-        j = np.argmin(d, axis=1)
-        best = d[rows, j]
-        near = np.stack([qx[rows, j], qy[rows, j]], axis=-1)
-    if len(geom.circles):
-        c, r = geom.circles[None, :, :2], geom.circles[None, :, 2]
-        v = p[:, None] - c
+    best, near = nearest_points(SurfaceSets.of([geom]), p[None])
+    return best[0], near[0]
+
+
+@dataclass(frozen=True)
+class SurfaceSets:
+    """The occluders (as :attr:`Geometry.occluder_frames`) and circles of several scenes
+    side by side, padded to the most of any (``walls``/``rings`` mark the real ones): what
+    :func:`nearest_points` measures against, for traces run together."""
+
+    a: np.ndarray  # [B, O, 2] segment starts
+    ab: np.ndarray  # [B, O, 2] segment directions
+    ab2: np.ndarray  # [B, O] their squared lengths (1 where padded)
+    walls: np.ndarray  # [B, O] bool: a real segment
+    circles: np.ndarray  # [B, C, 3]
+    rings: np.ndarray  # [B, C] bool: a real circle
+
+    @classmethod
+    def of(cls, geoms: list[Geometry]) -> SurfaceSets:
+        o = max((len(g.occluders) for g in geoms), default=0)
+        c = max((len(g.circles) for g in geoms), default=0)
+        a, ab = np.zeros((len(geoms), o, 2)), np.zeros((len(geoms), o, 2))
+        ab[..., 0] = 1.0
+        ab2, circles = np.ones((len(geoms), o)), np.zeros((len(geoms), c, 3))
+        walls, rings = np.zeros((len(geoms), o), bool), np.zeros((len(geoms), c), bool)
+        for b, g in enumerate(geoms):
+            n, m = len(g.occluders), len(g.circles)
+            a[b, :n], ab[b, :n], ab2[b, :n] = g.occluder_frames
+            circles[b, :m] = g.circles
+            walls[b, :n], rings[b, :m] = True, True
+        return cls(a, ab, ab2, walls, circles, rings)
+
+    def take(self, rows: np.ndarray) -> SurfaceSets:
+        """The scenes ``rows`` (ascending) of these."""
+        if len(rows) == len(self.walls):
+            return self
+        return SurfaceSets(self.a[rows], self.ab[rows], self.ab2[rows], self.walls[rows],
+                           self.circles[rows], self.rings[rows])
+
+
+def nearest_points(surfaces: SurfaceSets, points: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """``(distance [B, M], surface point [B, M, 2])``: for each scene b of ``surfaces``,
+    the distance from each of its ``points[b]`` [M, 2] to its nearest surface and that
+    point (written with few array operations, one set per sub-step of the wall-following
+    traces: x and y apart, the segments' frames precomputed)."""
+    rows = np.arange(points.shape[0])[:, None]
+    cols = np.arange(points.shape[1])[None, :]
+    best = np.full(points.shape[:2], np.inf)
+    near = np.full(points.shape, np.nan)
+    if surfaces.walls.any():
+        a, ab, ab2 = surfaces.a[:, None], surfaces.ab[:, None], surfaces.ab2[:, None]
+        px, py = points[..., 0:1], points[..., 1:2]
+        t = np.clip(((px - a[..., 0]) * ab[..., 0] + (py - a[..., 1]) * ab[..., 1]) / ab2,
+                    0.0, 1.0)
+        qx, qy = a[..., 0] + t * ab[..., 0], a[..., 1] + t * ab[..., 1]
+        d = np.where(surfaces.walls[:, None], np.hypot(px - qx, py - qy), np.inf)
+        j = np.argmin(d, axis=-1)
+        best = d[rows, cols, j]
+        near = np.where(np.isfinite(best)[..., None],
+                        np.stack([qx[rows, cols, j], qy[rows, cols, j]], axis=-1), np.nan)
+    if surfaces.rings.any():
+        c, r = surfaces.circles[:, None, :, :2], surfaces.circles[:, None, :, 2]
+        v = points[:, :, None] - c
         dist_c = np.hypot(v[..., 0], v[..., 1])
-        d = np.abs(dist_c - r)
-        j = np.argmin(d, axis=1)
-        unit = v[rows, j] / np.maximum(dist_c[rows, j], 1e-300)[:, None]
-        q = geom.circles[j, :2] + unit * geom.circles[j, 2:3]
-        closer = d[rows, j] < best
-        best = np.where(closer, d[rows, j], best)
-        near = np.where(closer[:, None], q, near)
+        d = np.where(surfaces.rings[:, None], np.abs(dist_c - r), np.inf)
+        j = np.argmin(d, axis=-1)
+        unit = v[rows, cols, j] / np.maximum(dist_c[rows, cols, j], 1e-300)[..., None]
+        q = surfaces.circles[rows, j, :2] + unit * surfaces.circles[rows, j, 2:3]
+        closer = d[rows, cols, j] < best
+        best = np.where(closer, d[rows, cols, j], best)
+        near = np.where(closer[..., None], q, near)
     return best, near
 
 

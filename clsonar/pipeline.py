@@ -25,7 +25,7 @@ import numpy as np
 
 from . import checks, mapping, metrics, post, regions, sight, signals, steps
 from .echoes import EchoTable, check_sequences, compute_echoes
-from .errors import ClsonarError
+from .errors import ClsonarError, SceneError
 from .geometry import Geometry, build_geometry
 from .mapping import Votes
 from .opencl import device_name, get_context
@@ -37,7 +37,7 @@ from .scene import (
     Scene,
     scene_to_dict,
 )
-from .sensors import SensorArray, pairs, place_sensors
+from .sensors import SensorArray, pairs, place_sensors, place_sensors_together
 from .signals import Detections
 from .skips import SKIP_NAMES as SKIP_NAMES  # re-exported: pipeline.SKIP_NAMES
 from .skips import Skips
@@ -194,12 +194,13 @@ def check_work(scene: Scene, skips: Skips = Skips()) -> list[regions.Region] | N
 
 
 def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
-               progress: Progress | None, given: str) -> RunResult:
+               progress: Progress | None, given: str,
+               placed: tuple[Geometry, SensorArray] | None = None) -> RunResult:
     """Every stage on ``scene`` as one map (a grid that cannot be held is refused before
     any work, with one clear message)."""
     mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
                              host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
-    front = _run_front(scene, ctx, skips, cache, progress, given)
+    front = _run_front(scene, ctx, skips, cache, progress, given, placed)
     if cache is None:
         return post_process(front, progress=progress, skips=skips)
     key = stage_keys(scene, front.device, skips)["post"]
@@ -234,7 +235,8 @@ def _post_reused(front: RunResult, done: RunResult) -> RunResult:
 
 
 def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
-               progress: Progress | None, given: str = "file") -> RunResult:
+               progress: Progress | None, given: str = "file",
+               placed: tuple[Geometry, SensorArray] | None = None) -> RunResult:
     """The front stages (sensors → echoes → detection → votes), each reused from ``cache``
     when its key is there; the result's maps and profile are still empty. After the
     sensors, the settings the scene leaves out are chosen from what it is
@@ -259,7 +261,7 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
         counts.update(stage_counts)
         return value
 
-    geom, sensors = stage("sensors", lambda: (_sensors(scene), {}))
+    geom, sensors = stage("sensors", lambda: (placed or _sensors(scene), {}))
     mapping.check_pair_memory(scene, sensors)  # refused in one line before any echo
     asked = scene
     found = survey(scene, sensors, geom)
@@ -299,12 +301,15 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
     seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
     counts: dict[str, int] = {}
     inner = dataclasses.replace(skips, rooms=False)
+    start = time.perf_counter()
+    placed = _sensors_together([room.scene for room in rooms])
+    seconds["sensors"] += time.perf_counter() - start
     for k, room in enumerate(rooms):
         def tell(stage: str, i: int, n: int, k: int = k) -> None:
             if progress is not None:
                 progress(stage, k * n + i, len(rooms) * n)
 
-        r = _run_whole(room.scene, ctx, inner, None, tell, given)
+        r = _run_whole(room.scene, ctx, inner, None, tell, given, placed[k])
         steps.poll()
         _add_to_mosaic(maps, r, room)
         for stage, t in r.seconds.items():
@@ -383,6 +388,18 @@ def _stack(tables: list, first: np.ndarray, kind) -> dict[str, np.ndarray]:
 def _sensors(scene: Scene) -> tuple[Geometry, SensorArray]:
     geom = build_geometry(scene)
     return geom, place_sensors(scene, geom)
+
+
+def _sensors_together(scenes: list[Scene]) -> list[tuple[Geometry, SensorArray]]:
+    """:func:`_sensors` of every scene (the rooms of a floor), their wall-following traces
+    run side by side (:func:`clsonar.sensors.place_sensors_together`); the first scene's
+    error, if any, raised before any room is mapped."""
+    geoms = [build_geometry(scene) for scene in scenes]
+    placed = place_sensors_together(scenes, geoms)
+    for found in placed:
+        if isinstance(found, SceneError):
+            raise found
+    return [(geom, cast(SensorArray, found)) for geom, found in zip(geoms, placed, strict=True)]
 
 
 def _echoes(scene: Scene, sensors: SensorArray, ctx, skips: Skips

@@ -598,3 +598,44 @@ def test_wall_following_ring_is_turned_square_to_the_walls(deg):
     np.testing.assert_allclose((heads[:, 0] - expected + 180) % 360 - 180, 0.0, atol=1e-6)
     explicit = dataclasses.replace(p, start_deg=5.0)
     assert place_wall_following(explicit, scene, geom)[1][0] == 5.0
+
+
+def test_wall_following_traces_run_together_are_each_one_alone():
+    """Issue 16: the rooms of a floor traced side by side (``wall_following_paths``) give
+    each room's path to the bit, and a trace that fails fails alone, with its own error."""
+    from clsonar.geometry import SurfaceSets, nearest_points
+    from clsonar.sensors import place_sensors_together, wall_following_paths
+
+    rooms = [([room(RECT)], [3.0, 3.0], "ccw"), ([room(L_ROOM)], [2.0, 7.0], "cw"),
+             ([room(RECT), circle((5.0, 3.5), 0.5)], [2.0, 2.0], "ccw"),
+             ([room(RECT)], [5.0, 3.5], "ccw")]  # clearance 3 m fits nowhere in a 5 m room
+    jobs, scenes = [], []
+    for k, (surfaces, start, direction) in enumerate(rooms):
+        placement = {"type": "wall-following", "start": start, "direction": direction}
+        if k == 3:
+            placement["clearance_m"] = 3.0
+        scene = make_scene(surfaces, placement)
+        scenes.append(scene)
+        jobs.append((scene.sensors.placement, scene, build_geometry(scene)))
+    together = wall_following_paths(jobs)
+    for (p, scene, geom), found in zip(jobs, together, strict=True):
+        try:
+            alone = wall_following_path(p, scene, geom)
+        except SceneError as error:
+            assert isinstance(found, SceneError) and str(found) == str(error)
+            continue
+        assert not isinstance(found, SceneError)
+        for a, b in zip(alone, found, strict=True):
+            assert np.array_equal(a, b)
+    assert isinstance(together[3], SceneError)
+    placed = place_sensors_together(scenes[:3], [j[2] for j in jobs[:3]])
+    for scene, sensors in zip(scenes[:3], placed, strict=True):
+        assert not isinstance(sensors, SceneError)
+        assert np.array_equal(sensors.positions, place_sensors(scene).positions)
+    # the padded surfaces measure each scene's points as its own geometry does
+    geoms = [j[2] for j in jobs]
+    pts = np.random.default_rng(3).uniform(0, 10, (len(geoms), 50, 2))
+    dist, near = nearest_points(SurfaceSets.of(geoms), pts)
+    for k, geom in enumerate(geoms):
+        d, q = nearest_surface_point(geom, pts[k])
+        assert np.array_equal(dist[k], d) and np.array_equal(near[k], q)

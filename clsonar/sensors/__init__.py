@@ -16,14 +16,15 @@ independent noise, so both are kept.
 Placements (each returns ``(positions [n, 2], headings_deg [n], group per element [n] int64
 from 0, poses [G, 2])``): :func:`place_random_lines` (thesis §2.1, §3.1),
 :func:`place_circular` and :func:`place_wall_following` (§2.1.2, traced by
-:func:`wall_following_path`), :func:`place_per_wall` (§3.6, Figs 3.21–3.22). They are
+:func:`wall_following_path`; several at once, the rooms of a floor, by
+:func:`place_sensors_together`), :func:`place_per_wall` (§3.6, Figs 3.21–3.22). They are
 deterministic: random numbers come only from the
 placement's ``seed``. A placement that cannot be made raises
 :class:`~clsonar.errors.SceneError` with key ``sensors.placement`` and the scene's name as
 source.
 """
 
-from .array import SensorArray, heading_deg, pairs, place_sensors
+from .array import SensorArray, heading_deg, pairs, place_sensors, place_sensors_together
 from .lines import per_wall_lines, per_wall_seed, place_per_wall, place_random_lines
 from .rings import (
     place_circular,
@@ -31,11 +32,13 @@ from .rings import (
     ring,
     square_to_walls,
     wall_following_path,
+    wall_following_paths,
     wall_following_substep,
 )
 from .space import Placed, in_free_space
 
 __all__ = ["Placed", "SensorArray", "heading_deg", "in_free_space", "pairs", "per_wall_lines",
            "per_wall_seed", "place_circular", "place_per_wall", "place_random_lines",
-           "place_sensors", "place_wall_following", "ring", "square_to_walls",
-           "wall_following_path", "wall_following_substep"]
+           "place_sensors", "place_sensors_together", "place_wall_following", "ring",
+           "square_to_walls", "wall_following_path", "wall_following_paths",
+           "wall_following_substep"]

@@ -7,10 +7,11 @@ from functools import cached_property
 
 import numpy as np
 
+from ..errors import SceneError
 from ..geometry import Geometry, build_geometry
-from ..scene import Circular, PerWall, RandomLines, Scene
+from ..scene import Circular, PerWall, RandomLines, Scene, WallFollowing
 from .lines import place_per_wall, place_random_lines
-from .rings import place_circular, place_wall_following
+from .rings import Traced, place_circular, place_wall_following, wall_following_paths
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,8 +48,35 @@ class SensorArray:
         return np.stack([np.cos(h), np.sin(h)], axis=-1)
 
 
-def place_sensors(scene: Scene, geom: Geometry | None = None) -> SensorArray:
-    """The scene's transducers: explicit ones first, in file order, then placed ones."""
+def place_sensors_together(scenes: list[Scene], geoms: list[Geometry]
+                           ) -> list[SensorArray | SceneError]:
+    """:func:`place_sensors` of each of ``scenes`` (with its geometry), every
+    wall-following trace of them all run side by side (:func:`wall_following_paths`: the
+    rooms of a floor): each scene's transducers, or the error it raises alone."""
+    jobs = [(k, p) for k, scene in enumerate(scenes)
+            for p in (scene.sensors.placement, *scene.sensors.placements)
+            if isinstance(p, WallFollowing)]
+    traces = wall_following_paths([(p, scenes[k], geoms[k]) for k, p in jobs])
+    traced: list[dict[int, Traced]] = [{} for _ in scenes]
+    failed: dict[int, SceneError] = {}
+    for (k, p), found in zip(jobs, traces, strict=True):
+        if isinstance(found, SceneError):
+            failed.setdefault(k, found)
+        else:
+            traced[k][id(p)] = found
+    out: list[SensorArray | SceneError] = []
+    for k, (scene, geom) in enumerate(zip(scenes, geoms, strict=True)):
+        try:
+            out.append(failed.get(k) or place_sensors(scene, geom, traced[k]))
+        except SceneError as error:
+            out.append(error)
+    return out
+
+
+def place_sensors(scene: Scene, geom: Geometry | None = None,
+                  traced: dict[int, Traced] | None = None) -> SensorArray:
+    """The scene's transducers: explicit ones first, in file order, then placed ones
+    (``traced``: the wall-following placements' traces already run, by ``id``)."""
     explicit = scene.sensors.transducers
     pos = np.asarray([t.position for t in explicit], dtype=np.float64).reshape(-1, 2)
     head = np.asarray([t.heading_deg for t in explicit], dtype=np.float64)
@@ -66,7 +94,8 @@ def place_sensors(scene: Scene, geom: Geometry | None = None) -> SensorArray:
             elif isinstance(placement, PerWall):
                 p_pos, p_head, p_group, p_poses = place_per_wall(placement, scene, geom)
             else:
-                p_pos, p_head, p_group, p_poses = place_wall_following(placement, scene, geom)
+                p_pos, p_head, p_group, p_poses = place_wall_following(
+                    placement, scene, geom, (traced or {}).get(id(placement)))
         first = int(groups.max()) + 1 if len(groups) else 0
         pos = np.concatenate([pos, p_pos])
         head = np.concatenate([head, p_head])

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from .. import steps
 from ..errors import SceneError
-from ..geometry import Geometry, nearest_surface_point
+from ..geometry import Geometry, SurfaceSets, nearest_points, nearest_surface_point
 from ..scene import Circular, Scene, WallFollowing
 from .space import Placed, crosses, crosses_each, extent_contains, in_free_space, placement_error
 
@@ -49,17 +51,32 @@ def _project(geom: Geometry, point: np.ndarray, c: float
              ) -> tuple[np.ndarray, float, np.ndarray]:
     """Move ``point`` to distance ``c`` from the nearest surface, along the line from the
     nearest surface point; repeat while another surface becomes the nearest (concave
-    corners). Returns the point, its final distance error and its nearest surface point."""
-    err = math.inf
-    q = point
+    corners). Returns the point, its final distance error and its nearest surface point
+    (:func:`_projects` of one)."""
+    out, err, q = _projects(SurfaceSets.of([geom]), np.asarray(point, float)[None],
+                            np.array([c]))
+    return out[0], float(err[0]), q[0]
+
+
+def _projects(surfaces: SurfaceSets, points: np.ndarray, c: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_project` of ``points[b]`` [B, 2] onto the curve at ``c[b]`` from scene b of
+    ``surfaces``, side by side: the points, their distance errors and nearest surface
+    points, each point moved until it is on its curve (16 moves at most)."""
+    points = np.array(points, dtype=np.float64)
+    err = np.full(len(points), math.inf)
+    q = points.copy()
+    live = np.arange(len(points))
     for _ in range(16):
-        dist, near = nearest_surface_point(geom, point[None])
-        d, q = float(dist[0]), near[0]
-        err = abs(d - c)
-        if err <= _ON_CURVE_TOL * 0.01 or not math.isfinite(d) or d <= 1e-12:
+        dist, near = nearest_points(surfaces.take(live), points[live][:, None])
+        d, q[live] = dist[:, 0], near[:, 0]
+        err[live] = np.abs(d - c[live])
+        on = (err[live] <= _ON_CURVE_TOL * 0.01) | ~np.isfinite(d) | (d <= 1e-12)
+        live, d = live[~on], d[~on]
+        points[live] = q[live] + (points[live] - q[live]) * (c[live] / d)[:, None]
+        if len(live) == 0:
             break
-        point = q + (point - q) * (c / d)
-    return point, err, q
+    return points, err, q
 
 
 def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
@@ -90,6 +107,47 @@ def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
     space, the curve cannot be followed (no room for the clearance, stuck), it would leave
     the extent or cross a surface, or it does not close within ``max_poses`` poses.
     """
+    found = wall_following_paths([(p, scene, geom)])[0]
+    if isinstance(found, SceneError):
+        raise found
+    return found
+
+
+#: One wall-following trace to run: its placement, scene and geometry.
+TraceJob = tuple[WallFollowing, Scene, Geometry]
+
+#: A finished trace: ``(path [M, 2], arc [M], length)`` (:func:`wall_following_path`).
+Traced = tuple[np.ndarray, np.ndarray, float]
+
+
+@dataclass
+class _Trace:
+    """One wall-following trace as :func:`wall_following_paths` runs it: its constants,
+    its points so far (the start first) and its sub-steps' pending checks."""
+
+    c: float  # clearance
+    h: float  # sub-step
+    sweep: np.ndarray  # the angles swept from the nearest surface's direction
+    fail: Callable[[str], SceneError]
+    checks: _SubstepChecks
+    max_length: float
+    max_substeps: int
+    path: list[np.ndarray]
+    arc: list[float]
+    wall: np.ndarray  # the nearest surface point of the start
+    max_poses: int  # for the message of a trace that does not close
+    step_m: float
+
+    def unclosed(self) -> SceneError:
+        """The error of a trace that has not closed within its ``max_poses``."""
+        self.checks.flush()
+        return self.fail(f"the trace did not return to its start within max_poses = "
+                         f"{self.max_poses} poses (step_m = {self.step_m:g}); raise max_poses "
+                         "or check the start")
+
+
+def _start_trace(p: WallFollowing, scene: Scene, geom: Geometry) -> _Trace:
+    """The trace of ``p`` at its start (:func:`_trace_start`; its errors raised)."""
     c, h = p.clearance_m, wall_following_substep(p)
 
     def fail(message: str) -> SceneError:
@@ -97,31 +155,131 @@ def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
 
     p0, wall = _trace_start(p, scene, geom, fail)
     sign = 1.0 if p.direction == "ccw" else -1.0
-    sweep = sign * 2.0 * math.pi * np.arange(1, _SWEEP_SAMPLES + 1) / _SWEEP_SAMPLES
     max_length = (p.max_poses + 1) * p.step_m
-    max_substeps = int(max_length / (0.25 * h)) + 100
-    path, arc, left, point = [p0], [0.0], False, p0
-    checks = _SubstepChecks(scene, geom, fail)
-    for _ in range(max_substeps):
+    return _Trace(c=c, h=h,
+                  sweep=sign * 2.0 * math.pi * np.arange(1, _SWEEP_SAMPLES + 1) / _SWEEP_SAMPLES,
+                  fail=fail, checks=_SubstepChecks(scene, geom, fail), max_length=max_length,
+                  max_substeps=int(max_length / (0.25 * h)) + 100, path=[p0], arc=[0.0],
+                  wall=wall, max_poses=p.max_poses, step_m=p.step_m)
+
+
+@dataclass
+class _Going:
+    """The traces still going, side by side (row k is trace ``ids[k]``): where each is,
+    its nearest surface point, whether it has been more than 2h from its start, and its
+    constants as arrays."""
+
+    ids: np.ndarray  # [L] indices of the traces
+    surfaces: SurfaceSets
+    point: np.ndarray  # [L, 2]
+    wall: np.ndarray  # [L, 2]
+    left: np.ndarray  # [L] bool
+    p0: np.ndarray  # [L, 2]
+    h: np.ndarray  # [L]
+    c: np.ndarray  # [L]
+    sweep: np.ndarray  # [L, S]
+
+    def take(self, rows: np.ndarray) -> _Going:
+        return _Going(self.ids[rows], self.surfaces.take(rows), self.point[rows],
+                      self.wall[rows], self.left[rows], self.p0[rows], self.h[rows],
+                      self.c[rows], self.sweep[rows])
+
+
+def wall_following_paths(jobs: list[TraceJob]) -> list[Traced | SceneError]:
+    """:func:`wall_following_path` of every job, the traces run side by side (one set of
+    array operations per sub-step for all of them: the rooms of a floor): each trace's
+    ``(path, arc, length)``, or the error it raises alone. Each sub-step is the same
+    arithmetic as one trace alone, so the paths are the same to the bit."""
+    out: list[Traced | SceneError | None] = [None] * len(jobs)
+    traces: dict[int, _Trace] = {}
+    for i, (p, scene, geom) in enumerate(jobs):
         try:
-            nxt, next_wall, step = _substep(geom, point, wall, sweep, h, c, fail)
-        except SceneError:
-            checks.flush()  # a sub-step that failed its checks before is the first error
-            raise
-        checks.add(point, nxt)
-        if left and (t := _closing(p0, point, nxt, step, h)) is not None:
-            checks.flush()
-            return np.asarray(path), np.asarray(arc), arc[-1] + t * step
-        if not left and np.hypot(*(nxt - p0)) > 2.0 * h:
-            left = True
-        path.append(nxt)
-        arc.append(arc[-1] + step)
-        point, wall = nxt, next_wall
-        if arc[-1] > max_length:
-            break
-    checks.flush()
-    raise fail(f"the trace did not return to its start within max_poses = {p.max_poses} "
-               f"poses (step_m = {p.step_m:g}); raise max_poses or check the start")
+            traces[i] = _start_trace(p, scene, geom)
+        except SceneError as error:
+            out[i] = error
+    t = list(traces.values())
+    going = _Going(np.array(list(traces), dtype=np.int64),
+                   SurfaceSets.of([jobs[i][2] for i in traces]),
+                   np.array([x.path[0] for x in t]).reshape(-1, 2),
+                   np.array([x.wall for x in t]).reshape(-1, 2), np.zeros(len(t), bool),
+                   np.array([x.path[0] for x in t]).reshape(-1, 2), np.array([x.h for x in t]),
+                   np.array([x.c for x in t]), np.array([x.sweep for x in t]).reshape(
+                       len(t), _SWEEP_SAMPLES))
+    while len(going.ids):
+        steps.poll()
+        going = _advance(going, traces, out)
+    return [r for r in out if r is not None]
+
+
+def _advance(going: _Going, traces: dict[int, _Trace],
+             out: list[Traced | SceneError | None]) -> _Going:
+    """One sub-step of every trace still going: each one that closes or fails gets its
+    result in ``out``; the rest go on (returned)."""
+    nxt, near, step, stuck = _substeps(going, [traces[int(i)] for i in going.ids])
+    p0, h = going.p0, going.h
+    # the exact closing test only where the sub-step can pass within h/2 of the start
+    may_close = going.left & (np.hypot(*(going.point - p0).T) <= step + 0.5 * h + 1e-9)
+    left = going.left | (np.hypot(*(nxt - p0).T) > 2.0 * h)
+    keep = np.ones(len(going.ids), dtype=bool)
+    for k, i in enumerate(going.ids.tolist()):
+        trace = traces[i]
+        try:
+            if stuck[k] is not None:
+                trace.checks.flush()  # a sub-step that failed its checks before is first
+                raise cast(SceneError, stuck[k])
+            trace.checks.add(going.point[k], nxt[k])
+            if may_close[k] and (t := _closing(p0[k], going.point[k], nxt[k], float(step[k]),
+                                               float(h[k]))) is not None:
+                trace.checks.flush()
+                out[i] = (np.asarray(trace.path), np.asarray(trace.arc),
+                          trace.arc[-1] + t * float(step[k]))
+                keep[k] = False
+                continue
+            trace.path.append(nxt[k])
+            trace.arc.append(trace.arc[-1] + float(step[k]))
+            if trace.arc[-1] > trace.max_length or len(trace.path) > trace.max_substeps:
+                raise trace.unclosed()
+        except SceneError as error:
+            out[i] = error
+            keep[k] = False
+    going = _Going(going.ids, going.surfaces, nxt, near, left, p0, h, going.c, going.sweep)
+    return going if keep.all() else going.take(np.flatnonzero(keep))
+
+
+def _substeps(going: _Going, traces: list[_Trace]
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[SceneError | None]]:
+    """One sub-step of each trace going from its last point: the first point back at its
+    clearance c on the circle of radius h swept from the direction of its nearest surface,
+    re-projected onto the curve. ``(points [L, 2], their nearest surface points, the
+    steps' lengths [L], each trace's error or None)``."""
+    point, h, c = going.point, going.h, going.c
+    to_wall = going.wall - point
+    phi0 = np.array([math.atan2(y, x) for x, y in to_wall.tolist()])
+    angles = phi0[:, None] + going.sweep
+    ring_pts = point[:, None] + h[:, None, None] * np.stack([np.cos(angles), np.sin(angles)],
+                                                          axis=-1)
+    g = nearest_points(going.surfaces, ring_pts)[0] - c[:, None]
+    ahead = g >= 0.0
+    k = np.argmax(ahead, axis=1)
+    rows = np.arange(len(point))
+    first = k > 0
+    g_k, g_prev = g[rows, k], np.where(first, g[rows, k - 1], -h)
+    a_prev = np.where(first, angles[rows, k - 1], phi0)
+    same = g_k == g_prev
+    frac = np.where(same, 1.0, g_prev / np.where(same, 1.0, g_prev - g_k))
+    a = (a_prev + frac * (angles[rows, k] - a_prev)).tolist()
+    turn = np.array([[math.cos(x), math.sin(x)] for x in a]).reshape(-1, 2)
+    nxt, err, near = _projects(going.surfaces, point + h[:, None] * turn, c)
+    step = np.hypot(*(nxt - point).T)
+    errors: list[SceneError | None] = [None] * len(point)
+    for b in np.flatnonzero(~ahead.any(axis=1) | (err > _ON_CURVE_TOL) | (step < 0.25 * h)):
+        x, y = point[b]
+        errors[b] = traces[b].fail(
+            f"stuck at ({x:.3f}, {y:.3f}): no way on at clearance_m = {c[b]:g}"
+            if not ahead[b].any() else
+            f"stuck at ({x:.3f}, {y:.3f}): the curve at clearance_m = {c[b]:g} cannot be "
+            "followed there")
+    return nxt, near, step, errors
 
 
 def _closing(p0: np.ndarray, point: np.ndarray, nxt: np.ndarray, step: float, h: float
@@ -203,36 +361,6 @@ def _trace_start(p: WallFollowing, scene: Scene, geom: Geometry,
     return p0, wall
 
 
-def _substep(geom: Geometry, point: np.ndarray, wall: np.ndarray, sweep: np.ndarray,
-             h: float, c: float, fail: Callable[[str], SceneError]
-             ) -> tuple[np.ndarray, np.ndarray, float]:
-    """One sub-step of the trace from ``point`` (nearest surface point ``wall``): the first
-    point back at clearance ``c`` on the circle of radius ``h`` swept by the angles
-    ``sweep`` from the direction of ``wall``, re-projected onto the curve. Returns the
-    point, its nearest surface point and the step's length (a point to stop a run at)."""
-    steps.poll()
-    to_wall = wall - point
-    phi0 = math.atan2(to_wall[1], to_wall[0])
-    angles = phi0 + sweep
-    ring_pts = point + h * np.stack([np.cos(angles), np.sin(angles)], axis=-1)
-    g = nearest_surface_point(geom, ring_pts)[0] - c
-    hit = np.flatnonzero(g >= 0.0)
-    if len(hit) == 0:
-        raise fail(f"stuck at ({point[0]:.3f}, {point[1]:.3f}): no way on at "
-                   f"clearance_m = {c:g}")
-    k = int(hit[0])
-    g_prev = g[k - 1] if k > 0 else -h
-    a_prev = angles[k - 1] if k > 0 else phi0
-    frac = g_prev / (g_prev - g[k]) if g[k] != g_prev else 1.0
-    a = a_prev + frac * (angles[k] - a_prev)
-    nxt, err, next_wall = _project(geom, point + h * np.array([math.cos(a), math.sin(a)]), c)
-    step = float(np.hypot(*(nxt - point)))
-    if err > _ON_CURVE_TOL or step < 0.25 * h:
-        raise fail(f"stuck at ({point[0]:.3f}, {point[1]:.3f}): the curve at "
-                   f"clearance_m = {c:g} cannot be followed there")
-    return nxt, next_wall, step
-
-
 #: Walls whose normals agree within this (modulo the ring's symmetry) share a heading.
 SQUARE_TOL_DEG = 2.0
 
@@ -262,7 +390,8 @@ def square_to_walls(geom: Geometry, elements: int) -> float:
     return round(float(off(np.array([mean]), 0.0)[0]), 6) + 0.0
 
 
-def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry) -> Placed:
+def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry,
+                         traced: Traced | None = None) -> Placed:
     """Ring poses along the walls, thesis §2.1.2 (see :class:`~clsonar.scene.WallFollowing`).
 
     The ring centre runs along :func:`wall_following_path`; a pose every ``step_m`` of arc
@@ -271,13 +400,14 @@ def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry) -> Plac
     a :func:`ring` and its own pair group, its first element at ``start_deg`` or, where
     the file leaves that out, square to the walls (:func:`square_to_walls`).
 
-    Returns ``(positions [G·n, 2], headings_deg, groups, poses [G, 2])``.
+    Returns ``(positions [G·n, 2], headings_deg, groups, poses [G, 2])``. ``traced``: the
+    trace, when already run (:func:`wall_following_paths`).
     """
     if p.radius_m >= p.clearance_m:
         raise placement_error(scene, f"ring radius_m = {p.radius_m:g} must be smaller than "
                                      f"clearance_m = {p.clearance_m:g}",
                               "sensors.placement.radius_m")
-    path, arc, length = wall_following_path(p, scene, geom)
+    path, arc, length = wall_following_path(p, scene, geom) if traced is None else traced
     h = wall_following_substep(p)
     targets = np.arange(0.0, length - 0.5 * h, p.step_m)
     if len(targets) > p.max_poses:
