@@ -487,6 +487,10 @@ def test_polaroid_6500_gain_steps_and_threshold_table():
     assert rx is not None and rx.blanking_s == 2.38e-3 and rx.c == c
     assert rx.window_s == pytest.approx(2 * 35 * 0.3048 / c)
     assert len(pol.STEP_ENDS_S) == 11 and len(pol.RELATIVE_GAIN) == 12
+    # TL851 Gain Control Output Table; TL852 Figure 2 (docs/detection.md)
+    assert pol.STEP_ENDS_S == (2.38e-3, 5.12e-3, 7.87e-3, 10.61e-3, 13.35e-3, 16.09e-3,
+                               18.84e-3, 21.58e-3, 27.07e-3, 32.55e-3, 38.04e-3)
+    assert pol.RELATIVE_GAIN == (0.25, 0.5, 1.0, 1.66, 3.0, 4.0, 5.0, 6.0, 7.0, 8.4, 10.0, 11.2)
     assert pol.RELATIVE_GAIN[2] == 1.0 and np.all(np.diff(pol.RELATIVE_GAIN) > 0)
     ends = np.asarray(pol.STEP_ENDS_S)
     np.testing.assert_array_equal(rx.gain(ends - 1e-9), pol.RELATIVE_GAIN[:11])
