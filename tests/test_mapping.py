@@ -766,3 +766,28 @@ def test_map_votes_refuses_an_unknown_mode():
     scene = dataclasses.replace(scene, mapping=dataclasses.replace(scene.mapping, mode="none"))
     with pytest.raises(ValueError, match="unknown mapping mode"):
         mapping.map_votes(scene, sensors, echoes, detections, context=context())
+
+
+@pytest.mark.parametrize("turn_deg", [0.0, 3.0, 7.0])
+def test_circle_echo_is_the_echo_engines_circle(turn_deg):
+    """A pillar's echo as the seen-through test predicts it (tangents.circle_echo) is the
+    reference echo engine's first-order echo of the circle, for elements on and off its
+    axis at several ranges."""
+    from clsonar.echoes.reference import reference_echoes
+    from clsonar.scene import scene_from_dict
+    from clsonar.sensors import place_sensors
+
+    heading = 180.0 + turn_deg
+    scene = scene_from_dict({
+        "clsonar": 1, "name": "pillar", "extent": [-1, -4, 7, 4], "cell": 0.02,
+        "surfaces": [{"type": "circle", "center": [0.0, 0.0], "radius": 0.35}],
+        "sensors": {"transducers": [{"position": [x, 0.0], "heading_deg": heading,
+                                     "group": k} for k, x in enumerate((1.5, 3.0, 5.5))]},
+    }, "test")
+    sensors = place_sensors(scene)
+    echoes = reference_echoes(scene, sensors)
+    mono = (np.asarray(echoes.tx) == np.asarray(echoes.rx)) & (np.asarray(echoes.order) == 1)
+    got = np.asarray(echoes.amplitude)[mono][np.argsort(np.asarray(echoes.tx)[mono])]
+    want = map_tangents.circle_echo(scene, sensors.positions, sensors.axes,
+                                    np.zeros(2), 0.35)
+    assert np.allclose(got, want, rtol=1e-6)

@@ -5,16 +5,19 @@ them (:func:`tangent_points`; docs/mapping.md)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .. import steps
+from ..physics import absorption_factor, curved_gain
 from ..scene import Scene
 from ..sensors import SensorArray
+from ..signals import envelope_noise_scale, signal_model
 from .envelope import ENVELOPE_ARC_BIAS_M, element_scans, envelope_links, in_beams, scan_envelope
-from .families import window_tolerance
+from .families import two_way, window_tolerance
 from .loci import Loci, as_loci
+from .patches import mirror_echo
 from .pillars import MIN_PILLAR_LOCI, PILLAR_TOL_M, pillar_arcs, point_reflectors
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
@@ -28,9 +31,12 @@ LOCUS_SAMPLES = 1440
 #: of a locus' own samples, 0.25° at 0.5 m: a stretch weighs as much as the arcs it joins).
 LINK_STEP_M = 0.002
 
-#: A pillar is seen through where an echo came from beyond it within this share of the
-#: beam's half-angle (sine) of the element's axis.
+#: A pillar is seen through where an element's first echo came from beyond it within this
+#: share of the beam's half-angle (sine) of the element's axis, and the pillar's echo there
+#: would have been as strong as the weakest of the echoes that place it
+#: (:func:`circle_echo`), by :data:`HEARD_NOISE_SCALES` of the envelope's noise to spare.
 SEEN_THROUGH_SHARE = 1.0 / 3.0
+HEARD_NOISE_SCALES = 3.0
 
 #: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
 _ARC_MARGIN = 2
@@ -252,6 +258,43 @@ def _points(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndarr
     return {slots[n]: v for n, v in points.items()}
 
 
+def circle_echo(scene: Scene, T: np.ndarray, axes: np.ndarray, centre: np.ndarray,
+                radius: float) -> np.ndarray:
+    """[k] The echo amplitude a circle (``centre``, ``radius``: a pillar) returns to the
+    transducers at ``T`` [k, 2] with unit ``axes`` [k, 2], each its own receiver (T = R):
+    a flat mirror's A0·ρ times the two-way beam towards the circle's point nearest it, the
+    gain of the circle's curvature seen from the distance d to that point, sqrt(R/(R + d))
+    (``physics.curved_gain``; 1 without ``echo.curvature_gain``), and the absorption over
+    the path 2·d — the echo engine's specular amplitude of a convex circle."""
+    out = T - centre
+    far = np.maximum(np.hypot(out[:, 0], out[:, 1]), radius + 1e-12)
+    q = centre + radius * out / far[:, None]
+    d = far - radius
+    gain = (curved_gain(d, d, np.full(len(d), 1.0 / radius), np.ones(len(d)))
+            if scene.echo.curvature_gain else 1.0)
+    return (mirror_echo(scene) * two_way(q, T, axes, T, axes, scene.transducer.beam(
+        scene.medium.c)[1]) * gain * absorption_factor(2.0 * d, scene.echo.absorption_db_per_m))
+
+
+def envelope_noise(scene: Scene) -> float:
+    """The Rayleigh scale of the noise on a detection's envelope, units (0 noise-free;
+    :func:`~clsonar.signals.envelope_noise_scale`, which does not depend on the detection's
+    floor: a floor the scene leaves to be chosen is taken as 0 for it)."""
+    if scene.signal.noise_std == 0:
+        return 0.0
+    if scene.detection.min_envelope is None:
+        scene = replace(scene, detection=replace(scene.detection, min_envelope=0.0))
+    return envelope_noise_scale(signal_model(scene))
+
+
+def first_echoes(loci: Loci, a: np.ndarray) -> np.ndarray:
+    """The index of each element's nearest T = R locus (``a`` the loci's half paths): the
+    first echo, from the nearest surface in its beam (thesis §2.1.1)."""
+    mono = np.flatnonzero(loci.tx == loci.rx)
+    order = mono[np.lexsort((a[mono], loci.tx[mono]))]
+    return order[np.r_[True, loci.tx[order][1:] != loci.tx[order][:-1]]]
+
+
 def _pillars(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndarray],
              slots: list[int], bias: float) -> dict[int, np.ndarray]:
     """``{slot: arc}``: the middle-of-arc stubs (``found[slot]`` of T = R locus
@@ -261,20 +304,29 @@ def _pillars(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndar
         return {}
     T, tol = s.T[loci], _range_tolerance(scene, s, loci)
     middles = np.array([found[k].mean(axis=0) for k in slots])
-    mono = np.flatnonzero(s.loci.tx == s.loci.rx)
-    axes = s.axes[s.loci.tx[mono]]
+    first = first_echoes(s.loci, s.a)
+    axes, first_tol = s.axes[s.loci.tx[first]], _range_tolerance(scene, s, first)
+    spare = HEARD_NOISE_SCALES * envelope_noise(scene)
 
     def seen_through(centre: np.ndarray, radius: float, reach: float) -> bool:
-        """Whether a T = R echo of an element within ``reach`` of the circle came from
+        """Whether an element within ``reach`` of the circle had its first T = R echo from
         beyond the circle's point nearest it, near its beam's axis
-        (:data:`SEEN_THROUGH_SHARE`): the element would have heard the circle first. Nearer
-        the beam's edge, or from farther than the loci that touch it, a pillar's weak
-        echo may be missed."""
-        d = s.T[mono] - centre
+        (:data:`SEEN_THROUGH_SHARE`), where the circle's echo (:func:`circle_echo`) would
+        have been as strong as the weakest echo of the loci that touch it, noise to spare:
+        the element would have heard the circle first. Nearer the beam's edge, from
+        farther than the loci that touch it, or weaker, a pillar's echo may be missed."""
+        d = s.T[first] - centre
         near = np.hypot(*d.T) - radius
         q = centre + radius * d / np.maximum(near + radius, 1e-12)[:, None]
-        return bool(np.any((near < s.a[mono] - PILLAR_TOL_M) & (near <= reach)
-                           & in_beams(q, s.T[mono], axes, SEEN_THROUGH_SHARE**2 * s.cut_sin2)))
+        beyond = ((near < s.a[first] - first_tol) & (near <= reach)
+                  & in_beams(q, s.T[first], axes, SEEN_THROUGH_SHARE**2 * s.cut_sin2))
+        touching = np.abs(np.hypot(*(T - centre).T) - s.a[loci] - radius) <= tol
+        if not (beyond.any() and touching.any()):
+            return bool(beyond.any())
+        weakest = circle_echo(scene, T[touching], s.axes[s.loci.tx[loci[touching]]], centre,
+                              radius).min()
+        echo = circle_echo(scene, s.T[first][beyond], axes[beyond], centre, radius)
+        return bool(np.any(echo >= weakest + spare))
 
     arcs = pillar_arcs(T, s.a[loci], middles, tol, bias, 0.5 * scene.cell, seen_through)
     out = {}
@@ -296,9 +348,9 @@ def _just_after_first(s: SampledLoci, isolated: np.ndarray, stubs: list[int]) ->
     stand a few cm behind the surface heard first, too near it for the line of sight to
     tell (its ghost and the surface thin into one thick curve)."""
     tx, rx = s.loci.tx, s.loci.rx
-    mono = np.flatnonzero(tx == rx)
+    nearest = first_echoes(s.loci, s.a)
     first = np.full(int(tx.max(initial=0)) + 1, np.inf)  # each element's nearest echo
-    np.minimum.at(first, tx[mono], s.a[mono])
+    first[tx[nearest]] = s.a[nearest]
     i = isolated[np.asarray(stubs, dtype=np.int64)]
     after = (tx[i] == rx[i]) & (first[tx[i]] < s.a[i]) & (s.a[i] <= first[tx[i]] + MULTIPATH_M)
     return [k for k, late in zip(stubs, after, strict=True) if late]
