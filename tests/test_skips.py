@@ -128,3 +128,25 @@ def test_post_processing_of_tangent_points_in_their_window_matches_the_whole_gri
                         skips=Skips.none())
     assert whole.point_window is None
     _same(again, whole)
+
+
+def test_noisy_detection_scans_once_with_the_same_detections(monkeypatch):
+    """Issue 16: the detection's first pass keeps only the envelope's local maxima above
+    0.7 of the threshold the noise is expected to set (signals.host.first_pass_floor), not
+    every noise peak above an open scene's floor of 0.01 units: every noisy pair used to
+    overflow its candidates and be scanned twice. The detections are the same."""
+    from clsonar.signals import host, signal_model
+    from clsonar.signals.detection import envelope_floor
+    from clsonar.tools.variants import with_seed
+
+    scene = with_seed(clsonar.load_scene(SCENES / "plane-2m.json"), 1, 0.6)
+    ctx = get_context()
+    once = clsonar.run(scene, context=ctx)
+    model = signal_model(once.scene)
+    assert host.first_pass_floor(model) > 10 * envelope_floor(model)
+    monkeypatch.setattr(host, "first_pass_floor", envelope_floor)
+    twice = clsonar.run(scene, context=ctx)
+    assert once.counts["samples_scanned"] * 2 == twice.counts["samples_scanned"]
+    for name in ("tx", "rx", "tof_s", "amplitude"):
+        assert np.array_equal(getattr(once.detections, name), getattr(twice.detections, name))
+    _same(once, twice)

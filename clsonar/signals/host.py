@@ -30,6 +30,7 @@ from .detection import (
     Detections,
     empty_detections,
     envelope_floor,
+    envelope_noise_scale,
     finish_envelope,
     finish_threshold,
     join_candidates,
@@ -334,6 +335,25 @@ def detect(scene: Scene, sensors: SensorArray | None, echoes: EchoTable, *, cont
     return found
 
 
+#: The first pass keeps the local maxima of the envelope above this share of the threshold
+#: the noise is expected to set (false_alarm_sigmas times its Rayleigh scale): about one a
+#: pair of noise alone, where the envelope floor of an open scene (0.01 units) kept them
+#: all and every noisy pair was scanned twice.
+FIRST_PASS_SHARE = 0.7
+
+
+def first_pass_floor(model: SignalModel) -> float:
+    """The envelope floor of the detection's first pass: the scene's floor, or
+    :data:`FIRST_PASS_SHARE` of the threshold the noise is expected to set where that is
+    higher (the detections are the same: the final thresholds, from each pair's own
+    noise, are higher still but for a chance, and a pair where one is not is scanned
+    again with it)."""
+    floor = envelope_floor(model)
+    if model.receiver is not None:  # a fixed comparator: no noise estimate
+        return floor
+    return max(floor, FIRST_PASS_SHARE * model.false_alarm_sigmas * envelope_noise_scale(model))
+
+
 def _detect(model: SignalModel, pe: PairEchoes, run: Runner, capacity: int | None,
             slots: np.ndarray) -> Detections:
     """:func:`detect` of the pair ``slots`` once the runner is built."""
@@ -347,11 +367,13 @@ def _detect(model: SignalModel, pe: PairEchoes, run: Runner, capacity: int | Non
                                    histogram=False)
             cand = merge_candidates(cand, extra, slots[over])
         return finish_threshold(model, pe, cand)
-    floor = np.full(len(pe.pairs), envelope_floor(model))
+    floor = np.full(len(pe.pairs), first_pass_floor(model))
     counts, cand, scales = run.scan(slots, cap, floor, histogram=True)
     thresholds = np.full(len(pe.pairs), np.inf)  # indexed by slot; unscanned slots: none
     thresholds[slots] = thresholds_of(model, scales)
-    over = counts > cap
+    # scanned again: a pair with more candidates than room, or whose threshold came out
+    # below the first pass's floor (a chance: the floor is well under the expected one)
+    over = (counts > cap) | (thresholds[slots] * (1.0 - 1e-6) < floor[slots])
     if over.any():
         # the same local maxima, now only those above the final threshold (a hair lower, so
         # float32 rounding of thr² cannot drop one the host keeps)
