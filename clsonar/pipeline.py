@@ -14,8 +14,6 @@ defaults of a scene file).
 from __future__ import annotations
 
 import dataclasses
-import hashlib
-import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -24,6 +22,8 @@ from typing import TypeVar, cast
 import numpy as np
 
 from . import checks, mapping, metrics, post, regions, sight, signals, steps
+from .cache import StageCache as StageCache  # re-exported: pipeline.StageCache
+from .cache import stage_keys
 from .echoes import EchoTable, check_sequences, compute_echoes
 from .errors import ClsonarError, SceneError
 from .geometry import Geometry, build_geometry
@@ -109,59 +109,6 @@ class RunResult:
             "metrics": self.metrics,
             "warnings": list(self.warnings),
         }
-
-
-class StageCache:
-    """A content-keyed cache of the stages before post-processing (sensors, echoes,
-    detection, accumulation): a stage is reused when every scene key it reads, the device
-    and the skips are unchanged. Keeps the last ``size`` results of each stage."""
-
-    def __init__(self, size: int = 4) -> None:
-        self.size = size
-        self._entries: dict[str, dict[str, object]] = {}
-
-    def get(self, stage: str, key: str) -> object | None:
-        return self._entries.get(stage, {}).get(key)
-
-    def put(self, stage: str, key: str, value: object) -> None:
-        entries = self._entries.setdefault(stage, {})
-        entries.pop(key, None)
-        entries[key] = value
-        while len(entries) > self.size:
-            entries.pop(next(iter(entries)))
-
-
-#: The scene-file keys each stage reads (and, through its inputs, every earlier stage's).
-STAGE_KEYS = {
-    "sensors": ("extent", "surfaces", "sensors"),
-    "echoes": ("medium", "transducer", "echo"),
-    "detection": ("signal", "detection"),
-    "accumulation": ("cell", "mapping"),
-}
-
-
-def stage_keys(scene: Scene, device: str, skips: Skips) -> dict[str, str]:
-    """The cache key of each stage: a hash of the scene keys it and the stages before it
-    read (:data:`STAGE_KEYS`; ``post`` for :func:`post_process`), the device and the skips.
-    A noise-free run is the same run whatever its noise seed (:func:`_drawn_seeds`). No
-    front stage reads a post-processing setting."""
-    data = _drawn_seeds(scene_to_dict(scene))
-    keys: dict[str, str] = {}
-    seen: list[object] = [device, repr(skips)]
-    for stage, names in {**STAGE_KEYS, "post": ("post",)}.items():
-        seen += [data.get(n) for n in names]
-        keys[stage] = hashlib.sha256(json.dumps(seen, sort_keys=True).encode()).hexdigest()
-    return keys
-
-
-def _drawn_seeds(data: dict) -> dict:
-    """The scene file ``data`` without the noise seed of a noise-free signal, which draws
-    nothing (only ``random-lines`` and ``per-wall`` placements have seeds, and they draw
-    positions)."""
-    signal = data.get("signal") or {}
-    if signal.get("noise_std"):
-        return data
-    return {**data, "signal": {k: v for k, v in signal.items() if k != "seed"}}
 
 
 def run(scene: Scene, *, device: str | None = None, context=None, preset: str | None = None,
