@@ -377,3 +377,29 @@ def test_nearest_index_is_the_argmin_of_the_distances(values, queries, scale):
     v = np.asarray(values, dtype=np.float64) / scale
     q = np.asarray(queries, dtype=np.float64) / (2 * scale)
     np.testing.assert_array_equal(nearest_index(v, q), np.abs(q[:, None] - v[None]).argmin(axis=1))
+
+
+def _line_patch(u: list[float], bend: float, paths: float = 4.0):
+    """A straight patch along y = 2 (normal +y) with reflection points at ``u``."""
+    from clsonar.mapping.patches import Patch
+
+    k = len(u)
+    return Patch(params=np.array([math.pi / 2, 2.0, 0.0]), x0=np.zeros(2),
+                 u=np.asarray(u, dtype=float), lo=min(u) - 0.1, hi=max(u) + 0.1,
+                 loci=np.arange(k), bend=bend, tx=np.arange(k), rx=np.arange(k),
+                 T=np.zeros((k, 2)), R=np.zeros((k, 2)), paths=np.full(k, paths))
+
+
+def test_a_patch_is_not_drawn_across_a_gap_no_echo_came_from():
+    """drawn_spans: a patch whose curvature is unknown (two elements' echoes) is drawn
+    around its reflection points, not across the 1.4 m between them; one whose detections
+    show it straight, and gaps of 0.3 m beyond the trusted reach, are drawn whole."""
+    from clsonar.mapping.joins import JOIN_GAP_M, drawn_spans
+    from clsonar.mapping.patches import trusted_reach
+
+    unknown = _line_patch([0.0, 0.05, 1.45, 1.5], math.inf)
+    reach = trusted_reach(unknown)
+    assert drawn_spans(unknown) == [(-0.1, 0.05 + reach), (1.45 - reach, 1.6)]
+    assert drawn_spans(_line_patch([0.0, 0.05, 1.45, 1.5], 1e-6)) == [(-0.1, 1.6)]
+    near = _line_patch([0.0, 0.29 + 2 * reach], math.inf)
+    assert len(drawn_spans(near)) == 1 and 0.29 < JOIN_GAP_M

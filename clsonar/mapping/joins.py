@@ -23,7 +23,7 @@ from ..scene import Scene
 from ..sensors import SensorArray
 from .families import Family
 from .loci import Loci
-from .models import curve_paths, dot2, fit_curve
+from .models import curve_geometry, curve_paths, dot2, fit_curve
 from .patches import (
     STEP_CELLS,
     Patch,
@@ -34,6 +34,7 @@ from .patches import (
     heard_index,
     patch_of,
     spread_patch,
+    trusted_reach,
 )
 
 #: Plane patches whose normals differ by at most this are candidates for one line.
@@ -236,6 +237,24 @@ def merge_vertices(vertices: np.ndarray, weights: np.ndarray) -> np.ndarray:
     return np.asarray(kept).reshape(-1, 2)
 
 
+def drawn_spans(p: Patch) -> list[tuple[float, float]]:
+    """The stretches of ``p``'s span ``[lo, hi]`` that are drawn: all of it but the gaps
+    between consecutive reflection points that are wider than :data:`JOIN_GAP_M` beyond
+    the trusted reach of both (:func:`~.patches.trusted_reach`). No echo came from such a
+    gap, and the detections leave the surface there bent enough to leave the fitted line
+    or circle by more than :data:`~.patches.PATCH_BIAS_M` (a plane fitted to two
+    elements' echoes of a curved wall is a chord of it): the rule that joins separate
+    patches of one line only across :data:`JOIN_GAP_M`. A plane the detections show
+    straight (its bend small) is drawn whole."""
+    scale = 1.0 if p.straight else abs(float(curve_geometry(p.params, p.x0)[1]))
+    reach = trusted_reach(p)
+    u = np.sort(p.u)
+    wide = np.flatnonzero(np.diff(u) > JOIN_GAP_M / max(scale, 1e-12) + 2.0 * reach)
+    starts = np.r_[p.lo, u[wide + 1] - reach]
+    stops = np.r_[u[wide] + reach, p.hi]
+    return [(float(a), float(b)) for a, b in zip(starts, stops, strict=True)]
+
+
 def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
                   families: list[Family]) -> Patches:
     """The points and vertices of ``families``: patches spread over their regions of
@@ -253,7 +272,8 @@ def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
     patches = [clip_to_extent(p, scene.extent) for p in patches]
     vertices = merge_vertices(vertices, np.zeros(len(vertices)))
     step = STEP_CELLS * scene.cell
-    drawn = [draw_patch(p, step) for p in patches]
+    drawn = [draw_patch(replace(p, lo=a, hi=b), step) for p in patches
+             for a, b in drawn_spans(p)]
     pts = np.concatenate([d[0] for d in drawn]) if drawn else np.zeros((0, 2))
     src = np.concatenate([d[1] for d in drawn]) if drawn else np.zeros(0, np.int64)
     ends = np.cumsum([len(d[0]) for d in drawn]).astype(np.int64)
@@ -261,4 +281,4 @@ def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
 
 
 __all__ = ["JOIN_GAP_M", "MEET_M", "SAME_LINE_M", "SAME_LINE_RAD", "SAME_VERTEX_M",
-           "draw_families", "join_collinear", "meet", "merge_vertices"]
+           "draw_families", "drawn_spans", "join_collinear", "meet", "merge_vertices"]

@@ -285,7 +285,7 @@ def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard) -> 
     resolution = c * scene.transducer.pulse_sigma_s
     lo, hi = extents(p, sensors, cut_sin2, resolution)
     lo, hi = _clamp_to_silence(p, scene, sensors, heard, lo, hi)
-    reach = _trusted_reach(p)
+    reach = trusted_reach(p)
     return replace(p, lo=min(max(lo, p.lo - reach), p.lo), hi=max(min(hi, p.hi + reach), p.hi))
 
 
@@ -294,7 +294,7 @@ def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard) -> 
 PATCH_BIAS_M = 0.002
 
 
-def _trusted_reach(p: Patch) -> float:
+def trusted_reach(p: Patch) -> float:
     """How far beyond its reflection points (in its coordinate) a patch may go: where a
     curve bent by ``p.bend`` more than the fitted one leaves it by :data:`PATCH_BIAS_M`;
     with the bend unknown, as far as a surface of radius no less than the range stays
@@ -344,4 +344,5 @@ __all__ = [
     "nearest_index",
     "patch_of",
     "spread_patch",
+    "trusted_reach",
 ]
