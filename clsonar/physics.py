@@ -209,32 +209,37 @@ def wedge_angles(x: np.ndarray, v: np.ndarray, va: np.ndarray, vb: np.ndarray
     return np.where(phi < 0, phi + 2.0 * math.pi, phi), (2.0 * math.pi - alpha) / math.pi
 
 
-def edge_gain(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarray,
-              n: np.ndarray, k: float, coefficient: float) -> np.ndarray:
-    """Echo amplitude diffracted by a rigid convex edge relative to a flat mirror at the
-    same path length: the uniform theory of diffraction (Kouyoumjian & Pathak, Proc. IEEE
-    62(11), 1974) for a spherical wave, edge perpendicular to the scene's plane.
+def edge_diffraction(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarray,
+                     n: np.ndarray, k: float, coefficient: float) -> np.ndarray:
+    """Complex echo diffracted by a rigid convex edge relative to a flat mirror at the same
+    path length: the uniform theory of diffraction (Kouyoumjian & Pathak, Proc. IEEE
+    62(11), 1974, eqs. 25–27 and 32; time dependence e^{+iωt}) for a spherical wave, edge
+    perpendicular to the scene's plane.
 
-    The diffracted field is ``u_i·D·sqrt(d1/(d2·(d1 + d2)))`` against ``1/(d1 + d2)`` for
-    a mirror, so the ratio is ``|D|/sqrt(L)``, L = d1·d2/(d1 + d2). D (hard wedge, the
-    sum of its four terms) is ``−e^{−iπ/4}/(2n·sqrt(2πk))·Σ cot((π ± β)/(2n))·F(kL·a±(β))``
-    over β = φ_R ∓ φ_T; with ε the distance of π ± β from its nearest multiple of 2πn,
-    each term is ``2·sqrt(πkL)·q·(f(z) + i·g(z))``, q = cot(ε/2n)·|sin(ε/2)| and
-    z = 2|sin(ε/2)|·sqrt(kL/π) (:func:`fresnel_auxiliary`), so that
+    The diffracted field is ``u_i·D·sqrt(d1/(d2·(d1 + d2)))·e^{−ik·d2}`` against
+    ``e^{−ik(d1+d2)}/(d1 + d2)`` for a mirror, so the ratio is ``D/sqrt(L)``,
+    L = d1·d2/(d1 + d2). D (hard wedge, the sum of its four terms) is
+    ``−e^{−iπ/4}/(2n·sqrt(2πk))·Σ cot((π ± β)/(2n))·F(kL·a±(β))`` over β = φ_R ∓ φ_T,
+    F(X) = 2i·sqrt(X)·e^{iX}·∫_{sqrt X}^∞ e^{−iτ²} dτ. With ε the distance of π ± β from its
+    nearest multiple of 2πn, each term is ``2·sqrt(πkL)·q·(f(z) + i·g(z))``,
+    q = cot(ε/2n)·|sin(ε/2)| and z = 2|sin(ε/2)|·sqrt(kL/π) (:func:`fresnel_auxiliary`:
+    F = sqrt(2πX)·(f + i·g)), so that
 
-        gain = coefficient · |Σ q·(f + i·g)| / (n·sqrt(2)).
+        G = −coefficient · e^{−iπ/4} · Σ q·(f + i·g) / (n·sqrt(2)).
 
-    Far from the shadow and reflection boundaries this is Keller's geometrical theory of
-    diffraction (about 0.01 at 1 m for 50 kHz); at a boundary it is 1/2, half the mirror
-    echo that the face's specular reflection gives on its lit side. ``coefficient``
-    (scene key ``echo.edge_coefficient``, default 1) scales it. The phase of D is not kept
-    (an echo's amplitude is its envelope), and the 2-D scene's edges are infinitely long.
+    Far from the shadow and reflection boundaries |G| is Keller's geometrical theory of
+    diffraction (about 0.01 at 1 m for 50 kHz) and its phase −π/4 (or 3π/4, by the sign of
+    the cotangents). On a face's reflection boundary the singular term's q is ±n, f = g =
+    1/2 and G = ∓1/2, real: −1/2 on the lit side, where the face's specular echo (+1) adds
+    to it to half a mirror's, +1/2 on the shadow side, where it is the whole echo; so the
+    sign of G flips across the boundary and the total is continuous. ``coefficient``
+    (scene key ``echo.edge_coefficient``, default 1) scales it; the 2-D scene's edges are
+    infinitely long.
     """
     d1 = np.asarray(d1, dtype=np.float64)
     d2 = np.asarray(d2, dtype=np.float64)
     kl = k * d1 * d2 / (d1 + d2)
-    re = np.zeros(np.broadcast(d1, d2, phi_t, phi_r, n).shape)
-    im = np.zeros_like(re)
+    total = np.zeros(np.broadcast(d1, d2, phi_t, phi_r, n).shape, dtype=np.complex128)
     for sign_b in (-1.0, 1.0):
         beta = phi_r + sign_b * phi_t
         for x in (math.pi + beta, math.pi - beta):
@@ -244,9 +249,26 @@ def edge_gain(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarr
             tiny = np.abs(sn) < 1e-12
             q = np.where(tiny, n, np.cos(eps / (2.0 * n)) * half / np.where(tiny, 1.0, sn))
             f, g = fresnel_auxiliary(2.0 * half * np.sqrt(kl / math.pi))
-            re = re + q * f
-            im = im + q * g
-    return coefficient * np.hypot(re, im) / (n * math.sqrt(2.0))
+            total = total + q * (f + 1j * g)
+    return -coefficient * np.exp(-0.25j * math.pi) * total / (n * math.sqrt(2.0))
+
+
+def edge_gain(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarray,
+              n: np.ndarray, k: float, coefficient: float) -> np.ndarray:
+    """Echo amplitude diffracted by a rigid convex edge relative to a flat mirror at the
+    same path length, ``|G|`` of :func:`edge_diffraction` (Kouyoumjian & Pathak 1974):
+    Keller's GTD far from the boundaries, 1/2 on them. Its phase is :func:`edge_phase`."""
+    return np.abs(edge_diffraction(d1, d2, phi_t, phi_r, n, k, coefficient))
+
+
+def edge_phase(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarray,
+               n: np.ndarray, k: float) -> np.ndarray:
+    """The diffracted echo's carrier phase against a mirror's at the same path, radians in
+    (−π, π]: ``arg G`` of :func:`edge_diffraction` (time dependence e^{+iωt}), so that the
+    echo is ``|G|·env(u)·sin(ωu + arg G)`` where a mirror's is ``env(u)·sin(ωu)``
+    (:func:`pulse`; the narrow-band pulse's analytic signal times G). −π/4 or 3π/4 far from
+    the boundaries, 0 or π on a reflection boundary (π on its lit side)."""
+    return np.angle(edge_diffraction(d1, d2, phi_t, phi_r, n, k, 1.0))
 
 
 def absorption_factor(path_m: np.ndarray, absorption_db_per_m: float) -> np.ndarray:
@@ -255,24 +277,27 @@ def absorption_factor(path_m: np.ndarray, absorption_db_per_m: float) -> np.ndar
 
 
 def pulse(
-    t: np.ndarray, sigma_s: float, frequency_hz: float, amplitude: float
+    t: np.ndarray, sigma_s: float, frequency_hz: float, amplitude: float, phase: float = 0.0
 ) -> np.ndarray:
     """Transmitted pulse, thesis eq. 2.3, scaled so its largest sample magnitude is ``amplitude``.
 
-    ``p(t) = K·exp(−(t − 3σ)²/(2σ²))·sin(2π f t)`` for ``0 ≤ t ≤ 6σ``, else 0. ``K`` is the
-    normalisation that makes the peak of the envelope-times-carrier equal ``amplitude``
-    (5 units in the thesis); see :func:`pulse_normalisation`.
+    ``p(t) = K·exp(−(t − 3σ)²/(2σ²))·sin(2π f t + φ)`` for ``0 ≤ t ≤ 6σ``, else 0. ``K`` is
+    the normalisation that makes the peak of the envelope-times-carrier equal ``amplitude``
+    (5 units in the thesis); see :func:`pulse_normalisation`. ``phase`` φ shifts the carrier
+    under its envelope (an edge's diffraction, :func:`edge_phase`; 0 for the thesis' pulse).
     """
     t = np.asarray(t, dtype=np.float64)
     k = amplitude * pulse_normalisation(sigma_s, frequency_hz)
-    return pulse_shape(t, sigma_s, frequency_hz, k)
+    return pulse_shape(t, sigma_s, frequency_hz, k, phase)
 
 
-def pulse_shape(t: np.ndarray, sigma: float, frequency: float, k: float) -> np.ndarray:
-    """``K·exp(−(t − 3σ)²/(2σ²))·sin(2π f t)`` for ``0 ≤ t ≤ 6σ``, else 0: eq. 2.3 with a
-    given ``K``, in any unit of time (seconds and hertz, or samples and cycles per sample)."""
+def pulse_shape(t: np.ndarray, sigma: float, frequency: float, k: float,
+                phase: float = 0.0) -> np.ndarray:
+    """``K·exp(−(t − 3σ)²/(2σ²))·sin(2π f t + φ)`` for ``0 ≤ t ≤ 6σ``, else 0: eq. 2.3 with a
+    given ``K`` and carrier phase φ, in any unit of time (seconds and hertz, or samples and
+    cycles per sample)."""
     env = np.exp(-((t - 3.0 * sigma) ** 2) / (2.0 * sigma**2))
-    p = k * env * np.sin(2.0 * math.pi * frequency * t)
+    p = k * env * np.sin(2.0 * math.pi * frequency * t + phase)
     return np.where((t >= 0.0) & (t <= 6.0 * sigma), p, 0.0)
 
 

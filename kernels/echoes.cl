@@ -2,7 +2,8 @@
 // clsonar/echoes/reference.py and clsonar/physics.py). One work item per (surface element, pair):
 // get_global_id(0) is the element (wall sequence, diffractor, circle, curve interval) and
 // get_global_id(1) the pair. Each item writes one fixed output slot, pair·width + element:
-// time of flight, amplitude (0 = no echo) and the last reflection point before the receiver.
+// time of flight, amplitude (0 = no echo), the last reflection point before the receiver and
+// the carrier phase against a mirror's (radians; 0 but for an edge's diffraction).
 // The host keeps the slots with amplitude > 0. It launches a fixed work-group size and pads
 // dimension 0 to a multiple of it (PoCL compiles a kernel anew for every new work-group
 // size), so items with element ≥ width do nothing.
@@ -18,15 +19,17 @@
 #define OCCLUDER_ARGS \
     __global const real4 *occ, int n_occ, __global const real4 *circles, int n_circles
 #define OUTPUT_ARGS \
-    __global const real *k, __global real *tof, __global real *amp, __global real2 *point
+    __global const real *k, __global real *tof, __global real *amp, __global real2 *point, \
+    __global real *phase
 
 // Clear this work item's slot; return its index.
 inline size_t clear_slot(int width, __global real *tof, __global real *amp,
-                         __global real2 *point) {
+                         __global real2 *point, __global real *phase) {
     size_t slot = get_global_id(1) * (size_t)width + get_global_id(0);
     tof[slot] = R(0.0);
     amp[slot] = R(0.0);
     point[slot] = (real2)(R(0.0), R(0.0));
+    phase[slot] = R(0.0);
     return slot;
 }
 
@@ -46,7 +49,7 @@ __kernel void mirror_paths(PAIR_ARGS,
                            __global const int *two_sided, __global const int *seq,
                            OCCLUDER_ARGS, OUTPUT_ARGS) {
     if (get_global_id(0) >= (size_t)width) return;
-    size_t slot = clear_slot(width, tof, amp, point);
+    size_t slot = clear_slot(width, tof, amp, point, phase);
     int2 pr = pairs[get_global_id(1)];
     __global const int *s = seq + get_global_id(0) * MAX_ORDER;
     real2 T = pos[pr.x], R_ = pos[pr.y];
@@ -117,9 +120,10 @@ __kernel void mirror_paths(PAIR_ARGS,
 }
 
 // Write the echo T→V→R through the point V (a corner's vertex or a convex edge) whose
-// amplitude factor before the beams is `factor`, unless a beam or an occluder stops it.
+// amplitude factor before the beams is `factor` and carrier phase `ph`, unless a beam or an
+// occluder stops it.
 inline void emit_via_point(size_t slot, int2 pr, real2 T, real2 R_, real2 V, real factor,
-                           __global const real2 *axis, OCCLUDER_ARGS, OUTPUT_ARGS) {
+                           real ph, __global const real2 *axis, OCCLUDER_ARGS, OUTPUT_ARGS) {
     real path = norm2(V - T) + norm2(R_ - V);
     real a = k[K_AMPLITUDE] * beam(axis[pr.x], V - T, k) * beam(axis[pr.y], V - R_, k);
     a = a * factor * absorption(path, k);
@@ -130,6 +134,7 @@ inline void emit_via_point(size_t slot, int2 pr, real2 T, real2 R_, real2 V, rea
     tof[slot] = path * k[K_INV_C];
     amp[slot] = a;
     point[slot] = V;
+    phase[slot] = ph;
 }
 
 // ----------------------------------------------------------------------------------------
@@ -148,7 +153,7 @@ inline bool on_return_ray(real2 r, real2 image) {
 __kernel void vertex_paths(PAIR_ARGS, __global const real *corners, OCCLUDER_ARGS,
                            OUTPUT_ARGS) {
     if (get_global_id(0) >= (size_t)width) return;
-    size_t slot = clear_slot(width, tof, amp, point);
+    size_t slot = clear_slot(width, tof, amp, point, phase);
     int2 pr = pairs[get_global_id(1)];
     __global const real *cv = corners + 6 * get_global_id(0);
     real2 V = (real2)(cv[0], cv[1]);
@@ -164,15 +169,16 @@ __kernel void vertex_paths(PAIR_ARGS, __global const real *corners, OCCLUDER_ARG
     real2 image_ab = mirror(mirror(t, origin, na), origin, nb);
     real2 image_ba = mirror(mirror(t, origin, nb), origin, na);
     if (!(on_return_ray(r, image_ab) || on_return_ray(r, image_ba))) return;
-    emit_via_point(slot, pr, T, R_, V, k[K_RHO] * k[K_RHO], axis, occ, n_occ, circles,
-                   n_circles, k, tof, amp, point);
+    emit_via_point(slot, pr, T, R_, V, k[K_RHO] * k[K_RHO], R(0.0), axis, occ, n_occ, circles,
+                   n_circles, k, tof, amp, point, phase);
 }
 
 // ----------------------------------------------------------------------------------------
 // Diffraction at a convex edge V (a polyline vertex that a free side sees as convex): path
 // T→V→R, valid iff neither T nor R is strictly inside the solid cone (the convex angle
-// between the unit vectors va, vb to the neighbouring points). Amplitude factor
-// physics.edge_gain: the uniform theory of diffraction for a rigid wedge, no ρ.
+// between the unit vectors va, vb to the neighbouring points). Amplitude factor |G| and
+// carrier phase arg G of physics.edge_diffraction: the uniform theory of diffraction for a
+// rigid wedge, no ρ.
 inline bool in_solid_cone(real2 x, real2 v, real2 va, real2 vb) {
     real cab = cross2(va, vb);
     if (cab == R(0.0)) return false;
@@ -190,7 +196,8 @@ inline real wedge_angle(real2 x, real2 v, real2 va, real s) {
     return phi < R(0.0) ? phi + R(2.0) * M_PI_R : phi;
 }
 
-// One term q·(f(z) + i·g(z)) of the diffraction coefficient for π ± β (physics.edge_gain):
+// One term q·(f(z) + i·g(z)) of the diffraction coefficient for π ± β
+// (physics.edge_diffraction):
 // ε the distance of x from its nearest multiple of 2πn, f and g the Fresnel auxiliary
 // functions (A&S 7.3.32–33 below z = FRESNEL_SWITCH, from the host, the asymptotic series
 // 7.3.27–28 above).
@@ -212,13 +219,14 @@ inline real2 edge_term(real x, real n, real kl) {
     return (real2)(q * f, q * g);
 }
 
-// |D|/sqrt(L) of a hard wedge: |Σ of the four terms| / (n·sqrt 2), times edge_coefficient;
-// with echo.edge_model "estimate", coefficient·sqrt((d1+d2)/(d1·d2))/(2·sqrt(2πk)).
-inline real edge_gain(real2 T, real2 R_, real2 V, real2 va, real2 vb, real d1, real d2,
-                      __global const real *k) {
+// G = D/sqrt(L) of a hard wedge (physics.edge_diffraction, time dependence e^{+iωt}) as
+// (Re G, Im G): −e^{−iπ/4}·(Σ of the four terms)/(n·sqrt 2), times edge_coefficient; with
+// echo.edge_model "estimate", (coefficient·sqrt((d1+d2)/(d1·d2))/(2·sqrt(2πk)), 0).
+inline real2 edge_diffraction(real2 T, real2 R_, real2 V, real2 va, real2 vb, real d1,
+                              real d2, __global const real *k) {
     if (!(k[K_EDGE_UTD] > R(0.0)))
-        return k[K_EDGE] * sqrt((d1 + d2) / (d1 * d2))
-               / (R(2.0) * sqrt(R(2.0) * M_PI_R * k[K_WAVENUMBER]));
+        return (real2)(k[K_EDGE] * sqrt((d1 + d2) / (d1 * d2))
+                       / (R(2.0) * sqrt(R(2.0) * M_PI_R * k[K_WAVENUMBER])), R(0.0));
     real cab = cross2(va, vb);
     real s = cab >= R(0.0) ? R(1.0) : R(-1.0);
     real n = (R(2.0) * M_PI_R - atan2(fabs(cab), dot2(va, vb))) / M_PI_R;
@@ -226,13 +234,15 @@ inline real edge_gain(real2 T, real2 R_, real2 V, real2 va, real2 vb, real d1, r
     real kl = k[K_WAVENUMBER] * d1 * d2 / (d1 + d2);
     real2 sum = edge_term(M_PI_R + (pr - pt), n, kl) + edge_term(M_PI_R - (pr - pt), n, kl)
               + edge_term(M_PI_R + (pr + pt), n, kl) + edge_term(M_PI_R - (pr + pt), n, kl);
-    return k[K_EDGE] * norm2(sum) / (n * sqrt(R(2.0)));
+    // −e^{−iπ/4}·(x + iy) = (−(x + y) + i·(x − y))/sqrt 2
+    real scale = k[K_EDGE] / (R(2.0) * n);
+    return (real2)(-(sum.x + sum.y) * scale, (sum.x - sum.y) * scale);
 }
 
 __kernel void edge_paths(PAIR_ARGS, __global const real *diffractors, OCCLUDER_ARGS,
                          OUTPUT_ARGS) {
     if (get_global_id(0) >= (size_t)width) return;
-    size_t slot = clear_slot(width, tof, amp, point);
+    size_t slot = clear_slot(width, tof, amp, point, phase);
     int2 pr = pairs[get_global_id(1)];
     __global const real *dv = diffractors + 6 * get_global_id(0);
     real2 V = (real2)(dv[0], dv[1]);
@@ -243,8 +253,9 @@ __kernel void edge_paths(PAIR_ARGS, __global const real *diffractors, OCCLUDER_A
     real d1 = norm2(V - T);
     real d2 = norm2(R_ - V);
     if (!(d1 > R(EPS_M) && d2 > R(EPS_M))) return;
-    emit_via_point(slot, pr, T, R_, V, edge_gain(T, R_, V, va, vb, d1, d2, k), axis, occ,
-                   n_occ, circles, n_circles, k, tof, amp, point);
+    real2 g = edge_diffraction(T, R_, V, va, vb, d1, d2, k);
+    emit_via_point(slot, pr, T, R_, V, norm2(g), atan2(g.y, g.x), axis, occ, n_occ, circles,
+                   n_circles, k, tof, amp, point, phase);
 }
 
 // ----------------------------------------------------------------------------------------
@@ -262,7 +273,7 @@ inline real circle_residual(real2 a, real2 b, real r, real2 n) {
 
 __kernel void circle_paths(PAIR_ARGS, OCCLUDER_ARGS, OUTPUT_ARGS) {
     if (get_global_id(0) >= (size_t)width) return;
-    size_t slot = clear_slot(width, tof, amp, point);
+    size_t slot = clear_slot(width, tof, amp, point, phase);
     int ci = get_global_id(0);
     int2 pr = pairs[get_global_id(1)];
     real4 c = circles[ci];
@@ -349,7 +360,7 @@ __kernel void curve_paths(PAIR_ARGS, __global const real *curves,
                           __global const int2 *interval_skip, __global const int *interval_last,
                           OCCLUDER_ARGS, OUTPUT_ARGS) {
     if (get_global_id(0) >= (size_t)width) return;
-    size_t slot = clear_slot(width, tof, amp, point);
+    size_t slot = clear_slot(width, tof, amp, point, phase);
     int iv = get_global_id(0);
     int2 pr = pairs[get_global_id(1)];
     __global const real *cv = curves + 7 * interval_curve[iv];

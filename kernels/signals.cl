@@ -3,9 +3,10 @@
 //
 // The A-scan of a fired pair (T, R), sample n at time n/fs:
 //
-//     s[n] = Σ_e A_e·K·exp(−(u − 3σ)²/(2σ²))·sin(2π·(f/fs)·u) + noise·N(0,1)[T, R, n]
+//     s[n] = Σ_e A_e·K·exp(−(u − 3σ)²/(2σ²))·sin(2π·(f/fs)·u + φ_e) + noise·N(0,1)[T, R, n]
 //
-// with u = n − τ_e·fs the sample's time after echo e's arrival (0 ≤ u ≤ 6σ, in samples) and
+// with φ_e the echo's carrier phase (0 but for an edge's diffraction; ea[e] = (A_e·K, φ_e)),
+// u = n − τ_e·fs the sample's time after echo e's arrival (0 ≤ u ≤ 6σ, in samples) and
 // s[n] = 0 for n < 0. Each echo arrives as its integer sample ek = floor(τ·fs) and the
 // fraction ef = τ·fs − ek, so u = (n − ek) − ef is exact in float32 however long the window.
 // The noise is counter-based: one Philox4x32-10 call (pyopencl's random123 header) with key
@@ -145,7 +146,7 @@ inline void scan_init(scan_state *st, __global const int *ek, int4 pr, int n,
 // in increasing order. Each sample sums only the echoes whose pulse covers it.
 inline void signal8(scan_state *st, int group, int4 pr, uint k0, uint k1, signal_consts kc,
                     __global const int *ek, __global const real *ef,
-                    __global const real *ea, real s[8]) {
+                    __global const real2 *ea, real s[8]) {
     if (group < 0) {
         for (int i = 0; i < 8; ++i) s[i] = R(0.0);
         return;
@@ -169,7 +170,7 @@ inline void signal8(scan_state *st, int group, int4 pr, uint k0, uint k1, signal
             if (u >= R(0.0) && u <= KC_PULSE(kc)) {
                 real d = u - centre;
                 real env = exp(-(d * d) / two_s2);
-                s[i] += ea[e] * env * sin(R(TWO_PI) * (KC_RATIO(kc) * u));
+                s[i] += ea[e].x * env * sin(R(TWO_PI) * (KC_RATIO(kc) * u) + ea[e].y);
             }
         }
     }
@@ -192,7 +193,7 @@ __kernel void philox_normals(uint k0, uint k1, uint tx, uint rx, uint block0, in
 
 // Samples [0, n_samples) of every pair slot into out[slot·n_samples + n].
 __kernel void a_scans(__global const int4 *pairs, int n_slots, __global const int *ek,
-                      __global const real *ef, __global const real *ea, uint k0, uint k1,
+                      __global const real *ef, __global const real2 *ea, uint k0, uint k1,
                       signal_consts kc, int n_samples, int chunk, int n_chunks,
                       __global real *out) {
     int item = get_global_id(0);
@@ -238,7 +239,7 @@ inline bool item_of(__global const int2 *items, int n_items, int n_slots, int n_
 // at its first crossing (only the pair's first crossing counts); the host applies that rule
 // and the hold-off across chunks.
 __kernel void threshold_scan(__global const int4 *pairs, int n_slots, __global const int *ek,
-                             __global const real *ef, __global const real *ea, uint k0,
+                             __global const real *ef, __global const real2 *ea, uint k0,
                              uint k1, signal_consts kc, real thr, int n_samples, int chunk,
                              int n_chunks, int capacity, __global int *count,
                              __global int *cand_n, __global real *cand_v,
@@ -289,7 +290,7 @@ __kernel void threshold_scan(__global const int4 *pairs, int n_slots, __global c
 // the item's outputs j.
 inline void envelope_core(int mode, __global const int4 *pairs, int n_slots,
                           __global const int *ek, __global const real *ef,
-                          __global const real *ea, uint k0, uint k1, signal_consts kc,
+                          __global const real2 *ea, uint k0, uint k1, signal_consts kc,
                           real calib2, int n_env, int chunk, int n_chunks,
                           __global const real *floor_, int capacity, __global int *count,
                           __global int *cand_n, __global real4 *cand_v, __global int *hist,
@@ -405,7 +406,7 @@ inline void envelope_core(int mode, __global const int4 *pairs, int n_slots,
 }
 
 __kernel void envelope_scan(__global const int4 *pairs, int n_slots, __global const int *ek,
-                            __global const real *ef, __global const real *ea, uint k0,
+                            __global const real *ef, __global const real2 *ea, uint k0,
                             uint k1, signal_consts kc, real calib2, int n_env, int chunk,
                             int n_chunks, __global const real *floor_, int capacity,
                             __global int *count, __global int *cand_n,
@@ -418,7 +419,7 @@ __kernel void envelope_scan(__global const int4 *pairs, int n_slots, __global co
 }
 
 __kernel void envelope_samples(__global const int4 *pairs, int n_slots, __global const int *ek,
-                               __global const real *ef, __global const real *ea, uint k0,
+                               __global const real *ef, __global const real2 *ea, uint k0,
                                uint k1, signal_consts kc, real calib2, int chunk, int n_chunks,
                                int dec, int offset, int n_out, __global real *out,
                                __global const real2 *demod) {

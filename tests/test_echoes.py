@@ -119,6 +119,10 @@ def match_tables(ref, other, *, n_circles: int, tof_tol: float, amp_rtol: float,
         rtol = amp_rtol + position_error_m / max(path, 1e-12)
         if abs(other.amplitude[j] - ref.amplitude[i]) > rtol * ref.amplitude[i]:
             problems.append(f"{key}: amplitude {other.amplitude[j]} vs {ref.amplitude[i]}")
+        # the carrier phase (an edge's diffraction) as the complex amplitude A·e^{iφ}
+        turn = abs(np.exp(1j * other.phase[j]) - np.exp(1j * ref.phase[i]))
+        if turn > rtol:
+            problems.append(f"{key}: phase {other.phase[j]} vs {ref.phase[i]}")
     for j in np.flatnonzero(~used):
         if other.amplitude[j] >= loose_below:
             problems.append(f"extra {rows(other)[j]} amp={other.amplitude[j]:.4g}")
@@ -446,6 +450,11 @@ def test_convex_edge_returns_a_diffraction_echo_from_its_vertex(implementation, 
     gain = (physics.edge_gain(d, d, phi, phi, 1.5, k, 1.0) if edge_model == "utd"
             else physics.edge_gain_estimate(d, d, k, 1.0))
     assert table.amplitude[i] == pytest.approx(t.amplitude * b * b * gain, rel=1e-5)
+    # the uniform theory's phase far from the boundaries: Keller's −π/4 (the estimate: none)
+    phase = physics.edge_phase(d, d, phi, phi, 1.5, k) if edge_model == "utd" else 0.0
+    assert table.phase[i] == pytest.approx(phase, abs=1e-5)
+    assert edge_model == "estimate" or table.phase[i] == pytest.approx(-math.pi / 4, abs=0.02)
+    assert np.all(table.phase[table.kind_names() != "edge"] == 0.0)
 
 
 # --------------------------------------------------------------------------- sinusoids
@@ -691,5 +700,6 @@ def test_skipping_pairs_out_of_view_leaves_the_table_unchanged():
     skipped = compute_echoes(scene, context=get_context(), stats=stats)
     full = compute_echoes(scene, context=get_context(), skip_empty_pairs=False)
     assert stats["pairs_skipped_empty"] > 400 and stats["echo_families_run"] == 1
-    for column in ("tx", "rx", "tof_s", "amplitude", "kind", "order", "point", "element"):
+    for column in ("tx", "rx", "tof_s", "amplitude", "kind", "order", "point", "element",
+                   "phase"):
         assert np.array_equal(getattr(skipped, column), getattr(full, column)), column

@@ -61,6 +61,26 @@ def test_curved_gain_is_one_for_a_plane_and_below_one_for_a_cylinder():
     assert physics.curved_gain(1.0, 1.0, -1.0, 1.0) == pytest.approx(physics.MAX_FOCUS_GAIN)
 
 
+def test_edge_diffraction_changes_sign_across_a_reflection_boundary():
+    """Kouyoumjian & Pathak 1974: on a face's reflection boundary the diffracted field is
+    half the reflected one, −1/2 on the lit side (where the face's mirror echo, +1, makes
+    the total 1/2) and +1/2 on the shadow side; far from the boundaries its phase is
+    Keller's −π/4 (e^{+iωt}), and edge_gain and edge_phase are its modulus and argument."""
+    k = physics.wavenumber(50e3, 343.4)
+    n = 1.5  # a box corner; face a's reflection boundary for T = R is φ = 90°
+    lit, dark = (complex(physics.edge_diffraction(2.0, 2.0, math.radians(p), math.radians(p),
+                                                  n, k, 1.0)) for p in (89.999, 90.001))
+    assert lit == pytest.approx(-0.5, abs=0.01)
+    assert dark == pytest.approx(0.5, abs=0.01)
+    far = physics.edge_diffraction(1.0, 1.0, math.radians(135.0), math.radians(135.0), n, k,
+                                   2.0)
+    assert np.angle(far) == pytest.approx(-math.pi / 4, abs=0.01)
+    assert abs(far) == pytest.approx(physics.edge_gain(1.0, 1.0, math.radians(135.0),
+                                                       math.radians(135.0), n, k, 2.0))
+    assert physics.edge_phase(1.0, 1.0, math.radians(135.0), math.radians(135.0), n, k) \
+        == pytest.approx(float(np.angle(far)))
+
+
 def test_edge_gain_is_kellers_far_from_the_boundaries_and_half_a_mirror_on_them():
     k = physics.wavenumber(50e3, 343.4)
     n, phi = 1.5, math.radians(135.0)  # a box corner seen along its diagonal, from 1 m

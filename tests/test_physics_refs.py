@@ -3,6 +3,7 @@ clsonar/tools/references.py (issue 18): within 1 dB wherever the model applies."
 
 import math
 
+import numpy as np
 import pytest
 
 from clsonar.survey import DEFAULT_MIN_ENVELOPE, OPEN_MIN_ENVELOPE
@@ -12,7 +13,8 @@ from clsonar.tools import physics_check as pc
 RANGES = (0.3, 2.0, 10.0)
 
 
-@pytest.mark.parametrize("kind", ["plane", "corner", "edge", "cylinder", "sinusoid"])
+@pytest.mark.parametrize("kind", ["plane", "corner", "edge", "boundary", "cylinder",
+                                  "sinusoid"])
 def test_echo_amplitudes_are_within_1_db_of_the_exact_references(kind):
     rows = list(pc.KINDS[kind](ranges=RANGES + ((1.0, 1.5) if kind == "sinusoid" else ())))
     held = [r for r in rows if not r.note]
@@ -25,6 +27,35 @@ def test_the_edges_estimate_misses_the_reflection_boundaries_by_tens_of_db():
     # why echo.edge_model "utd" exists: the estimate has no angular factor
     near = [r for r in pc.edge_rows(ranges=(2.0,), angles=(89.0, 91.0), edge_model="estimate")]
     assert all(r.db < -20.0 for r in near)
+
+
+def test_face_and_edge_sum_as_the_exact_wedge_does_across_a_reflection_boundary():
+    """Issue 18: within 3° of a face's reflection boundary the face's specular echo and the
+    edge's diffraction arrive together; with the diffraction's phase (physics.edge_phase:
+    π on the lit side, 0 on the shadow side) the received total falls smoothly from a
+    mirror's to half of it on the boundary and on into the shadow, as the exact wedge's
+    (image source + BTM) does, within 1 dB, through the kernels too. Adding the two
+    echoes' envelopes instead would read 1.4 on the lit side of the boundary."""
+    from clsonar import signals
+    from clsonar.echoes import compute_echoes
+    from clsonar.opencl import get_context
+
+    rows = list(pc.boundary_rows(ranges=(0.3, 1.0, 4.0), angles=(88.0, 89.7, 90.3, 92.0)))
+    assert max(abs(r.db) for r in rows) <= 1.0, rows
+    lit, dark = (next(r for r in rows if r.range_m == 1.0 and r.case == f"φ {a}°")
+                 for a in ("89.7", "90.3"))
+    assert 0.4 < dark.model < 0.5 < lit.model < 0.6  # about half a mirror's either side
+    t = pc._polar(1.0, 180.0 - 89.7)
+    scene = pc._scene([{"type": "polyline", "points": [[-10.0, 0.0], [0.0, 0.0],
+                                                       [0.0, -10.0]]}],
+                      [(t, np.zeros(2))], open_floor=True)
+    echoes = compute_echoes(scene, context=get_context())
+    assert sorted(echoes.kind_names()) == ["edge", "specular"]
+    assert sum(echoes.amplitude) / scene.transducer.amplitude > 1.4  # the envelopes' sum
+    found = signals.detect(scene, None, echoes, context=get_context())
+    assert len(found) == 1
+    assert found.amplitude[0] / scene.transducer.amplitude == pytest.approx(lit.reference,
+                                                                            rel=0.01)
 
 
 def test_past_the_caustic_the_rows_say_why_they_are_not_held():

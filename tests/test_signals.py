@@ -39,8 +39,9 @@ def sensors(n: int, groups=None) -> SensorArray:
 
 
 def table(rows) -> EchoTable:
-    """An echo table from (tx, rx, tof_s, amplitude) rows (sorted as the engine sorts it)."""
-    rows = sorted(rows)
+    """An echo table from (tx, rx, tof_s, amplitude[, phase]) rows (sorted as the engine
+    sorts it; phase 0 where a row has none)."""
+    rows = sorted(tuple(r) + (0.0,) * (5 - len(r)) for r in rows)
     n = len(rows)
 
     def col(i, dtype):
@@ -48,7 +49,7 @@ def table(rows) -> EchoTable:
 
     return EchoTable(col(0, np.int64), col(1, np.int64), col(2, float), col(3, float),
                      np.zeros(n, np.int8), np.ones(n, np.int8), np.zeros((n, 2)),
-                     np.arange(n, dtype=np.int64))
+                     np.arange(n, dtype=np.int64), col(4, float))
 
 
 def scene(mode="envelope", noise=0.0, *, seed=1, threshold=4.0, size=1.0, **detection) -> Scene:
@@ -234,6 +235,32 @@ def test_envelope_peaks_within_a_pulse_length_merge_to_the_stronger():
         np.testing.assert_allclose(d.tof_s[1:], [2.0e-3, 2.4e-3], atol=2e-6)
 
 
+def test_an_echo_s_carrier_phase_shifts_its_carrier_not_its_envelope():
+    """A lone echo reads the same amplitude and time whatever its carrier phase; two echoes
+    arriving together interfere by their phases (an edge's diffraction against its face's
+    specular echo, physics.edge_phase): in phase they add, in antiphase they subtract."""
+    t = np.arange(0, 2e-3, 1 / FS)
+    f = scene().transducer.frequency_hz
+    np.testing.assert_allclose(physics.pulse(t - 1e-3, SIGMA, f, 1.0, math.pi),
+                               -physics.pulse(t - 1e-3, SIGMA, f, 1.0), atol=1e-12)
+    lone = [table([(0, 1, 1.0e-3, 3.0, phase)]) for phase in (0.0, 2.0, -math.pi)]
+    both = {name: table([(0, 1, 1.0e-3, 3.0), (0, 1, 1.0e-3, 1.0, phase)])
+            for name, phase in (("in phase", 0.0), ("antiphase", math.pi),
+                                ("quadrature", 0.5 * math.pi))}
+    want = {"in phase": 4.0, "antiphase": 2.0, "quadrature": math.hypot(3.0, 1.0)}
+    for detect in (sig.detect_reference,
+                   functools.partial(sig.detect, context=context())):
+        for ech in lone:
+            d = detect(scene(), sensors(2), ech)
+            assert len(d) == 1
+            assert d.amplitude[0] == pytest.approx(3.0, rel=0.01)
+            assert d.tof_s[0] == pytest.approx(1.0e-3, abs=2e-6)
+        for name, ech in both.items():
+            d = detect(scene(), sensors(2), ech)
+            assert len(d) == 1
+            assert d.amplitude[0] == pytest.approx(want[name], rel=0.01), name
+
+
 # --------------------------------------------------------------------------- kernel vs reference
 
 
@@ -249,7 +276,8 @@ def cases(draw):
             for _ in range(draw(st.integers(0, 3))):
                 tof = draw(st.floats(0.1e-3, window))
                 amp = draw(st.floats(0.3, 8.0))
-                echo_rows.append((tx, rx, tof, amp))
+                phase = draw(st.sampled_from([0.0, math.pi]) | st.floats(-math.pi, math.pi))
+                echo_rows.append((tx, rx, tof, amp, phase))
     seed = draw(st.integers(0, 2**63 - 1))
     chunk = draw(st.sampled_from([None, 257, 1000, 3000]))
     capacity = draw(st.sampled_from([None, 1, 3]))

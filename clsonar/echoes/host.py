@@ -95,7 +95,7 @@ def compute_echoes(scene: Scene, sensors: SensorArray | None = None, *, context=
 class _Launcher:
     """The buffers and kernels of one :class:`EchoProblem` on one context; called with a
     family and a chunk of pairs, it runs that family's kernel and returns its outputs
-    ``(tof, amp, point)`` [pairs, elements] (see :func:`~clsonar.echoes.table.solve`)."""
+    ``(tof, amp, point, phase)`` [pairs, elements] (see :func:`~clsonar.echoes.table.solve`)."""
 
     def __init__(self, ctx, pb: EchoProblem, precision: str) -> None:
         import pyopencl as cl
@@ -137,7 +137,7 @@ class _Launcher:
             }[family]()
         return self.args[family]
 
-    def __call__(self, family: str, chunk: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def __call__(self, family: str, chunk: slice) -> tuple[np.ndarray, ...]:
         cl, ctx, queue, shared = self.cl, self.ctx, self.queue, self.shared
         width = self.pb.widths[family]
         args = self.family_args(family)
@@ -146,14 +146,16 @@ class _Launcher:
         tof = np.empty((n, width), dtype=self.real)
         amp = np.empty((n, width), dtype=self.real)
         point = np.empty((n, width, 2), dtype=self.real)
-        out = [cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, a.nbytes) for a in (tof, amp, point)]
+        phase = np.empty((n, width), dtype=self.real)
+        hosts = (tof, amp, point, phase)
+        out = [cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, a.nbytes) for a in hosts]
         group = work_group(self.kernels[family], ctx.devices[0], WORK_GROUP)
         padded = -(-width // group) * group
         self.kernels[family](queue, (padded, n), (group, 1), np.int32(width), pr,
                              shared["pos"], shared["axis"], *args, shared["occ"],
                              shared["n_occ"], shared["circles"], shared["n_circles"],
                              shared["k"], *out)
-        for host, dev in zip((tof, amp, point), out, strict=True):
+        for host, dev in zip(hosts, out, strict=True):
             cl.enqueue_copy(queue, host, dev)
         queue.finish()
-        return tof, amp, point
+        return hosts

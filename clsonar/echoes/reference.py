@@ -24,7 +24,13 @@ def reference_echoes(scene: Scene, sensors: SensorArray | None = None) -> EchoTa
     families = {"mirror": _ref_mirror, "vertex": _ref_vertex, "edge": _ref_edge,
                 "circle": _ref_circle, "curve": _ref_curve}
     with np.errstate(divide="ignore", invalid="ignore"):
-        return solve(pb, lambda family, chunk: families[family](pb, pb.pairs[chunk]))
+        return solve(pb, lambda family, chunk: _with_phase(families[family](pb, pb.pairs[chunk])))
+
+
+def _with_phase(out: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """A family's ``(tof, amp, point[, phase])`` with the carrier phase, 0 where the family
+    gives none (every reflection: only an edge's diffraction shifts the carrier)."""
+    return out if len(out) == 4 else (*out, np.zeros_like(out[1]))
 
 
 def _ref_beam(pb: EchoProblem, axis: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -238,7 +244,8 @@ def _ref_in_solid_cone(x: np.ndarray, v: np.ndarray, va: np.ndarray, vb: np.ndar
 
 
 def _ref_edge(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Diffraction at convex edges (kernel ``edge_paths``)."""
+    """Diffraction at convex edges (kernel ``edge_paths``): times of flight, amplitudes
+    (|G| of physics.edge_diffraction), vertices and carrier phases (arg G)."""
     V = pb.diffractors[None, :, :2]
     va, vb = pb.diffractors[None, :, 2:4], pb.diffractors[None, :, 4:6]
     T = pb.positions[pr[:, 0]][:, None, :]
@@ -254,9 +261,12 @@ def _ref_edge(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
     if pb.edge_utd:
         phi_t, n = physics.wedge_angles(T, V, va, vb)
         phi_r, _ = physics.wedge_angles(R, V, va, vb)
-        gain = physics.edge_gain(d1, d2, phi_t, phi_r, n, pb.wavenumber, pb.edge_coefficient)
+        g = physics.edge_diffraction(d1, d2, phi_t, phi_r, n, pb.wavenumber,
+                                     pb.edge_coefficient)
+        gain, phase = np.abs(g), np.angle(g)
     else:
         gain = physics.edge_gain_estimate(d1, d2, pb.wavenumber, pb.edge_coefficient)
+        phase = np.zeros_like(gain)
     amp = amp * gain
     amp = amp * physics.absorption_factor(path, pb.absorption_db_per_m)
     amp = np.where(valid, amp, 0.0)
@@ -264,7 +274,7 @@ def _ref_edge(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
     tb = np.broadcast_to(T, (*amp.shape, 2))
     rb = np.broadcast_to(R, (*amp.shape, 2))
     _unblock(pb, amp, lambda ix: [(tb[ix], vb_[ix], True, {}), (vb_[ix], rb[ix], True, {})])
-    return path / pb.c, amp, vb_
+    return path / pb.c, amp, vb_, np.where(amp > 0, phase, 0.0)
 
 
 def _circle_residual(a, b, r, n):

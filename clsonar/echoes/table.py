@@ -28,7 +28,13 @@ class EchoTable:
     ``geometry.corners``, for ``edge`` the row of ``geometry.diffractors``, for ``curved``
     the circle index, or ``len(circles)`` + the index of the sinusoid's sampling interval.
     ``point`` is the last reflection point before the receiver (the vertex for corner-vertex
-    and edge paths), in scene coordinates.
+    and edge paths), in scene coordinates. ``phase`` is the echo's carrier phase against a
+    mirror's at the same path (radians in (−π, π]; the pulse is ``amplitude·env(u)·sin(ωu +
+    phase)``, physics.pulse): 0 for every reflection, ``arg G`` of
+    :func:`~clsonar.physics.edge_diffraction` for an edge's diffraction under
+    ``echo.edge_model`` ``"utd"`` (π on the lit side of a face's reflection boundary, where
+    the edge's echo cancels half the face's, 0 on its shadow side, −π/4 or 3π/4 far from
+    the boundaries).
     """
 
     tx: np.ndarray  # int64 index into SensorArray
@@ -39,6 +45,7 @@ class EchoTable:
     order: np.ndarray  # int8 number of reflections
     point: np.ndarray  # [n, 2] float64
     element: np.ndarray  # int64
+    phase: np.ndarray  # float64 radians, carrier phase against a mirror's
 
     def __len__(self) -> int:
         return len(self.tof_s)
@@ -64,7 +71,7 @@ def _pair_chunks(n_pairs: int, width: int) -> Iterator[slice]:
 
 
 def _rows(pb: EchoProblem, family: str, first_pair: int, tof: np.ndarray, amp: np.ndarray,
-          point: np.ndarray) -> dict[str, np.ndarray]:
+          point: np.ndarray, phase: np.ndarray) -> dict[str, np.ndarray]:
     """The echoes (amplitude > 0) among one launch's [pairs, elements] output slots."""
     p, e = np.nonzero(amp > 0)
     pair = pb.pairs[first_pair + p]
@@ -86,6 +93,7 @@ def _rows(pb: EchoProblem, family: str, first_pair: int, tof: np.ndarray, amp: n
         "tof_s": tof[p, e].astype(np.float64), "amplitude": amp[p, e].astype(np.float64),
         "kind": kind.astype(np.int8), "order": order.astype(np.int8),
         "point": point[p, e].astype(np.float64) + pb.origin, "element": element.astype(np.int64),
+        "phase": phase[p, e].astype(np.float64),
     }
 
 
@@ -94,7 +102,7 @@ def _table(parts: list[dict[str, np.ndarray]]) -> EchoTable:
     if not parts:
         return EchoTable(np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0),
                          np.zeros(0, np.int8), np.zeros(0, np.int8), np.zeros((0, 2)),
-                         np.zeros(0, np.int64))
+                         np.zeros(0, np.int64), np.zeros(0))
     cols = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     idx = np.lexsort((cols["element"], cols["kind"], cols["tof_s"], cols["rx"], cols["tx"]))
     return EchoTable(**{k: v[idx] for k, v in cols.items()})
@@ -106,6 +114,5 @@ def solve(pb: EchoProblem, run: Callable[[str, slice], tuple]) -> EchoTable:
                 if width and len(pb.pairs) for chunk in _pair_chunks(len(pb.pairs), width)]
     parts = []
     for family, chunk in steps.each("launches", launches):
-        tof, amp, point = run(family, chunk)
-        parts.append(_rows(pb, family, chunk.start, tof, amp, point))
+        parts.append(_rows(pb, family, chunk.start, *run(family, chunk)))
     return _table(parts)

@@ -104,7 +104,7 @@ class Runner:
         self.work_group = work_group
         self.ek = read_only_buffer(context, pe.ek, np.int32)
         self.ef = read_only_buffer(context, pe.ef, self.real)
-        self.ea = read_only_buffer(context, pe.ea, self.real)
+        self.ea = read_only_buffer(context, pe.ea, self.real, 2)
         table = np.zeros((len(pe.pairs), 4), dtype=np.int32)
         if len(pe.pairs):
             table[:, :2] = pe.pairs
@@ -378,7 +378,9 @@ def _detect(model: SignalModel, pe: PairEchoes, run: Runner, capacity: int | Non
         # the same local maxima, now only those above the final threshold (a hair lower, so
         # float32 rounding of thr² cannot drop one the host keeps)
         floor2 = thresholds * (1.0 - 1e-6)
-        _, extra, _ = run.scan(slots[over], int(counts[over].max()), floor2, histogram=False)
+        # at least one place each: a pair may be scanned again with no candidate at all
+        room = max(1, int(counts[over].max()))
+        _, extra, _ = run.scan(slots[over], room, floor2, histogram=False)
         cand = merge_candidates(cand, extra, slots[over])
     return finish_envelope(model, pe, cand, thresholds)
 

@@ -28,9 +28,10 @@ class PairEchoes:
     hi: np.ndarray  # [P] int64
     ek: np.ndarray  # [E] int64 floor(τ·fs)
     ef: np.ndarray  # [E] float64 τ·fs − ek
-    ea: np.ndarray  # [E] float64 A·K
+    ea: np.ndarray  # [E, 2] float64 (A·K, carrier phase φ), the kernels' real2
     tof: np.ndarray  # [E] float64 τ (s)
     amp: np.ndarray  # [E] float64 A
+    phase: np.ndarray  # [E] float64 φ (rad): the pulse is A·p(t − τ) with its carrier + φ
 
 
 def pair_echoes(model: SignalModel, sensors: SensorArray, echoes: EchoTable,
@@ -41,10 +42,13 @@ def pair_echoes(model: SignalModel, sensors: SensorArray, echoes: EchoTable,
     n_sensors = 1 + max([len(sensors), *(int(a.max()) for a in (pr, tx, rx) if a.size)])
     tof = np.asarray(echoes.tof_s, np.float64)
     amp = np.asarray(echoes.amplitude, np.float64)
+    phase = np.asarray(echoes.phase, np.float64)
     order = np.lexsort((tof, rx, tx))
-    tx, rx, tof, amp = tx[order], rx[order], tof[order], amp[order]
-    if np.any(~np.isfinite(tof)) or np.any(tof < 0) or np.any(~np.isfinite(amp)):
-        raise ValueError("echo times of flight must be finite and ≥ 0, amplitudes finite")
+    tx, rx, tof, amp, phase = tx[order], rx[order], tof[order], amp[order], phase[order]
+    if (np.any(~np.isfinite(tof)) or np.any(tof < 0) or np.any(~np.isfinite(amp))
+            or np.any(~np.isfinite(phase))):
+        raise ValueError("echo times of flight must be finite and ≥ 0, amplitudes and "
+                         "phases finite")
     ekey = tx * n_sensors + rx
     pkey = pr[:, 0] * n_sensors + pr[:, 1]
     lo, hi = _echo_ranges(ekey, pkey)
@@ -52,7 +56,8 @@ def pair_echoes(model: SignalModel, sensors: SensorArray, echoes: EchoTable,
     ek = np.floor(x)
     if len(ek) and ek.max() > 2**31 - 2**24:
         raise ValueError("an echo arrives too late for the sample index range")
-    return PairEchoes(pr, lo, hi, ek.astype(np.int64), x - ek, amp * model.k_norm, tof, amp)
+    ea = np.stack([amp * model.k_norm, phase], axis=-1)
+    return PairEchoes(pr, lo, hi, ek.astype(np.int64), x - ek, ea, tof, amp, phase)
 
 
 def _echo_ranges(ekey: np.ndarray, pkey: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -81,7 +86,8 @@ def inputs(scene: Scene, sensors: SensorArray | None, echoes: EchoTable,
 
 def reference_signal(model: SignalModel, pe: PairEchoes, slot: int,
                      n_total: int) -> np.ndarray:
-    """s[n], n in [0, n_total), of pair slot ``slot`` in float64 (physics.pulse, eq. 2.3)."""
+    """s[n], n in [0, n_total), of pair slot ``slot`` in float64 (physics.pulse, eq. 2.3,
+    each echo's carrier shifted by its phase)."""
     tx, rx = (int(v) for v in pe.pairs[slot])
     if model.noise_std > 0:
         s = model.noise_std * noise(model.seed, tx, rx, n_total)
@@ -96,7 +102,7 @@ def reference_signal(model: SignalModel, pe: PairEchoes, slot: int,
             break
         n = np.arange(k, min(n_total, k + reach))
         u = (n - k) - pe.ef[e]
-        s[n] += pe.amp[e] * physics.pulse(u / model.fs, sigma_s, f, 1.0)
+        s[n] += pe.amp[e] * physics.pulse(u / model.fs, sigma_s, f, 1.0, pe.phase[e])
     return s
 
 

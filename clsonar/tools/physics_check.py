@@ -10,6 +10,11 @@ amplitude of the echo of that kind compared with the reference of
 - ``corner``: the image method's double bounce of a rigid right-angled corner, which is the
   exact solution of a 90° wedge (its diffraction terms cancel, ν = 2);
 - ``edge``: the Biot–Tolstoy–Medwin solution of a rigid 90° box corner, for the pulse;
+- ``boundary``: the same box corner seen within 3° of a face's reflection boundary, where
+  the face's specular echo and the edge's diffraction arrive together and interfere:
+  clsonar's received signal (both echoes, each with its carrier phase, detected) against
+  the face's image source and the BTM diffraction summed for the pulse
+  (:func:`~clsonar.tools.references.wedge_echo_gain`);
 - ``cylinder``: the eigenfunction series of a rigid cylinder, for the pulse;
 - ``sinusoid``: the Kirchhoff integral of the sinusoid over its crest (convex) and trough
   (concave), whose focusing geometrical optics caps at the caustic.
@@ -35,6 +40,7 @@ import numpy as np
 
 from ..echoes import reference_echoes
 from ..scene import Scene, scene_from_dict
+from ..survey import OPEN_MIN_ENVELOPE
 from . import detection_ranges
 from . import references as ref
 
@@ -61,8 +67,10 @@ class Row:
 
 
 def _scene(surfaces: list[dict], transducers: list[tuple[np.ndarray, np.ndarray]],
-           edge_model: str = "utd") -> Scene:
-    """A scene of ``surfaces`` and transducers (position, aim point) facing their aims."""
+           edge_model: str = "utd", open_floor: bool = False) -> Scene:
+    """A scene of ``surfaces`` and transducers (position, aim point) facing their aims;
+    with ``open_floor`` its envelope detection's floor is an open scene's
+    (clsonar.survey.OPEN_MIN_ENVELOPE), so the received echoes are detected."""
     pts = np.array([p for p, _ in transducers] + [a for _, a in transducers])
     lo, hi = pts.min(axis=0) - 1.0, pts.max(axis=0) + 1.0
     return scene_from_dict({
@@ -70,6 +78,7 @@ def _scene(surfaces: list[dict], transducers: list[tuple[np.ndarray, np.ndarray]
         "surfaces": surfaces,
         "transducer": {"directivity": "uniform"},
         "echo": {"reflection_coefficient": 1.0, "max_order": 2, "edge_model": edge_model},
+        **({"detection": {"min_envelope": OPEN_MIN_ENVELOPE}} if open_floor else {}),
         "sensors": {"transducers": [
             {"position": [float(p[0]), float(p[1])], "group": 0, "heading_deg":
              math.degrees(math.atan2(a[1] - p[1], a[0] - p[0]))} for p, a in transducers]},
@@ -87,6 +96,20 @@ def model_gain(scene: Scene, kind: str, tx: int = 0, rx: int = 0,
     if tof is not None:
         pick = pick[np.abs(table.tof_s[pick] - tof) == np.abs(table.tof_s[pick] - tof).min()]
     return float(table.amplitude[pick].max() / scene.transducer.amplitude)
+
+
+def received_gain(scene: Scene, tof: float) -> float:
+    """The largest detection over A0 of transmitter 0's own received signal (every echo,
+    each with its carrier phase, synthesised and detected in float64, clsonar.signals)
+    whose time of flight is within 12σ of ``tof``: what the receiver reads of echoes that
+    arrive together."""
+    from ..signals import detect_reference
+
+    found = detect_reference(scene, None, reference_echoes(scene))
+    near = (found.tx == 0) & (found.rx == 0) & (
+        np.abs(found.tof_s - tof) < 12 * scene.transducer.pulse_sigma_s)
+    return float(found.amplitude[near].max() / scene.transducer.amplitude) if near.any() \
+        else math.nan
 
 
 def _polar(d: float, angle_deg: float) -> np.ndarray:
@@ -153,6 +176,25 @@ def edge_rows(ranges=RANGES, angles=EDGE_ANGLES, edge_model: str = "utd") -> Ite
             yield Row("edge", f"φ {phi:g}°", d, got, want)
 
 
+#: Angles of the boundary rows: within 3° of face a's reflection boundary (90°), where the
+#: face's specular echo arrives within about a pulse of the edge's at every range.
+BOUNDARY_ANGLES = (87.0, 89.0, 89.7, 90.3, 91.0, 93.0)
+
+
+def boundary_rows(ranges=RANGES, angles=BOUNDARY_ANGLES) -> Iterator[Row]:
+    """The box corner of :func:`edge_rows` seen monostatically near face a's reflection
+    boundary (φ < 90°: the lit side, where the face's specular echo exists): the whole
+    received echo, face and edge together, against the wedge's exact one."""
+    box = [{"type": "polyline", "points": [[-10.0, 0.0], [0.0, 0.0], [0.0, -10.0]]}]
+    for d in ranges:
+        for phi in angles:
+            t = _polar(d, 180.0 - phi)
+            scene = _scene(box, [(t, np.zeros(2))], open_floor=True)
+            got = received_gain(scene, 2 * d / scene.medium.c)
+            want = ref.wedge_echo_gain(t, t, np.zeros(2), _FACE_A, _FACE_B, **_wave(scene))
+            yield Row("boundary", f"φ {phi:g}°", d, got, want)
+
+
 def cylinder_rows(ranges=RANGES, radii=(0.05, 0.3, 1.0)) -> Iterator[Row]:
     """A rigid cylinder of radius a at distance d from its surface (T = R)."""
     for a in radii:
@@ -199,7 +241,7 @@ def _caustic_note(name: str, d: float) -> str:
 
 KINDS: dict[str, Callable[..., Iterator[Row]]] = {
     "plane": plane_rows, "corner": corner_rows, "edge": edge_rows,
-    "cylinder": cylinder_rows, "sinusoid": sinusoid_rows,
+    "boundary": boundary_rows, "cylinder": cylinder_rows, "sinusoid": sinusoid_rows,
 }
 
 

@@ -9,6 +9,8 @@ so that tests can hold the model against them:
   diffraction of an infinite rigid wedge, in the secondary-source form of Svensson, Fred &
   Vanderkooy, JASA 105(5), 2331–2342 (1999), eqs. 18–21; :func:`keller_gtd_gain`, Keller's
   GTD coefficient, its high-frequency limit away from the zone boundaries.
+  :func:`wedge_echo_gain`, the wedge's whole echo: its faces' image sources and the BTM
+  diffraction together, as they interfere near a reflection boundary.
 * :func:`cylinder_series_gain`, :func:`cylinder_series_echo_gain` — the exact eigenfunction
   series of a rigid circular cylinder (Morse & Ingard, *Theoretical Acoustics* §8.1; Bowman,
   Senior & Uslenghi ch. 2), carried from a line source to a point source by stationary phase
@@ -228,6 +230,50 @@ def btm_edge_gain(s_xy: ArrayLike, r_xy: ArrayLike, v_xy: ArrayLike, face_a: Arr
     tau0 = d0 / c
     echo = _received(tau, {"mirror": w}, f, sigma, c, tau0 - sigma, tau0 + 12 * sigma)
     return echo.gain_at(int(np.argmax(echo.env)), c, d0)
+
+
+def _face_image_taps(s_xy: Arr, r_xy: Arr, v_xy: Arr, faces: tuple[Arr, ...], c: float
+                     ) -> tuple[Arr, Arr]:
+    """Delays τ (s) and weights 1/L of the geometrical reflections of S in each face of the
+    wedge (image sources, the rigid face's reflection coefficient 1): S mirrored across the
+    face's line, the reflection valid where the ray from R to the image crosses the face
+    itself (at or beyond the edge along the face's direction), i.e. R on the lit side of
+    the face's reflection boundary."""
+    taus, weights = [], []
+    for face in faces:
+        u = face / np.hypot(*face)
+        n = np.array([-u[1], u[0]])
+        hs, hr = (s_xy - v_xy) @ n, (r_xy - v_xy) @ n
+        if hs * hr <= 0:
+            continue  # not both in front of this face
+        image = s_xy - 2 * hs * n
+        crossing = r_xy + (image - r_xy) * (hr / (hr - (image - v_xy) @ n))
+        if (crossing - v_xy) @ u > 0:
+            length = float(np.hypot(*(r_xy - image)))
+            taus.append(length / c)
+            weights.append(1.0 / length)
+    return np.array(taus), np.array(weights)
+
+
+def wedge_echo_gain(s_xy: ArrayLike, r_xy: ArrayLike, v_xy: ArrayLike, face_a: ArrayLike,
+                    face_b: ArrayLike, c: float = 343.0, f: float = F_DEFAULT,
+                    sigma: float = SIGMA_DEFAULT, n: int = 6000) -> float:
+    """Relative gain of the whole echo of an infinite rigid wedge (edge along z through
+    ``v_xy``, faces along ``face_a``, ``face_b``) for the pulse: the geometrical
+    reflections in its faces (:func:`_face_image_taps`) and the exact BTM diffraction
+    (Svensson, Fred & Vanderkooy 1999, :func:`_btm_taps`) summed as received signals, their
+    envelope's peak within 12σ of the edge's arrival × c·(its delay) / the pulse's (the
+    receiver's time-varying gain at that time, as a mirror's echo would have it). Near a
+    face's reflection boundary the face's echo and the edge's arrive within a pulse and
+    interfere: on the boundary they sum to half a mirror's (Medwin 1981; the BTM terms'
+    half-geometrical limit). No direct sound from S to R is included."""
+    s_, r_, v_ = _vec(s_xy), _vec(r_xy), _vec(v_xy)
+    tau, w, d0 = _btm_taps(s_, r_, v_, face_a, face_b, c, 16 * sigma, n, None)
+    t_img, w_img = _face_image_taps(s_, r_, v_, (_vec(face_a), _vec(face_b)), c)
+    tau0 = d0 / c
+    echo = _received(np.concatenate([tau, t_img]), {"mirror": np.concatenate([w, w_img])},
+                     f, sigma, c, tau0 - sigma, tau0 + 12 * sigma)
+    return echo.gain_at(int(np.argmax(echo.env)), c)
 
 
 def btm_edge_transfer(s_xy: ArrayLike, r_xy: ArrayLike, v_xy: ArrayLike, face_a: ArrayLike,
