@@ -386,6 +386,22 @@ def test_join_walls_a_chamfer_does_not_steal_the_corner(back):
         assert cham.joins == 0 and cham.length == pytest.approx(back * math.sqrt(2.0), abs=1e-9)
 
 
+def test_join_walls_a_short_wall_meets_long_walls_but_not_short_ones():
+    """The side of a notch seen from afar, 0.4 m of it mapped, meets the two long walls it
+    joins (a U room's notch: its vertices found); two short walls never meet (the straight
+    patches a ring sees of a cylinder must not make a polygon)."""
+    top, bottom = np.array([3.0, 5.0]), np.array([3.0, 4.0])
+    left = Wall.fit(segment((0.0, 5.0), (2.7, 5.0)))
+    floor = Wall.fit(segment((3.3, 4.0), (5.0, 4.0)))
+    side = Wall.fit(segment((3.0, 4.3), (3.0, 4.7)))
+    walls = [left, floor, side]
+    vertices = join_walls(walls, join_m=1.0)
+    np.testing.assert_allclose(sorted(vertices.tolist()), [bottom, top], atol=1e-9)
+    assert side.joins == 2 and side.length == pytest.approx(1.0, abs=1e-9)
+    a, b = (Wall.fit(segment((0.0, 0.0), (0.3, 0.0))), Wall.fit(segment((0.5, 0.2), (0.5, 0.5))))
+    assert join_walls([a, b], join_m=1.0).shape == (0, 2)
+
+
 def test_join_walls_leaves_walls_at_less_than_20_degrees():
     a = Wall.fit(segment((0.0, 0.0), (2.0, 0.0)))
     for deg, joined in ((15.0, 0), (19.0, 0), (25.0, 1)):

@@ -40,8 +40,10 @@ COLLINEAR_M = 0.02
 #: Walls meet at a vertex only if their lines cross at more than this angle.
 MIN_VERTEX_DEG = 20.0
 
-#: Walls meet at a vertex only if both are at least this long: the short, nearly straight
-#: patches a ring sees of a cylinder must not be joined into a polygon.
+#: Walls meet at a vertex only if one of them is at least this long: the short, nearly
+#: straight patches a ring sees of a cylinder must not be joined into a polygon, but a
+#: short stretch of a wall seen from afar (the side of a notch, of a box) meets the long
+#: walls beside it.
 MIN_JOIN_WALL_M = 0.5
 
 
@@ -196,7 +198,7 @@ def join_walls(walls: list[Wall], join_m: float) -> np.ndarray:
     candidates = []
     for i in range(len(walls)):
         for j in range(i + 1, len(walls)):
-            if min(walls[i].length, walls[j].length) < MIN_JOIN_WALL_M:
+            if max(walls[i].length, walls[j].length) < MIN_JOIN_WALL_M:
                 continue
             x = _intersection(walls[i], walls[j])
             if x is None:
