@@ -264,20 +264,27 @@ def test_an_echo_s_carrier_phase_shifts_its_carrier_not_its_envelope():
 # --------------------------------------------------------------------------- kernel vs reference
 
 
+def draw_echo_rows(draw, n_sensors: int, most: int, tof, amp, phase=None) -> list[tuple]:
+    """Up to ``most`` echoes (tx, rx, tof, amplitude[, phase]) of every pair of
+    ``n_sensors`` transducers, drawn from the strategies given."""
+    rows = []
+    for tx in range(n_sensors):
+        for rx in range(n_sensors):
+            for _ in range(draw(st.integers(0, most))):
+                row = (tx, rx, draw(tof), draw(amp))
+                rows.append(row if phase is None else (*row, draw(phase)))
+    return rows
+
+
 @st.composite
 def cases(draw):
     mode = draw(st.sampled_from(["threshold", "envelope"]))
     noise = draw(st.sampled_from([0.0, 0.3, 0.8, 1.0, 1.5]))
     n_sensors = draw(st.integers(1, 3))
     window = 6e-3
-    echo_rows = []
-    for tx in range(n_sensors):
-        for rx in range(n_sensors):
-            for _ in range(draw(st.integers(0, 3))):
-                tof = draw(st.floats(0.1e-3, window))
-                amp = draw(st.floats(0.3, 8.0))
-                phase = draw(st.sampled_from([0.0, math.pi]) | st.floats(-math.pi, math.pi))
-                echo_rows.append((tx, rx, tof, amp, phase))
+    echo_rows = draw_echo_rows(draw, n_sensors, 3, st.floats(0.1e-3, window),
+                               st.floats(0.3, 8.0),
+                               st.sampled_from([0.0, math.pi]) | st.floats(-math.pi, math.pi))
     seed = draw(st.integers(0, 2**63 - 1))
     chunk = draw(st.sampled_from([None, 257, 1000, 3000]))
     capacity = draw(st.sampled_from([None, 1, 3]))
@@ -581,13 +588,8 @@ def polaroid_cases(draw):
     noise = draw(st.sampled_from([0.0, 0.005, 0.01, 0.02]))
     n_sensors = draw(st.integers(1, 3))
     window = 30e-3
-    echo_rows = []
-    for tx in range(n_sensors):
-        for rx in range(n_sensors):
-            for _ in range(draw(st.integers(0, 4))):
-                tof = draw(st.floats(0.5e-3, window))
-                amp = 10 ** draw(st.floats(-1.6, 0.7))  # 0.025 … 5 units: around the level
-                echo_rows.append((tx, rx, tof, amp))
+    echo_rows = draw_echo_rows(draw, n_sensors, 4, st.floats(0.5e-3, window),
+                               st.floats(-1.6, 0.7).map(lambda e: 10**e))  # 0.025 … 5 units
     seed = draw(st.integers(0, 2**63 - 1))
     chunk = draw(st.sampled_from([None, 257, 3000]))
     capacity = draw(st.sampled_from([None, 1, 3]))
