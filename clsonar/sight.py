@@ -93,10 +93,7 @@ def first_hits_each(origins: np.ndarray, occluders: np.ndarray, cell: float,
     half = 0.75 * cell / dist
     lo = np.floor((theta - half) / bin_rad).astype(np.int64)
     width = np.floor((theta + half) / bin_rad).astype(np.int64) - lo
-    count = np.zeros((n, 2 * bins + 1), dtype=np.int64)  # wanted bins before each, twice round
-    count[:, 1:] = np.cumsum(np.tile(wanted, (1, 2)), axis=1)
-    start = owner * (2 * bins + 1) + lo % bins
-    use = count.ravel()[start + width + 1] - count.ravel()[start] > 0
+    use = _wanted_between(wanted, owner, lo % bins, width) > 0
     owner, dist, lo, width = owner[use], dist[use], lo[use], width[use]
     span = width + 1  # every bin lo .. lo + width of every cell, in one scatter
     first = np.cumsum(span) - span
@@ -104,6 +101,22 @@ def first_hits_each(origins: np.ndarray, occluders: np.ndarray, cell: float,
     where = np.repeat(owner * bins, span) + (np.repeat(lo, span) + offset) % bins
     np.minimum.at(hits, where, np.repeat(dist, span))
     return hits.reshape(n, bins)
+
+
+def _wanted_between(wanted: np.ndarray, row: np.ndarray, start: np.ndarray,
+                    width: np.ndarray) -> np.ndarray:
+    """How many of the bins ``start`` … ``start + width`` (round the circle, width below
+    the number of bins) of each ``row`` of ``wanted`` [S, B] are wanted: prefix counts
+    of each row, the range's end taken round once where it passes the last bin."""
+    n, bins = wanted.shape
+    count = np.zeros((n, bins + 1), dtype=np.int32)
+    np.cumsum(wanted, axis=1, dtype=np.int32, out=count[:, 1:])
+    flat = count.ravel()
+    base = row * (bins + 1)
+    end = start + width + 1
+    past = end > bins
+    return (flat[base + np.where(past, end - bins, end)] - flat[base + start]
+            + np.where(past, flat[base + bins], 0))
 
 
 #: Rounding allowance of :func:`_may_cover`'s cheap distances and angles (metres per metre;
