@@ -38,6 +38,12 @@ LINK_STEP_M = 0.002
 SEEN_THROUGH_SHARE = 1.0 / 3.0
 HEARD_NOISE_SCALES = 3.0
 
+#: The echoes that place a pillar are at most this many times as loud as the circle's
+#: echo (their median, noise to spare): a wall's echoes, a mirror's, are 2.5–6 times a
+#: 0.2 m pillar's at 1–6 m, and a ring moving straight at a wall hears its foot as every
+#: locus' tangent point, which a circle can mimic.
+CIRCLE_ECHO_FACTOR = 2.0
+
 #: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
 _ARC_MARGIN = 2
 
@@ -309,24 +315,29 @@ def _pillars(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndar
     spare = HEARD_NOISE_SCALES * envelope_noise(scene)
 
     def seen_through(centre: np.ndarray, radius: float, reach: float) -> bool:
-        """Whether an element within ``reach`` of the circle had its first T = R echo from
+        """Whether the scan rules the circle out: the loci that touch it are louder than it
+        can echo (:data:`CIRCLE_ECHO_FACTOR`: a wall's echoes, from poses moving towards
+        it), or an element within ``reach`` of the circle had its first T = R echo from
         beyond the circle's point nearest it, near its beam's axis
         (:data:`SEEN_THROUGH_SHARE`), where the circle's echo (:func:`circle_echo`) would
         have been as strong as the weakest echo of the loci that touch it, noise to spare:
         the element would have heard the circle first. Nearer the beam's edge, from
         farther than the loci that touch it, or weaker, a pillar's echo may be missed."""
+        touching = np.abs(np.hypot(*(T - centre).T) - s.a[loci] - radius) <= tol
+        own = circle_echo(scene, T[touching], s.axes[s.loci.tx[loci[touching]]], centre,
+                          radius)
+        heard = s.loci.amplitude[loci[touching]]
+        if touching.any() and np.median((heard - spare) / own) > CIRCLE_ECHO_FACTOR:
+            return True
         d = s.T[first] - centre
         near = np.hypot(*d.T) - radius
         q = centre + radius * d / np.maximum(near + radius, 1e-12)[:, None]
         beyond = ((near < s.a[first] - first_tol) & (near <= reach)
                   & in_beams(q, s.T[first], axes, SEEN_THROUGH_SHARE**2 * s.cut_sin2))
-        touching = np.abs(np.hypot(*(T - centre).T) - s.a[loci] - radius) <= tol
         if not (beyond.any() and touching.any()):
             return bool(beyond.any())
-        weakest = circle_echo(scene, T[touching], s.axes[s.loci.tx[loci[touching]]], centre,
-                              radius).min()
         echo = circle_echo(scene, s.T[first][beyond], axes[beyond], centre, radius)
-        return bool(np.any(echo >= weakest + spare))
+        return bool(np.any(echo >= own.min() + spare))
 
     arcs = pillar_arcs(T, s.a[loci], middles, tol, bias, 0.5 * scene.cell, seen_through)
     out = {}
