@@ -21,13 +21,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..physics import piston_pattern
+from ..physics import curved_gain, piston_pattern
 from .envelope import in_beams
 from .models import (
     CURVE_STEPS,
     Fit,
     _jacobian,
     corner_paths,
+    curve_geometry,
     curve_paths,
     dot2,
     fit_corner,
@@ -123,8 +124,9 @@ class Window:
     neighbour_m: float  # pairs whose transducers moved this far (or less) are neighbours
     curve_tolerance: float = 0.0  # least path residual a free curve's rows may have
     max_failed: int = 24  # seeds in a row that grow nothing before the search stops
-    #: a flat mirror's echo on both axes (A0·ρ), the beam's k·a and the noise σ, for the
-    #: amplitude a plane's echo has (:func:`mirror_floor`); mirror 0: not checked
+    #: a flat mirror's echo on both axes (A0·ρ), the beam's k·a and the noise σ of a
+    #: detection's amplitude (:func:`~.patches.amplitude_noise`), for the amplitude a
+    #: plane's echo has (:func:`mirror_floor`); mirror 0: not checked
     mirror: float = 0.0
     ka: float = 0.0
     noise_std: float = 0.0
@@ -168,19 +170,28 @@ def window_tolerance(amplitude: np.ndarray, noise_std: float, c: float,
 #: echoes are the edge's, not a longer face's.
 MIRROR_SHARE = 0.6
 
+#: The most an edge's diffraction gives, as a share of a flat mirror's echo: half, on a
+#: face's reflection boundary (the uniform theory, physics.edge_diffraction; Kouyoumjian
+#: & Pathak 1974). Noise never lowers a plane's floor below it.
+EDGE_SHARE = 0.5
+
 
 def mirror_floor(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
-                 axR: np.ndarray, mirror: float, ka: float, noise_std: float) -> np.ndarray:
+                 axR: np.ndarray, mirror: float | np.ndarray, ka: float,
+                 noise_std: float) -> np.ndarray:
     """The least amplitude the pairs (T, R) hear from a flat mirror with reflection points
-    ``q``: :data:`MIRROR_SHARE` of ``mirror``·b(θ_T)·b(θ_R), less three noise σ; −inf
-    (anything) when ``mirror`` is 0."""
-    if mirror <= 0:
+    ``q``: :data:`MIRROR_SHARE` of ``mirror``·b(θ_T)·b(θ_R), less three σ of the
+    detections' amplitude noise, but at least :data:`EDGE_SHARE` of it (an echo no
+    stronger than that may be a face's edge diffracting); −inf (anything) when
+    ``mirror`` is 0."""
+    if np.all(np.asarray(mirror) <= 0):
         return np.full(len(q), -np.inf)
-    return MIRROR_SHARE * mirror * two_way(q, T, axT, R, axR, ka) - 3.0 * noise_std
+    heard = mirror * two_way(q, T, axT, R, axR, ka)
+    return np.maximum(MIRROR_SHARE * heard - 3.0 * noise_std, EDGE_SHARE * heard)
 
 
 def mirror_strong(amplitude: np.ndarray, q: np.ndarray, T: np.ndarray, axT: np.ndarray,
-                  R: np.ndarray, axR: np.ndarray, mirror: float, ka: float,
+                  R: np.ndarray, axR: np.ndarray, mirror: float | np.ndarray, ka: float,
                   noise_std: float) -> np.ndarray:
     """Whether echoes of ``amplitude`` are as strong as a flat mirror's with reflection
     points ``q`` for the pairs (T, R) (:func:`mirror_floor`); all, when ``mirror`` is 0."""
@@ -204,13 +215,20 @@ def two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray, axR: n
 POINT_SPREAD = 10.0
 
 
-def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray) -> np.ndarray:
+def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray,
+            params: np.ndarray) -> np.ndarray:
     """Whether the detections ``rows`` are as strong as a ``kind`` reflector's echoes can
-    be (planes: :func:`mirror_strong`; a point's, within :data:`POINT_SPREAD` of each
-    other over their beams); all, for corners and curves, or a window without a mirror."""
+    be (planes: :func:`mirror_strong`; curves at least as flat as their range: the same,
+    the mirror weakened by the curve's convex divergence, :func:`_convex_share`; a
+    point's, within :data:`POINT_SPREAD` of each other over their beams); all, for
+    corners and more bent curves (a post's echo may be as weak as an edge's), or a window
+    without a mirror."""
     beams = (q, w.T[rows], w.axT[rows], w.R[rows], w.axR[rows])
-    if kind == "plane":
-        return mirror_strong(w.amplitude[rows], *beams, w.mirror, w.ka, w.noise_std)
+    if kind in ("plane", "curve") and w.mirror > 0:
+        share = _convex_share(w, rows, q, params) if kind == "curve" else 1.0
+        if share is None:
+            return np.ones(len(rows), dtype=bool)
+        return mirror_strong(w.amplitude[rows], *beams, w.mirror * share, w.ka, w.noise_std)
     if kind == "point" and w.mirror > 0 and len(rows):
         # one point reflector's echoes differ by their beams only: not by 20 dB (a face's
         # specular echo beside its edge's diffraction, 40 dB weaker, fits a point too)
@@ -218,6 +236,30 @@ def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray) -> np.ndarray
         middle = float(np.median(seen))
         return (seen <= POINT_SPREAD * middle) & (seen >= middle / POINT_SPREAD)
     return np.ones(len(rows), dtype=bool)
+
+
+def _convex_share(w: Window, rows: np.ndarray, q: np.ndarray, params: np.ndarray
+                  ) -> np.ndarray | None:
+    """The echo of the curve model ``params`` at its reflection points ``q`` over a flat
+    mirror's, where it is less (a convex surface's divergence, physics.curved_gain: a
+    curved wall's echo is a mirror's times its focusing; a concave one's, not counted
+    above 1 as a scene may leave the focusing out): past a face's end its edge's
+    diffraction, half a mirror's on the reflection boundary and less beyond, is no
+    slightly curved wall's echo. None for a circle more bent than its range (its radius
+    under half the rows' median path), whose echo the strength cannot tell from an
+    edge's (a post's)."""
+    centre, rho, _ = curve_geometry(params, w.x0)
+    if not np.all(np.isfinite(centre)):
+        return np.ones(len(rows))
+    if abs(rho) < 0.5 * float(np.median(w.paths[rows])) if len(rows) else True:
+        return None
+    T, R = w.T[rows], w.R[rows]
+    d1 = np.maximum(np.hypot(*(T - q).T), 1e-12)
+    d2 = np.maximum(np.hypot(*(R - q).T), 1e-12)
+    normal = (q - centre) / np.maximum(np.hypot(*(q - centre).T), 1e-12)[:, None]
+    cos_i = np.maximum(np.abs(dot2(normal, (T - q) / d1[:, None])), 1e-6)
+    kappa = np.full(len(rows), 1.0 / rho)  # the surface's curvature, convex > 0
+    return np.minimum(curved_gain(d1, d2, kappa, cos_i), 1.0)
 
 
 def _predict(w: Window, kind: str, params: np.ndarray, idx: np.ndarray
@@ -264,7 +306,7 @@ def _inliers(w: Window, kind: str, params: np.ndarray, free: np.ndarray) -> np.n
     """The rows of ``free`` the model predicts within their tolerance, in both beams."""
     path, q = _predict(w, kind, params, free)
     ok = (np.abs(path - w.paths[free]) <= _tolerance(w, kind, free)) & np.isfinite(path)
-    ok &= _valid(w, kind, params, free, q) & _strong(w, kind, free, q)
+    ok &= _valid(w, kind, params, free, q) & _strong(w, kind, free, q, params)
     return free[ok]
 
 
@@ -419,7 +461,8 @@ def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
         if grown is None:
             continue
         members, fit = grown
-        members = members[_strong(w, kind, members, _predict(w, kind, fit.params, members)[1])]
+        q = _predict(w, kind, fit.params, members)[1]
+        members = members[_strong(w, kind, members, q, fit.params)]
         if seed not in members or len(members) < _least(kind):
             continue
         if (best is None or len(members) > len(best[0])
@@ -458,7 +501,7 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
             continue
         kept, q = members[within], q[within]
         if name in ("plane", "point"):  # a face's echoes and its edge's apart
-            strong = _strong(w, name, kept, q)
+            strong = _strong(w, name, kept, q, f.params)
             if np.count_nonzero(strong) < MIN_FAMILY:
                 continue
             kept, q = kept[strong], q[strong]

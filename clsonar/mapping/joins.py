@@ -193,17 +193,41 @@ def meet(patches: list[Patch], vertices: np.ndarray) -> tuple[list[Patch], np.nd
             if _near_span(a, x, CUT_M):
                 patches[j] = _cut(b, x)
     for k, p in enumerate(patches):
-        if not p.straight:
-            continue
-        n, _ = _line(p)
         for v in vertices:
-            off = float(dot2(v, n)) - float(p.params[1])
-            if abs(off) <= VERTEX_ON_LINE_M:
-                foot = v - off * n
-                reached = _reach(p, foot)
-                if reached is not None:
-                    patches[k] = p = reached
+            foot, off = _foot(p, v)
+            if abs(off) > VERTEX_ON_LINE_M or not (p.straight or _nearly_flat(p)):
+                continue
+            if not p.straight:  # a circle is a curved wall's local one: cut, not extended
+                patches[k] = p = _cut(p, foot)
+                continue
+            reached = _reach(p, foot)
+            if reached is not None:
+                patches[k] = p = reached
     return patches, np.concatenate(found)
+
+
+def _nearly_flat(p: Patch) -> bool:
+    """Whether ``p``'s circle is at least as flat as its range (its radius at least half
+    its median path): the slight bend of a face's last stretch (:func:`_foot`), not a
+    curved wall's own circle (a cylinder, a sinusoid's crest or trough), whose located
+    crest a circle must not stop at."""
+    return abs(float(curve_geometry(p.params, p.x0)[1])) >= 0.5 * float(np.median(p.paths))
+
+
+def _foot(p: Patch, v: np.ndarray) -> tuple[np.ndarray, float]:
+    """The point of ``p``'s line or circle nearest ``v``, and ``v``'s signed distance from
+    it: a located edge on a nearly flat circle (:func:`_nearly_flat`), beyond its
+    reflection points, ends it as one on a plane's line does (the echoes of a face's last
+    stretch, their times shifted by up to a millimetre by its edge's diffraction arriving
+    with them, may be fitted best by a slightly bent circle)."""
+    if p.straight:
+        n, _ = _line(p)
+        off = float(dot2(v, n)) - float(p.params[1])
+        return v - off * n, off
+    centre, rho, _ = curve_geometry(p.params, p.x0)
+    out = v - centre
+    dist = max(float(np.hypot(*out)), 1e-12)
+    return centre + abs(rho) * out / dist, dist - abs(rho)
 
 
 def clip_to_extent(p: Patch, extent: tuple[float, ...]) -> Patch:

@@ -30,6 +30,7 @@ import numpy as np
 from .. import steps
 from ..scene import Scene
 from ..sensors import SensorArray
+from ..signals import envelope_noise_scale, signal_model
 from .envelope import in_beams
 from .families import Family, mirror_floor, two_way
 from .loci import Loci
@@ -205,7 +206,7 @@ def _silent_beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     louder = two_way(*beams, ka) >= weakest * (1.0 - 1e-9)
     ok, u, beams = ok[louder], u[louder], tuple(b[louder] for b in beams)
     # a plane is heard at a mirror's strength; a curve's echo may be weaker or stronger
-    least = (mirror_floor(*beams, mirror_echo(scene), ka, scene.signal.noise_std)
+    least = (mirror_floor(*beams, mirror_echo(scene), ka, amplitude_noise(scene))
              if p.straight else np.full(len(ok), -np.inf))
     return u[~_heard(heard, pairs[ok], path[ok], least)]
 
@@ -241,6 +242,19 @@ HEARD_TOL_M = 0.003
 def mirror_echo(scene: Scene) -> float:
     """A flat mirror's echo on both transducers' axes, A0·ρ (units)."""
     return scene.transducer.amplitude * scene.echo.reflection_coefficient
+
+
+def amplitude_noise(scene: Scene) -> float:
+    """The noise σ of a detection's amplitude (units): with envelope detection the
+    envelope's Rayleigh scale (each quadrature's σ, 0.145·σn for the default pulse,
+    :func:`clsonar.signals.envelope_noise_scale`, docs/detection.md), with threshold
+    detection the signal's σn (its amplitude is a sample)."""
+    noise = scene.signal.noise_std
+    if noise == 0 or scene.detection.mode != "envelope":
+        return noise
+    floor = scene.detection.min_envelope  # the scale does not depend on it
+    detection = replace(scene.detection, min_envelope=1.0 if floor is None else floor)
+    return envelope_noise_scale(signal_model(replace(scene, detection=detection)))
 
 
 @dataclass(frozen=True)
@@ -337,6 +351,7 @@ __all__ = [
     "STEP_CELLS",
     "Patch",
     "Patches",
+    "amplitude_noise",
     "carrier_points",
     "coordinates",
     "draw_patch",

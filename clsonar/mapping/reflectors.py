@@ -33,7 +33,7 @@ from .families import MIN_FAMILY, Family, Window, find_families, window_toleranc
 from .joins import draw_families
 from .loci import Loci, _subset
 from .models import dot2
-from .patches import Patches, mirror_echo
+from .patches import Patches, amplitude_noise, mirror_echo
 from .tangents import tangent_map
 
 #: Longest stretch of an array whose detections are fitted together, metres.
@@ -85,7 +85,7 @@ def _window(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
                   paths=c * loci.tof_s[rows], amplitude=amp, tolerance=tol, x0=x0,
                   cut_sin2=cut_sin2, neighbour_m=neighbour_m,
                   mirror=mirror_echo(scene),
-                  ka=scene.transducer.beam(c)[1], noise_std=scene.signal.noise_std)
+                  ka=scene.transducer.beam(c)[1], noise_std=amplitude_noise(scene))
 
 
 def _windows(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
