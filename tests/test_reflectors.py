@@ -319,7 +319,7 @@ def test_the_profile_is_the_patches_and_vertices():
 
 def test_a_planes_echo_is_as_strong_as_a_mirrors_and_an_edges_past_its_end_is_not():
     from clsonar import physics
-    from clsonar.mapping.families import MIRROR_SHARE, mirror_strong
+    from clsonar.mapping.strength import MIRROR_SHARE, mirror_strong
 
     T = np.array([[0.0, 0.0], [0.0, 0.0], [0.1, 0.0]])  # monostatic: R = T
     axis = np.array([[0.0, 1.0]] * 3)

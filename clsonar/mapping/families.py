@@ -21,14 +21,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..physics import curved_gain, piston_pattern
 from .envelope import in_beams
 from .models import (
     CURVE_STEPS,
     Fit,
     _jacobian,
     corner_paths,
-    curve_geometry,
     curve_paths,
     dot2,
     fit_corner,
@@ -38,6 +36,7 @@ from .models import (
     plane_start,
     point_paths,
 )
+from .strength import convex_share, mirror_strong, two_way
 
 #: Path residual every detection may have (m): planes, points and corners are exact models
 #: and noise-free detections are good to a few µm, but an echo distorted by an overlapping
@@ -164,53 +163,6 @@ def window_tolerance(amplitude: np.ndarray, noise_std: float, c: float,
     return BASE_TOLERANCE_M + NOISE_SIGMAS * sigma
 
 
-#: A plane's echo is at least this share of a flat mirror's at its reflection point (less
-#: three noise σ). Diffraction at a face's end continues the face's echoes past it, at half
-#: a mirror's on the reflection boundary and less further on (physics.edge_gain): those
-#: echoes are the edge's, not a longer face's.
-MIRROR_SHARE = 0.6
-
-#: The most an edge's diffraction gives, as a share of a flat mirror's echo: half, on a
-#: face's reflection boundary (the uniform theory, physics.edge_diffraction; Kouyoumjian
-#: & Pathak 1974). Noise never lowers a plane's floor below it.
-EDGE_SHARE = 0.5
-
-
-def mirror_floor(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
-                 axR: np.ndarray, mirror: float | np.ndarray, ka: float,
-                 noise_std: float) -> np.ndarray:
-    """The least amplitude the pairs (T, R) hear from a flat mirror with reflection points
-    ``q``: :data:`MIRROR_SHARE` of ``mirror``·b(θ_T)·b(θ_R), less three σ of the
-    detections' amplitude noise, but at least :data:`EDGE_SHARE` of it (an echo no
-    stronger than that may be a face's edge diffracting); −inf (anything) when
-    ``mirror`` is 0."""
-    if np.all(np.asarray(mirror) <= 0):
-        return np.full(len(q), -np.inf)
-    heard = mirror * two_way(q, T, axT, R, axR, ka)
-    return np.maximum(MIRROR_SHARE * heard - 3.0 * noise_std, EDGE_SHARE * heard)
-
-
-def mirror_strong(amplitude: np.ndarray, q: np.ndarray, T: np.ndarray, axT: np.ndarray,
-                  R: np.ndarray, axR: np.ndarray, mirror: float | np.ndarray, ka: float,
-                  noise_std: float) -> np.ndarray:
-    """Whether echoes of ``amplitude`` are as strong as a flat mirror's with reflection
-    points ``q`` for the pairs (T, R) (:func:`mirror_floor`); all, when ``mirror`` is 0."""
-    return amplitude >= mirror_floor(q, T, axT, R, axR, mirror, ka, noise_std)
-
-
-def two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray, axR: np.ndarray,
-            ka: float) -> np.ndarray:
-    """The two-way beam b(θ_T)·b(θ_R) of the pairs (T, R) with unit axes towards ``q``:
-    the piston's patterns, without the hard cut."""
-    out = np.ones(len(q))
-    for X, axis in ((T, axT), (R, axR)):
-        d = q - X
-        dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
-        out = out * piston_pattern(ka * np.abs(axis[:, 0] * d[:, 1] - axis[:, 1] * d[:, 0])
-                                   / dist)
-    return out
-
-
 #: The echoes of one point reflector, each over its two-way beam, agree within this factor.
 POINT_SPREAD = 10.0
 
@@ -219,13 +171,14 @@ def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray,
             params: np.ndarray) -> np.ndarray:
     """Whether the detections ``rows`` are as strong as a ``kind`` reflector's echoes can
     be (planes: :func:`mirror_strong`; curves at least as flat as their range: the same,
-    the mirror weakened by the curve's convex divergence, :func:`_convex_share`; a
+    the mirror weakened by the curve's convex divergence, :func:`~.strength.convex_share`; a
     point's, within :data:`POINT_SPREAD` of each other over their beams); all, for
     corners and more bent curves (a post's echo may be as weak as an edge's), or a window
     without a mirror."""
     beams = (q, w.T[rows], w.axT[rows], w.R[rows], w.axR[rows])
     if kind in ("plane", "curve") and w.mirror > 0:
-        share = _convex_share(w, rows, q, params) if kind == "curve" else 1.0
+        share = (convex_share(params, w.x0, q, w.T[rows], w.R[rows], w.paths[rows])
+                 if kind == "curve" else 1.0)
         if share is None:
             return np.ones(len(rows), dtype=bool)
         return mirror_strong(w.amplitude[rows], *beams, w.mirror * share, w.ka, w.noise_std)
@@ -236,30 +189,6 @@ def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray,
         middle = float(np.median(seen))
         return (seen <= POINT_SPREAD * middle) & (seen >= middle / POINT_SPREAD)
     return np.ones(len(rows), dtype=bool)
-
-
-def _convex_share(w: Window, rows: np.ndarray, q: np.ndarray, params: np.ndarray
-                  ) -> np.ndarray | None:
-    """The echo of the curve model ``params`` at its reflection points ``q`` over a flat
-    mirror's, where it is less (a convex surface's divergence, physics.curved_gain: a
-    curved wall's echo is a mirror's times its focusing; a concave one's, not counted
-    above 1 as a scene may leave the focusing out): past a face's end its edge's
-    diffraction, half a mirror's on the reflection boundary and less beyond, is no
-    slightly curved wall's echo. None for a circle more bent than its range (its radius
-    under half the rows' median path), whose echo the strength cannot tell from an
-    edge's (a post's)."""
-    centre, rho, _ = curve_geometry(params, w.x0)
-    if not np.all(np.isfinite(centre)):
-        return np.ones(len(rows))
-    if abs(rho) < 0.5 * float(np.median(w.paths[rows])) if len(rows) else True:
-        return None
-    T, R = w.T[rows], w.R[rows]
-    d1 = np.maximum(np.hypot(*(T - q).T), 1e-12)
-    d2 = np.maximum(np.hypot(*(R - q).T), 1e-12)
-    normal = (q - centre) / np.maximum(np.hypot(*(q - centre).T), 1e-12)[:, None]
-    cos_i = np.maximum(np.abs(dot2(normal, (T - q) / d1[:, None])), 1e-6)
-    kappa = np.full(len(rows), 1.0 / rho)  # the surface's curvature, convex > 0
-    return np.minimum(curved_gain(d1, d2, kappa, cos_i), 1.0)
 
 
 def _predict(w: Window, kind: str, params: np.ndarray, idx: np.ndarray

@@ -32,9 +32,10 @@ from ..scene import Scene
 from ..sensors import SensorArray
 from ..signals import envelope_noise_scale, signal_model
 from .envelope import in_beams
-from .families import Family, mirror_floor, two_way
+from .families import Family
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2
+from .strength import mirror_floor, two_way
 
 #: Spacing of a patch's points, in cells.
 STEP_CELLS = 0.5
@@ -167,7 +168,7 @@ def patch_of(f: Family, loci: Loci) -> Patch:
 def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
                       lo: float, hi: float) -> tuple[float, float]:
     """The span ``(lo, hi)`` cut where the array heard nothing (module docstring): pairs
-    whose two-way beam (:func:`~.families.two_way`) points at the surface beyond the span
+    whose two-way beam (:func:`~.strength.two_way`) points at the surface beyond the span
     at least as well as for the weakest of the patch's own detections, and that have no
     echo there (:func:`_silent_beyond`, :data:`SILENCE_PAIRS` pairs of the group at a
     time)."""

@@ -1,0 +1,84 @@
+"""How strong a reflector's echoes are against a flat mirror's (``mapping.mode =
+"reflectors"``): the floor a plane's echoes must reach, and a convex curve's, so that a
+face's echoes are told from its edge's diffraction (docs/mapping.md; the uniform theory's
+half a mirror's on a reflection boundary, docs/physics.md)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..physics import curved_gain, piston_pattern
+from .models import curve_geometry, dot2
+
+#: A plane's echo is at least this share of a flat mirror's at its reflection point (less
+#: three noise σ). Diffraction at a face's end continues the face's echoes past it, at half
+#: a mirror's on the reflection boundary and less further on (physics.edge_gain): those
+#: echoes are the edge's, not a longer face's.
+MIRROR_SHARE = 0.6
+
+#: The most an edge's diffraction gives, as a share of a flat mirror's echo: half, on a
+#: face's reflection boundary (the uniform theory, physics.edge_diffraction; Kouyoumjian
+#: & Pathak 1974). Noise never lowers a plane's floor below it.
+EDGE_SHARE = 0.5
+
+
+def mirror_floor(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
+                 axR: np.ndarray, mirror: float | np.ndarray, ka: float,
+                 noise_std: float) -> np.ndarray:
+    """The least amplitude the pairs (T, R) hear from a flat mirror with reflection points
+    ``q``: :data:`MIRROR_SHARE` of ``mirror``·b(θ_T)·b(θ_R), less three σ of the
+    detections' amplitude noise, but at least :data:`EDGE_SHARE` of it (an echo no
+    stronger than that may be a face's edge diffracting); −inf (anything) when
+    ``mirror`` is 0."""
+    if np.all(np.asarray(mirror) <= 0):
+        return np.full(len(q), -np.inf)
+    heard = mirror * two_way(q, T, axT, R, axR, ka)
+    return np.maximum(MIRROR_SHARE * heard - 3.0 * noise_std, EDGE_SHARE * heard)
+
+
+def mirror_strong(amplitude: np.ndarray, q: np.ndarray, T: np.ndarray, axT: np.ndarray,
+                  R: np.ndarray, axR: np.ndarray, mirror: float | np.ndarray, ka: float,
+                  noise_std: float) -> np.ndarray:
+    """Whether echoes of ``amplitude`` are as strong as a flat mirror's with reflection
+    points ``q`` for the pairs (T, R) (:func:`mirror_floor`); all, when ``mirror`` is 0."""
+    return amplitude >= mirror_floor(q, T, axT, R, axR, mirror, ka, noise_std)
+
+
+def two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray, axR: np.ndarray,
+            ka: float) -> np.ndarray:
+    """The two-way beam b(θ_T)·b(θ_R) of the pairs (T, R) with unit axes towards ``q``:
+    the piston's patterns, without the hard cut."""
+    out = np.ones(len(q))
+    for X, axis in ((T, axT), (R, axR)):
+        d = q - X
+        dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
+        out = out * piston_pattern(ka * np.abs(axis[:, 0] * d[:, 1] - axis[:, 1] * d[:, 0])
+                                   / dist)
+    return out
+
+
+def convex_share(params: np.ndarray, x0: np.ndarray, q: np.ndarray, T: np.ndarray,
+                 R: np.ndarray, paths: np.ndarray) -> np.ndarray | None:
+    """The echo of the curve model ``params`` (about ``x0``) at the reflection points ``q``
+    of the pairs (T, R), paths ``paths``, over a flat mirror's, where it is less (a
+    convex surface's divergence, physics.curved_gain: a curved wall's echo is a
+    mirror's times its focusing; a concave one's, not counted above 1 as a scene may
+    leave the focusing out): past a face's end its edge's diffraction, half a mirror's
+    on the reflection boundary and less beyond, is no slightly curved wall's echo.
+    None for a circle more bent than its range (its radius under half the median
+    path), whose echo the strength cannot tell from an edge's (a post's)."""
+    centre, rho, _ = curve_geometry(params, x0)
+    if not np.all(np.isfinite(centre)):
+        return np.ones(len(q))
+    if not len(q) or abs(rho) < 0.5 * float(np.median(paths)):
+        return None
+    d1 = np.maximum(np.hypot(*(T - q).T), 1e-12)
+    d2 = np.maximum(np.hypot(*(R - q).T), 1e-12)
+    normal = (q - centre) / np.maximum(np.hypot(*(q - centre).T), 1e-12)[:, None]
+    cos_i = np.maximum(np.abs(dot2(normal, (T - q) / d1[:, None])), 1e-6)
+    kappa = np.full(len(q), 1.0 / rho)  # the surface's curvature, convex > 0
+    return np.minimum(curved_gain(d1, d2, kappa, cos_i), 1.0)
+
+
+__all__ = ["EDGE_SHARE", "MIRROR_SHARE", "convex_share", "mirror_floor", "mirror_strong",
+           "two_way"]
