@@ -371,9 +371,11 @@ def _detect(model: SignalModel, pe: PairEchoes, run: Runner, capacity: int | Non
     counts, cand, scales = run.scan(slots, cap, floor, histogram=True)
     thresholds = np.full(len(pe.pairs), np.inf)  # indexed by slot; unscanned slots: none
     thresholds[slots] = thresholds_of(model, scales)
-    # scanned again: a pair with more candidates than room, or whose threshold came out
-    # below the first pass's floor (a chance: the floor is well under the expected one)
-    over = (counts > cap) | (thresholds[slots] * (1.0 - 1e-6) < floor[slots])
+    # scanned again: a pair with more candidates than room, or, where the first pass's
+    # floor was raised above the scene's, whose threshold came out below it (a chance:
+    # that floor is well under the threshold the noise is expected to set)
+    raised = floor[slots] > envelope_floor(model)
+    over = (counts > cap) | (raised & (thresholds[slots] * (1.0 - 1e-6) < floor[slots]))
     if over.any():
         # the same local maxima, now only those above the final threshold (a hair lower, so
         # float32 rounding of thr² cannot drop one the host keeps)
