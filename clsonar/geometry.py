@@ -464,6 +464,24 @@ class SurfaceSets:
             walls[b, :n], rings[b, :m] = True, True
         return cls(a, ab, ab2, walls, circles, rings)
 
+    @cached_property
+    def any_walls(self) -> bool:
+        return bool(self.walls.any())
+
+    @cached_property
+    def ragged_walls(self) -> bool:
+        """Whether some scene has fewer segments than the padded count."""
+        return not bool(self.walls.all())
+
+    @cached_property
+    def any_rings(self) -> bool:
+        return bool(self.rings.any())
+
+    @cached_property
+    def ragged_rings(self) -> bool:
+        """Whether some scene has fewer circles than the padded count."""
+        return not bool(self.rings.all())
+
     def take(self, rows: np.ndarray) -> SurfaceSets:
         """The scenes ``rows`` (ascending) of these."""
         if len(rows) == len(self.walls):
@@ -477,32 +495,44 @@ def nearest_points(surfaces: SurfaceSets, points: np.ndarray
     """``(distance [B, M], surface point [B, M, 2])``: for each scene b of ``surfaces``,
     the distance from each of its ``points[b]`` [M, 2] to its nearest surface and that
     point (written with few array operations, one set per sub-step of the wall-following
-    traces: x and y apart, the segments' frames precomputed)."""
-    rows = np.arange(points.shape[0])[:, None]
-    cols = np.arange(points.shape[1])[None, :]
-    best = np.full(points.shape[:2], np.inf)
+    traces: x and y apart, the segments' frames precomputed, padding masked only where
+    there is some)."""
+    shape = points.shape[:2]
+    flat = np.arange(shape[0] * shape[1])
+    best = np.full(shape, np.inf)
     near = np.full(points.shape, np.nan)
-    if surfaces.walls.any():
+    if surfaces.walls.size and surfaces.any_walls:
         a, ab, ab2 = surfaces.a[:, None], surfaces.ab[:, None], surfaces.ab2[:, None]
         px, py = points[..., 0:1], points[..., 1:2]
         t = np.clip(((px - a[..., 0]) * ab[..., 0] + (py - a[..., 1]) * ab[..., 1]) / ab2,
                     0.0, 1.0)
         qx, qy = a[..., 0] + t * ab[..., 0], a[..., 1] + t * ab[..., 1]
-        d = np.where(surfaces.walls[:, None], np.hypot(px - qx, py - qy), np.inf)
-        j = np.argmin(d, axis=-1)
-        best = d[rows, cols, j]
-        near = np.where(np.isfinite(best)[..., None],
-                        np.stack([qx[rows, cols, j], qy[rows, cols, j]], axis=-1), np.nan)
-    if surfaces.rings.any():
+        d = np.hypot(px - qx, py - qy)
+        if surfaces.ragged_walls:
+            d = np.where(surfaces.walls[:, None], d, np.inf)
+        o = d.shape[-1]
+        j = np.argmin(d, axis=-1).ravel()
+        best = d.reshape(-1, o)[flat, j].reshape(shape)
+        near = np.stack([qx.reshape(-1, o)[flat, j], qy.reshape(-1, o)[flat, j]],
+                        axis=-1).reshape(points.shape)
+        if surfaces.ragged_walls:  # a scene without walls: no point
+            near = np.where(np.isfinite(best)[..., None], near, np.nan)
+    if surfaces.rings.size and surfaces.any_rings:
         c, r = surfaces.circles[:, None, :, :2], surfaces.circles[:, None, :, 2]
         v = points[:, :, None] - c
         dist_c = np.hypot(v[..., 0], v[..., 1])
-        d = np.where(surfaces.rings[:, None], np.abs(dist_c - r), np.inf)
-        j = np.argmin(d, axis=-1)
-        unit = v[rows, cols, j] / np.maximum(dist_c[rows, cols, j], 1e-300)[..., None]
-        q = surfaces.circles[rows, j, :2] + unit * surfaces.circles[rows, j, 2:3]
-        closer = d[rows, cols, j] < best
-        best = np.where(closer, d[rows, cols, j], best)
+        d = np.abs(dist_c - r)
+        if surfaces.ragged_rings:
+            d = np.where(surfaces.rings[:, None], d, np.inf)
+        k = d.shape[-1]
+        j = np.argmin(d, axis=-1).ravel()
+        d_j = d.reshape(-1, k)[flat, j].reshape(shape)
+        unit = (v.reshape(-1, k, 2)[flat, j]
+                / np.maximum(dist_c.reshape(-1, k)[flat, j], 1e-300)[:, None])
+        circle = surfaces.circles[flat // shape[1], j]
+        q = (circle[:, :2] + unit * circle[:, 2:3]).reshape(points.shape)
+        closer = d_j < best
+        best = np.where(closer, d_j, best)
         near = np.where(closer[..., None], q, near)
     return best, near
 
