@@ -464,24 +464,6 @@ class SurfaceSets:
             walls[b, :n], rings[b, :m] = True, True
         return cls(a, ab, ab2, walls, circles, rings)
 
-    @cached_property
-    def any_walls(self) -> bool:
-        return bool(self.walls.any())
-
-    @cached_property
-    def ragged_walls(self) -> bool:
-        """Whether some scene has fewer segments than the padded count."""
-        return not bool(self.walls.all())
-
-    @cached_property
-    def any_rings(self) -> bool:
-        return bool(self.rings.any())
-
-    @cached_property
-    def ragged_rings(self) -> bool:
-        """Whether some scene has fewer circles than the padded count."""
-        return not bool(self.rings.all())
-
     def take(self, rows: np.ndarray) -> SurfaceSets:
         """The scenes ``rows`` (ascending) of these."""
         if len(rows) == len(self.walls):
@@ -501,28 +483,29 @@ def nearest_points(surfaces: SurfaceSets, points: np.ndarray
     flat = np.arange(shape[0] * shape[1])
     best = np.full(shape, np.inf)
     near = np.full(points.shape, np.nan)
-    if surfaces.walls.size and surfaces.any_walls:
+    if surfaces.walls.any():
+        ragged = not surfaces.walls.all()  # some scene has fewer segments than the padding
         a, ab, ab2 = surfaces.a[:, None], surfaces.ab[:, None], surfaces.ab2[:, None]
         px, py = points[..., 0:1], points[..., 1:2]
         t = np.clip(((px - a[..., 0]) * ab[..., 0] + (py - a[..., 1]) * ab[..., 1]) / ab2,
                     0.0, 1.0)
         qx, qy = a[..., 0] + t * ab[..., 0], a[..., 1] + t * ab[..., 1]
         d = np.hypot(px - qx, py - qy)
-        if surfaces.ragged_walls:
+        if ragged:
             d = np.where(surfaces.walls[:, None], d, np.inf)
         o = d.shape[-1]
         j = np.argmin(d, axis=-1).ravel()
         best = d.reshape(-1, o)[flat, j].reshape(shape)
         near = np.stack([qx.reshape(-1, o)[flat, j], qy.reshape(-1, o)[flat, j]],
                         axis=-1).reshape(points.shape)
-        if surfaces.ragged_walls:  # a scene without walls: no point
+        if ragged:  # a scene without walls: no point
             near = np.where(np.isfinite(best)[..., None], near, np.nan)
-    if surfaces.rings.size and surfaces.any_rings:
+    if surfaces.rings.any():
         c, r = surfaces.circles[:, None, :, :2], surfaces.circles[:, None, :, 2]
         v = points[:, :, None] - c
         dist_c = np.hypot(v[..., 0], v[..., 1])
         d = np.abs(dist_c - r)
-        if surfaces.ragged_rings:
+        if not surfaces.rings.all():
             d = np.where(surfaces.rings[:, None], d, np.inf)
         k = d.shape[-1]
         j = np.argmin(d, axis=-1).ravel()
