@@ -147,14 +147,15 @@ def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
     any work, with one clear message)."""
     mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
                              host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
-    front = _run_front(scene, ctx, skips, cache, progress, given, placed)
+    keys = stage_keys(scene, device_name(ctx), skips) if cache is not None else {}
+    front = _run_front(scene, ctx, skips, cache, keys, progress, given, placed)
     if cache is None:
         return post_process(front, progress=progress, skips=skips)
-    key = stage_keys(scene, front.device, skips)["post"]
-    done = cache.get("post", key)
+    done = cache.get("post", keys["post"])
     if isinstance(done, RunResult):
         return _post_reused(front, done)
-    truth_key = f"{stage_keys(front.scene, front.device, skips)['echoes']} {scene.cell!r}"
+    # the truth reads the echoes (and the cell), which no setting chosen later changes
+    truth_key = f"{keys['echoes']} {scene.cell!r}"
 
     def truth() -> tuple[np.ndarray, np.ndarray]:
         """The truth the metrics score against: it reads the echoes, not the detections."""
@@ -166,7 +167,7 @@ def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
         return cast(tuple[np.ndarray, np.ndarray], found)
 
     done = post_process(front, progress=progress, skips=skips, truth=truth)
-    cache.put("post", key, done)
+    cache.put("post", keys["post"], done)
     return done
 
 
@@ -182,14 +183,14 @@ def _post_reused(front: RunResult, done: RunResult) -> RunResult:
 
 
 def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
-               progress: Progress | None, given: str = "file",
+               keys: dict[str, str], progress: Progress | None, given: str = "file",
                placed: tuple[Geometry, SensorArray] | None = None) -> RunResult:
     """The front stages (sensors → echoes → detection → votes), each reused from ``cache``
-    when its key is there; the result's maps and profile are still empty. After the
+    when its key (``keys``: :func:`~clsonar.cache.stage_keys`) is there; the result's maps
+    and profile are still empty. After the
     sensors, the settings the scene leaves out are chosen from what it is
     (:mod:`clsonar.survey`; ``given`` names where the others come from)."""
     device = device_name(ctx)
-    keys = stage_keys(scene, device, skips) if cache is not None else {}
     clock = _Stopwatch(progress)
     counts: dict[str, int] = {}
     reused: list[str] = []

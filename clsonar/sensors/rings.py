@@ -179,6 +179,16 @@ class _Going:
     c: np.ndarray  # [L]
     sweep: np.ndarray  # [L, S]
 
+    @classmethod
+    def start(cls, traces: dict[int, _Trace], surfaces: SurfaceSets) -> _Going:
+        """The ``traces`` (by index) at their starts, scene b of ``surfaces`` the b-th."""
+        t = list(traces.values())
+        p0 = np.array([x.path[0] for x in t]).reshape(-1, 2)
+        return cls(np.array(list(traces), dtype=np.int64), surfaces, p0,
+                   np.array([x.wall for x in t]).reshape(-1, 2), np.zeros(len(t), bool), p0,
+                   np.array([x.h for x in t]), np.array([x.c for x in t]),
+                   np.array([x.sweep for x in t]).reshape(len(t), _SWEEP_SAMPLES))
+
     def take(self, rows: np.ndarray) -> _Going:
         return _Going(self.ids[rows], self.surfaces.take(rows), self.point[rows],
                       self.wall[rows], self.left[rows], self.p0[rows], self.h[rows],
@@ -197,14 +207,7 @@ def wall_following_paths(jobs: list[TraceJob]) -> list[Traced | SceneError]:
             traces[i] = _start_trace(p, scene, geom)
         except SceneError as error:
             out[i] = error
-    t = list(traces.values())
-    going = _Going(np.array(list(traces), dtype=np.int64),
-                   SurfaceSets.of([jobs[i][2] for i in traces]),
-                   np.array([x.path[0] for x in t]).reshape(-1, 2),
-                   np.array([x.wall for x in t]).reshape(-1, 2), np.zeros(len(t), bool),
-                   np.array([x.path[0] for x in t]).reshape(-1, 2), np.array([x.h for x in t]),
-                   np.array([x.c for x in t]), np.array([x.sweep for x in t]).reshape(
-                       len(t), _SWEEP_SAMPLES))
+    going = _Going.start(traces, SurfaceSets.of([jobs[i][2] for i in traces]))
     while len(going.ids):
         steps.poll()
         going = _advance(going, traces, out)

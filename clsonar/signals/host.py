@@ -367,15 +367,13 @@ def _detect(model: SignalModel, pe: PairEchoes, run: Runner, capacity: int | Non
                                    histogram=False)
             cand = merge_candidates(cand, extra, slots[over])
         return finish_threshold(model, pe, cand)
-    floor = np.full(len(pe.pairs), first_pass_floor(model))
-    counts, cand, scales = run.scan(slots, cap, floor, histogram=True)
+    first = first_pass_floor(model)
+    counts, cand, scales = run.scan(slots, cap, np.full(len(pe.pairs), first), histogram=True)
     thresholds = np.full(len(pe.pairs), np.inf)  # indexed by slot; unscanned slots: none
     thresholds[slots] = thresholds_of(model, scales)
-    # scanned again: a pair with more candidates than room, or, where the first pass's
-    # floor was raised above the scene's, whose threshold came out below it (a chance:
-    # that floor is well under the threshold the noise is expected to set)
-    raised = floor[slots] > envelope_floor(model)
-    over = (counts > cap) | (raised & (thresholds[slots] * (1.0 - 1e-6) < floor[slots]))
+    over = counts > cap  # scanned again: a pair with more candidates than room, or
+    if first > envelope_floor(model):  # one whose threshold came out under a raised floor
+        over |= thresholds[slots] * (1.0 - 1e-6) < first  # (a chance: see first_pass_floor)
     if over.any():
         # the same local maxima, now only those above the final threshold (a hair lower, so
         # float32 rounding of thr² cannot drop one the host keeps)
