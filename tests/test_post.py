@@ -80,6 +80,21 @@ def test_thin_preserves_components_and_is_idempotent(seed, density):
     assert np.array_equal(thin(t), t)
 
 
+def test_the_simple_pixel_table_is_the_labelled_definition():
+    """``thinning._SIMPLE`` (built by a flood fill, so the module needs no scipy.ndimage)
+    against the definition by scipy's labelling: one 8-connected foreground component
+    among the neighbours, one 4-connected background component touching the pixel."""
+    from clsonar.post import thinning
+
+    bits = thinning._NEIGHBOUR_BITS
+    for code in range(256):
+        patch = (code & bits) > 0
+        n_fg = ndimage.label(patch, np.ones((3, 3)))[1]
+        bg, _ = ndimage.label(~patch & (bits > 0), ndimage.generate_binary_structure(2, 1))
+        touching = {bg[i, j] for i, j in ((0, 1), (1, 0), (1, 2), (2, 1)) if bg[i, j]}
+        assert thinning._SIMPLE[code] == (n_fg == 1 and len(touching) == 1), code
+
+
 def test_binarize():
     assert binarize(np.array([0.1, 0.5, 0.6]), 0.5).tolist() == [False, True, True]
     assert not binarize(np.zeros((3, 3)), 0.0).any()  # no echo: nothing occupied

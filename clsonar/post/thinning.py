@@ -12,7 +12,6 @@ Maps are indexed ``[iy, ix]`` with ``iy`` growing with y (docs/design.md).
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from ..scene import PostSettings
 
@@ -78,18 +77,39 @@ def _guo_hall_tables() -> tuple[np.ndarray, np.ndarray]:
 _DELETE_FIRST, _DELETE_SECOND = _guo_hall_tables()
 
 
+def _components(cells: set[tuple[int, int]], steps: tuple[tuple[int, int], ...]
+                ) -> list[set[tuple[int, int]]]:
+    """The connected components of a few ``cells`` (``(row, column)``), neighbours one of
+    ``steps`` apart: a flood fill, for the 3 × 3 patches of the tables below."""
+    left, found = set(cells), []
+    while left:
+        todo, part = [left.pop()], set()
+        while todo:
+            i, j = todo.pop()
+            part.add((i, j))
+            near = {(i + di, j + dj) for di, dj in steps} & left
+            left -= near
+            todo.extend(near)
+        found.append(part)
+    return found
+
+
+_FOUR = ((0, 1), (1, 0), (0, -1), (-1, 0))
+_EIGHT = (*_FOUR, (1, 1), (1, -1), (-1, 1), (-1, -1))
+
+
 def _simple_table() -> np.ndarray:
     """Whether a foreground pixel with a given neighbour code is *simple*: deleting it keeps
     the topology (its neighbours form one 8-connected foreground component and it touches
     one 4-connected background component)."""
     table = np.zeros(256, dtype=bool)
-    four = ndimage.generate_binary_structure(2, 1)
+    ring = [(i, j) for i in range(3) for j in range(3) if (i, j) != (1, 1)]
+    edges = {(0, 1), (1, 0), (1, 2), (2, 1)}
     for code in range(256):
-        patch = (code & _NEIGHBOUR_BITS) > 0
-        n_fg = ndimage.label(patch, np.ones((3, 3)))[1]
-        bg, _ = ndimage.label(~patch & (_NEIGHBOUR_BITS > 0), four)
-        touching = {bg[i, j] for i, j in ((0, 1), (1, 0), (1, 2), (2, 1)) if bg[i, j]}
-        table[code] = n_fg == 1 and len(touching) == 1
+        fg = {c for c in ring if code & _NEIGHBOUR_BITS[c]}
+        bg = _components(set(ring) - fg, _FOUR)
+        touching = [part for part in bg if part & edges]
+        table[code] = len(_components(fg, _EIGHT)) == 1 and len(touching) == 1
     return table
 
 
@@ -181,6 +201,8 @@ def along_x(occupied: np.ndarray) -> np.ndarray:
       in it): the walls along x of a corridor or a room, each part of a room's outline in
       its own direction.
     """
+    from scipy import ndimage  # only here: its import costs a plain run 0.2 s
+
     b = np.asarray(occupied, dtype=bool)
     iy, ix = np.nonzero(b)
     if len(iy) == 0 or np.var(iy) >= np.var(ix):
