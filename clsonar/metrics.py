@@ -8,9 +8,11 @@
   nearest true surface;
 - completeness: the share of the *insonified* true geometry that has an estimated point
   within 1, 2, 3 and 5 cm. A point of a true surface is insonified when it lies on the locus
-  of an echo return inside both beams (:func:`insonified`): the parts of the scene the
-  echoes speak of, so what a perfect map could recover; ``coverage`` is their share of all
-  the true geometry;
+  of an echo return inside both beams that the run's detection could detect
+  (:func:`insonified`, :func:`detectable_amplitude`: at least its threshold, and at least
+  10 % of the transmitted amplitude): the parts of the scene the detected echoes could
+  speak of, so what a perfect map could recover; ``coverage`` is their share of all the
+  true geometry;
 - spurious share: the share of estimated points farther than 5 cm from every true surface;
 - rooms (thesis §3.6): each true corner and edge against the nearest vertex the profile
   located (:func:`vertex_errors`; found within 3 cm), and the share of each cylinder's
@@ -29,12 +31,19 @@ from . import physics, steps
 from .geometry import Geometry, curve_point, nearest_surface_point, point_cells, true_vertices
 from .scene import Polyline, Scene, Sinusoid
 from .sensors import SensorArray
+from .signals import envelope_noise_scale, signal_model
+from .signals.detection import envelope_floor
+from .survey import with_detection_chosen
 
 #: Distances at which completeness is reported, metres.
 COMPLETENESS_RADII = (0.01, 0.02, 0.03, 0.05)
 
 #: An estimated point farther than this from every surface is spurious, metres.
 SPURIOUS_M = 0.05
+
+#: Echoes weaker than this share of the transmitted amplitude insonify nothing, whatever
+#: the detection's floor (:func:`least_amplitude`).
+LEAST_SHARE = 0.1
 
 #: A true point within about this range of an echo's locus is insonified by it, metres.
 LOCUS_TOL_M = 0.01
@@ -73,38 +82,105 @@ def truth_points(scene: Scene, geom: Geometry, spacing: float) -> np.ndarray:
 
 
 def heard(scene: Scene, echoes, min_amplitude: float | None = None) -> np.ndarray:
-    """[n] bool: the echo returns :func:`insonified` reads, those at least
-    ``min_amplitude`` (default 10 % of the transmitted amplitude)."""
-    floor = 0.1 * scene.transducer.amplitude if min_amplitude is None else min_amplitude
+    """[n] bool: the echo returns at least ``min_amplitude`` strong (default
+    :func:`least_amplitude`, the same at every noise σ and detection mode)."""
+    floor = least_amplitude(scene) if min_amplitude is None else min_amplitude
     return np.asarray(echoes.amplitude) >= floor
+
+
+def least_amplitude(scene: Scene) -> float:
+    """The weakest echo any run's metrics read: :data:`LEAST_SHARE` of the transmitted
+    amplitude, units."""
+    return LEAST_SHARE * scene.transducer.amplitude
+
+
+def detectable_amplitude(scene: Scene, sensors: SensorArray | None = None) -> float:
+    """The weakest echo the run's detection could detect, and at least
+    :func:`least_amplitude` (units): the signal's threshold (``detection.mode``
+    ``"threshold"``, thesis §2.1.1), else the envelope's lowest threshold — the floor
+    (``detection.min_envelope``, chosen from the scene with ``sensors`` where the file leaves
+    it out; the Polaroid receiver's comparator level) or, with noise, ``false_alarm_sigmas``
+    times the envelope noise's Rayleigh scale (docs/detection.md), whichever is higher. An
+    isolated echo of amplitude A reads A on either detector, so an echo weaker than this
+    gives no detection and speaks of nothing a map could show."""
+    if scene.detection.min_envelope is None and sensors is not None:
+        scene = with_detection_chosen(scene, sensors)
+    if scene.detection.mode == "threshold":
+        return max(least_amplitude(scene), float(scene.signal.threshold))
+    if scene.detection.min_envelope is None:
+        return least_amplitude(scene)
+    model = signal_model(scene)
+    floor = envelope_floor(model)
+    if model.receiver is None:
+        floor = max(floor, model.false_alarm_sigmas * envelope_noise_scale(model))
+    return max(least_amplitude(scene), floor)
 
 
 def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
                min_amplitude: float | None = None) -> np.ndarray:
-    """[M] bool: which ``points`` of the true geometry lie on the locus of an echo return.
+    """[M] bool: which ``points`` of the true geometry lie on the locus of an echo return
+    at least ``min_amplitude`` strong (default :func:`detectable_amplitude`: an echo the
+    run's detection could detect; :func:`strongest_echo`)."""
+    least = detectable_amplitude(scene, sensors) if min_amplitude is None else min_amplitude
+    return strongest_echo(scene, sensors, echoes, points, least) >= least
+
+
+def strongest_echo(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
+                   min_amplitude: float | None = None) -> np.ndarray:
+    """[M] float: the amplitude of the strongest echo return at least ``min_amplitude``
+    strong (default :func:`least_amplitude`) on whose locus each of ``points`` lies, 0
+    where none.
 
     A point q is on the locus of the echo (T, R, τ) when ``| |q−T| + |q−R| − c·τ | ≤
     2·LOCUS_TOL_M`` (about ±1 cm in range) and q is inside both beams: what the echoes
     themselves say about the scene, so what a perfect map could recover. A smooth wall
     only echoes around its specular points; the rest of it, even inside a beam, is silent.
-    Echoes weaker than ``min_amplitude`` (default 10 % of the transmitted amplitude) are
-    ignored.
     """
     t = scene.transducer
     c = scene.medium.c
     keep = heard(scene, echoes, min_amplitude)
     tx, rx = np.asarray(echoes.tx)[keep], np.asarray(echoes.rx)[keep]
     path = np.asarray(echoes.tof_s)[keep] * c
+    amp = np.asarray(echoes.amplitude, dtype=np.float64)[keep]
     cut_sin2 = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
-    lit = np.zeros(len(points), dtype=bool)
+    best = np.zeros(len(points))
     if len(path) == 0 or len(points) == 0:
-        return lit
-    # Each sensor that heard an echo looks only at the points within its longest path
-    # (a point of the locus of (T, R, τ) is at most c·τ from T and from R: a slice of the
-    # points sorted by x) and inside its beam; an echo then tests the points both of its
-    # sensors see.
+        return best
+    # each echo tests the points both of its sensors see (_sensor_views)
     order = np.argsort(points[:, 0], kind="stable")
     pts = points[order]
+    seen = _sensor_views(pts, sensors, tx, rx, path, cut_sin2)
+    best_sorted = np.zeros(len(pts))
+    for k, (a, b, length) in enumerate(zip(tx, rx, path, strict=True)):
+        if k % STEP_ECHOES == 0:
+            steps.step("echoes' loci", k, len(path))
+        (it, dt), (ir, dr) = seen[int(a)], seen[int(b)]
+        if len(it) == 0 or len(ir) == 0:
+            continue
+        at = np.minimum(np.searchsorted(ir, it), len(ir) - 1)  # both index lists are sorted
+        both = ir[at] == it
+        on = np.abs(dt[both] + dr[at[both]] - length) <= 2 * LOCUS_TOL_M
+        hit = it[both][on]
+        best_sorted[hit] = np.maximum(best_sorted[hit], amp[k])
+    steps.step("echoes' loci", len(path), len(path))
+    best[order] = best_sorted
+    return best
+
+
+#: Echoes :func:`insonified` tests between two reports of its progress.
+STEP_ECHOES = 4096
+
+
+#: Widest beam (sin² of its half-angle) :func:`_near_beam` narrows a sensor's points for;
+#: beyond it (45°) the whole x-slice goes to the beam test.
+_NARROW_BEAM_SIN2 = 0.5
+
+
+def _sensor_views(pts: np.ndarray, sensors: SensorArray, tx: np.ndarray, rx: np.ndarray,
+                  path: np.ndarray, cut_sin2: float) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Per sensor that heard an echo, ``(indices, distances)`` of the x-sorted ``pts``
+    inside its beam and within its longest path (a point of the locus of (T, R, τ) is at
+    most c·τ from T and from R: a slice of the points sorted by x), indices ascending."""
     reach = np.zeros(len(sensors.positions))
     np.maximum.at(reach, tx, path)
     np.maximum.at(reach, rx, path)
@@ -119,29 +195,7 @@ def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,
         cross = axis[0] * d[:, 1] - axis[1] * d[:, 0]
         beam = (d @ axis > 0) & (cross * cross <= cut_sin2 * dist * dist)
         seen[int(s)] = (index[beam], dist[beam])
-    lit_sorted = np.zeros(len(pts), dtype=bool)
-    for k, (t, r, length) in enumerate(zip(tx, rx, path, strict=True)):
-        if k % STEP_ECHOES == 0:
-            steps.step("echoes' loci", k, len(path))
-        (it, dt), (ir, dr) = seen[int(t)], seen[int(r)]
-        if len(it) == 0 or len(ir) == 0:
-            continue
-        at = np.minimum(np.searchsorted(ir, it), len(ir) - 1)  # both index lists are sorted
-        both = ir[at] == it
-        on = np.abs(dt[both] + dr[at[both]] - length) <= 2 * LOCUS_TOL_M
-        lit_sorted[it[both][on]] = True
-    steps.step("echoes' loci", len(path), len(path))
-    lit[order] = lit_sorted
-    return lit
-
-
-#: Echoes :func:`insonified` tests between two reports of its progress.
-STEP_ECHOES = 4096
-
-
-#: Widest beam (sin² of its half-angle) :func:`_near_beam` narrows a sensor's points for;
-#: beyond it (45°) the whole x-slice goes to the beam test.
-_NARROW_BEAM_SIN2 = 0.5
+    return seen
 
 
 def _near_beam(pts: np.ndarray, origin: np.ndarray, axis: np.ndarray, reach: float,
@@ -268,12 +322,13 @@ def cylinder_coverage(geom: Geometry, points: np.ndarray, spacing: float) -> lis
 
 def lit_truth(scene: Scene, geom: Geometry, sensors: SensorArray, echoes
               ) -> tuple[np.ndarray, np.ndarray]:
-    """``(truth, lit)``: the points every ``min(cell, 5 mm)`` along the true surfaces
-    (:func:`truth_points`) and those of them the echoes insonify (:func:`insonified`):
-    what :func:`evaluate` scores a profile against, the same for every profile mapped from
-    these echoes."""
+    """``(truth, strongest)``: the points every ``min(cell, 5 mm)`` along the true surfaces
+    (:func:`truth_points`) and the strongest echo on whose locus each lies
+    (:func:`strongest_echo`, 0: none): what :func:`evaluate` scores a profile against, the
+    same for every profile mapped from these echoes, whatever detected them (it keeps the
+    points the run's detection could hear, :func:`detectable_amplitude`)."""
     truth = truth_points(scene, geom, min(scene.cell, 0.005))
-    return truth, truth[insonified(scene, sensors, echoes, truth)] if len(truth) else truth
+    return truth, strongest_echo(scene, sensors, echoes, truth)
 
 
 def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
@@ -282,7 +337,8 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
     """All metrics of the estimated profile ``points`` [n, 2] (module docstring), as a
     JSON-ready dict: ``rms_m`` (eq. 2.6 or None), ``accuracy_m`` {rms, p95},
     ``completeness`` {"1cm", "2cm", "3cm", "5cm"}, ``spurious_share``, ``insonified_m``
-    (length of the insonified true geometry), ``coverage`` (its share of all of it),
+    (length of the insonified true geometry: lit by an echo the run's detection could
+    detect, :func:`detectable_amplitude`), ``coverage`` (its share of all of it),
     ``points``, and
     for scenes with corners, edges or cylinders ``vertices`` (:func:`vertex_errors` of the
     located ``vertices``, with ``vertices_found`` and ``vertex_error_max_m``) and
@@ -290,7 +346,8 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
     scene, sensors and echoes when already computed."""
     points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     spacing = min(scene.cell, 0.005)
-    truth, lit = lit_truth(scene, geom, sensors, echoes) if scored is None else scored
+    truth, strongest = lit_truth(scene, geom, sensors, echoes) if scored is None else scored
+    lit = truth[strongest >= detectable_amplitude(scene, sensors)]
     out: dict[str, object] = {
         "points": len(points), "rms_m": rms_along_wall(scene, points),
         "insonified_m": len(lit) * spacing,
@@ -330,10 +387,13 @@ def surface_cells(scene: Scene, geom: Geometry, sensors: SensorArray, echoes
                   ) -> tuple[np.ndarray, np.ndarray]:
     """``(full, surface)``, [ny, nx] bool each, at the map's cells: the cells holding a
     point of the insonified true surface (:func:`truth_points` every ``min(cell, 5 mm)``,
-    :func:`insonified`: the full cells a perfect map would mark, Barshan 2007), and those
+    :func:`insonified` by echoes of at least :func:`least_amplitude`, the same at every
+    noise σ and detection mode: the full cells a perfect map would mark, Barshan 2007),
+    and those
     holding any point of the true surface."""
     truth = truth_points(scene, geom, min(scene.cell, 0.005))
-    lit = insonified(scene, sensors, echoes, truth) if len(truth) else np.zeros(0, bool)
+    lit = (insonified(scene, sensors, echoes, truth, least_amplitude(scene)) if len(truth)
+           else np.zeros(0, bool))
     out = []
     for pts in (truth[lit], truth):
         grid = np.zeros(scene.grid_shape, dtype=bool)

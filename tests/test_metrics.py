@@ -9,7 +9,15 @@ import pytest
 from clsonar import physics
 from clsonar.echoes import reference_echoes
 from clsonar.geometry import build_geometry
-from clsonar.metrics import LOCUS_TOL_M, evaluate, insonified, rms_along_wall, truth_points
+from clsonar.metrics import (
+    LOCUS_TOL_M,
+    detectable_amplitude,
+    evaluate,
+    insonified,
+    rms_along_wall,
+    strongest_echo,
+    truth_points,
+)
 from clsonar.scene import Polyline, Scene, Sensors, Sinusoid, Transducer
 from clsonar.sensors import place_sensors
 
@@ -52,15 +60,16 @@ def test_insonified_is_where_the_echo_loci_meet_the_wall():
     assert not insonified(quiet, *_setup(quiet)[1:], truth).any()
 
 
-def _insonified_by_definition(scene, sensors, echoes, points):
-    """insonified's docstring, echo by echo and point by point: on the locus within
-    2·LOCUS_TOL_M and inside both beams (in front, sin² of the angle at most the cut)."""
+def _insonified_by_definition(scene, sensors, echoes, points, floor):
+    """insonified's docstring, echo by echo and point by point: an echo at least ``floor``
+    strong, on its locus within 2·LOCUS_TOL_M and inside both beams (in front, sin² of the
+    angle at most the cut)."""
     t, c = scene.transducer, scene.medium.c
     cut = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
     lit = np.zeros(len(points), dtype=bool)
     for tx, rx, tof, amp in zip(echoes.tx, echoes.rx, echoes.tof_s, echoes.amplitude,
                                 strict=True):
-        if amp < 0.1 * t.amplitude:
+        if amp < floor:
             continue
         dist = {}
         inside = np.ones(len(points), dtype=bool)
@@ -89,9 +98,17 @@ def test_insonified_is_its_definition_in_a_room(half_beam):
     geom, sensors, echoes = _setup(scene)
     assert np.any(echoes.tx != echoes.rx)
     truth = truth_points(scene, geom, 0.005)
-    want = _insonified_by_definition(scene, sensors, echoes, truth)
+    # transducers in a closed room: the detection's floor is chosen at 1 unit
+    assert detectable_amplitude(scene, sensors) == 1.0
+    want = _insonified_by_definition(scene, sensors, echoes, truth, 1.0)
     assert want.any()
     np.testing.assert_array_equal(insonified(scene, sensors, echoes, truth), want)
+    strong = _insonified_by_definition(scene, sensors, echoes, truth, 4.2)
+    assert np.any(want & ~strong)
+    np.testing.assert_array_equal(insonified(scene, sensors, echoes, truth, 4.2), strong)
+    best = strongest_echo(scene, sensors, echoes, truth)
+    np.testing.assert_array_equal(best >= 1.0, want)
+    np.testing.assert_array_equal(best >= 4.2, strong)
 
 
 def test_evaluate_accuracy_completeness_spurious():
@@ -108,3 +125,20 @@ def test_evaluate_accuracy_completeness_spurious():
     assert m["coverage"] == pytest.approx(m["insonified_m"] / 10.0, rel=0.01)
     empty = evaluate(scene, geom, sensors, echoes, np.zeros((0, 2)))
     assert empty["completeness"]["5cm"] == 0.0 and empty["accuracy_m"]["rms"] is None
+
+
+def test_detectable_amplitude_is_the_detections_threshold_and_at_least_a_tenth():
+    """An echo insonifies only where the run's detection could detect it (issue 18: a
+    vertex lit only by an echo under a room's floor of 1 unit is not one to find)."""
+    scene = _scene(WALL)  # open scene: the floor is 0.01, so a tenth of A0 (0.5) rules
+    sensors = _setup(scene)[1]
+    assert detectable_amplitude(scene, sensors) == pytest.approx(0.1 * scene.transducer.amplitude)
+    noisy = dataclasses.replace(scene, signal=dataclasses.replace(scene.signal, noise_std=1.2))
+    # 6 Rayleigh scales of the envelope's noise, 0.145·σn each (docs/detection.md)
+    assert detectable_amplitude(noisy, sensors) == pytest.approx(6 * 0.145 * 1.2, rel=0.02)
+    thesis = dataclasses.replace(scene, detection=dataclasses.replace(
+        scene.detection, mode="threshold"))
+    assert detectable_amplitude(thesis, sensors) == max(0.5, scene.signal.threshold)
+    floor = dataclasses.replace(scene, detection=dataclasses.replace(
+        scene.detection, min_envelope=2.0))
+    assert detectable_amplitude(floor, sensors) == 2.0

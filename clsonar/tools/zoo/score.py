@@ -4,11 +4,14 @@
 - **accuracy**: the RMS distance of the profile points to the true surfaces
   (:func:`clsonar.metrics.evaluate`'s ``accuracy_m.rms``);
 - **completeness**: the share of the insonified true surface — the points of the scene that
-  lie on the locus of an echo inside both beams (:func:`clsonar.metrics.insonified`), what a
+  lie on the locus of an echo inside both beams that the run's detection could detect
+  (:func:`clsonar.metrics.insonified`, :func:`clsonar.metrics.detectable_amplitude`), what a
   perfect map could recover — with a profile point within 3 cm (``completeness.3cm``);
-- **vertex**: every true corner and edge in view (itself insonified: on the locus of an echo,
-  as a corner's double bounce and an edge's diffraction are) to the nearest profile point or
-  located vertex (Kleeman & Kuc 1995: a corner and an edge map to a point); the worst one;
+- **vertex**: every true corner and edge in view (itself insonified: on the locus of an echo
+  the detection could detect, as a corner's double bounce and an edge's diffraction are) to
+  the nearest profile point or located vertex (Kleeman & Kuc 1995: a corner and an edge map
+  to a point); the worst one. An edge whose diffraction stays under the detection's floor
+  (a room's 1 unit) is not in view: no detection can come from it (issue 18);
 - **seconds**: the run's stages summed (``report.json``'s ``seconds.total``).
 
 A criterion is None (not scored) where it does not apply: completeness where nothing is
