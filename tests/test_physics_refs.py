@@ -74,17 +74,18 @@ def test_detection_ranges_with_the_default_floors_and_with_air_absorption():
     """Issue 18: each kind's detection range with the default settings beside the
     literature's (docs/physics/ranges.md). An open scene's floor hears a 90° edge well past
     the thesis' 3–4 m; with air's absorption at 50 kHz (ISO 9613-1: 1.66 dB/m) the edge
-    stops at 2.5–3.3 m and a plane at 16 m (the Polaroid 6500: 10.7 m)."""
-    kinds = {k.name.split(" (")[0] + (" utd" if "utd" in k.name else ""): k
+    stops at 3.3 m (the default, uniform theory; 2.5 m by the estimate) and a plane at
+    16 m (the Polaroid 6500: 10.7 m)."""
+    kinds = {k.name.split(" (")[0] + (" estimate" if "estimate" in k.name else ""): k
              for k in detection_ranges.kinds()}
     open_floor, room_floor = OPEN_MIN_ENVELOPE, DEFAULT_MIN_ENVELOPE
     air = detection_ranges.AIR_ABSORPTION_DB_PER_M
     assert detection_ranges.max_range(kinds["convex edge, 90°"].echo, open_floor) > 4.0
     assert detection_ranges.max_range(kinds["convex edge, 90°"].echo, room_floor) == 0.0
-    assert 2.0 < detection_ranges.max_range(kinds["convex edge, 90°"].echo, open_floor,
-                                            air) < 3.0
-    assert 3.0 < detection_ranges.max_range(kinds["convex edge, 90° utd"].echo, open_floor,
+    assert 3.0 < detection_ranges.max_range(kinds["convex edge, 90°"].echo, open_floor,
                                             air) < 4.0
+    assert 2.0 < detection_ranges.max_range(kinds["convex edge, 90° estimate"].echo,
+                                            open_floor, air) < 3.0
     assert math.isinf(detection_ranges.max_range(kinds["plane"].echo, room_floor))
     assert 15.0 < detection_ranges.max_range(kinds["plane"].echo, open_floor, air) < 17.0
     assert 0.9 < detection_ranges.max_range(kinds["post r 5 cm"].echo, room_floor) < 1.1
@@ -94,14 +95,15 @@ def test_detection_ranges_with_the_polaroid_6500_receiver():
     """Issue 18: with ``detection.receiver`` "polaroid-6500" in air (docs/physics/ranges.md)
     a plane is heard to the module's 35 ft (its level's calibration, 10.67 m) and no
     further; a corner to 10.4 m; a 90° edge only just past the 2.38 ms blanking (0.41 m) to
-    0.48 m (uniform theory) or never (estimate), where the thesis reports 3–4 m; a 1 m
-    cylinder to 8.4 m, a post to 5.8 m. Nothing inside the blanking is heard."""
+    0.48 m (uniform theory, the default) or never (estimate), where the thesis reports
+    3–4 m; a 1 m cylinder to 8.4 m, a post to 5.8 m. Nothing inside the blanking is
+    heard."""
     kinds = {k.name: k for k in detection_ranges.kinds()}
     r = {name: detection_ranges.polaroid_range(k.echo) for name, k in kinds.items()}
     assert 10.6 < r["plane"] <= 35 * 0.3048
     assert 10.3 < r["corner (double bounce)"] < 10.5
-    assert r["convex edge, 90° (default model)"] == 0.0
-    assert 0.45 < r["convex edge, 90° (`edge_model` utd)"] < 0.5
+    assert 0.45 < r["convex edge, 90° (default model, uniform theory)"] < 0.5
+    assert r["convex edge, 90° (`edge_model` estimate)"] == 0.0
     assert 8.2 < r["cylinder r 1 m"] < 8.5
     assert 7.2 < r["cylinder r 0.3 m"] < 7.6
     assert 5.6 < r["post r 5 cm"] < 5.9

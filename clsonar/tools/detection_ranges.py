@@ -8,9 +8,9 @@ The echo of each kind, monostatic and on both beams' axes, is A0·ρⁿ·G (phys
 plane's and a corner's do not fall with range (the receiver's time-varying gain
 compensates spherical spreading), so they are heard as far as the ranging window reaches
 (the Polaroid 6500's 10.7 m); a convex edge's diffraction falls as 1/sqrt(k·d)
-(:func:`~clsonar.physics.edge_gain`, the uniform theory, and the default
-:func:`~clsonar.physics.edge_gain_estimate`); a cylinder's and a post's as
-sqrt(r/(r + d)) (:func:`~clsonar.physics.curved_gain`).
+(:func:`~clsonar.physics.edge_gain`, the uniform theory and the default, and
+:func:`~clsonar.physics.edge_gain_estimate`, ``echo.edge_model`` ``"estimate"``); a
+cylinder's and a post's as sqrt(r/(r + d)) (:func:`~clsonar.physics.curved_gain`).
 
 The last column is ``detection.receiver`` ``"polaroid-6500"``
 (:mod:`clsonar.signals.polaroid`) in air: the echo, with air's absorption over its path,
@@ -80,8 +80,8 @@ def kinds() -> list[Kind]:
              "thesis: to 9 m", " (its level's calibration)"),
         Kind("corner (double bounce)", lambda d: np.full(d.shape, mirror * rho),
              "the thesis: to 9 m"),
-        Kind("convex edge, 90° (default model)", estimate, "the thesis: to 3–4 m"),
-        Kind("convex edge, 90° (`edge_model` utd)", utd, "the thesis: to 3–4 m"),
+        Kind("convex edge, 90° (default model, uniform theory)", utd, "the thesis: to 3–4 m"),
+        Kind("convex edge, 90° (`edge_model` estimate)", estimate, "the thesis: to 3–4 m"),
         Kind("cylinder r 1 m", circle(1.0), "–"),
         Kind("cylinder r 0.3 m", circle(0.3), "–"),
         Kind("post r 5 cm", circle(0.05), "–"),
