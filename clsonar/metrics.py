@@ -28,6 +28,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import physics, steps
+from .echoes import EDGE
 from .geometry import Geometry, curve_point, nearest_surface_point, point_cells, true_vertices
 from .scene import Polyline, Scene, Sinusoid
 from .sensors import SensorArray
@@ -135,6 +136,9 @@ def strongest_echo(scene: Scene, sensors: SensorArray, echoes, points: np.ndarra
     2·LOCUS_TOL_M`` (about ±1 cm in range) and q is inside both beams: what the echoes
     themselves say about the scene, so what a perfect map could recover. A smooth wall
     only echoes around its specular points; the rest of it, even inside a beam, is silent.
+    An edge's diffraction comes from its vertex alone (the echo's ``point``; Keller's
+    geometrical theory of diffraction): it insonifies the points within 2·LOCUS_TOL_M of
+    the vertex, not the stretches of the faces its locus crosses.
     """
     t = scene.transducer
     c = scene.medium.c
@@ -142,6 +146,9 @@ def strongest_echo(scene: Scene, sensors: SensorArray, echoes, points: np.ndarra
     tx, rx = np.asarray(echoes.tx)[keep], np.asarray(echoes.rx)[keep]
     path = np.asarray(echoes.tof_s)[keep] * c
     amp = np.asarray(echoes.amplitude, dtype=np.float64)[keep]
+    kind = getattr(echoes, "kind", None)
+    edge = (np.zeros(len(amp), bool) if kind is None else np.asarray(kind)[keep] == EDGE)
+    vertex = np.asarray(echoes.point)[keep] if edge.any() else np.zeros((len(amp), 2))
     cut_sin2 = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
     best = np.zeros(len(points))
     if len(path) == 0 or len(points) == 0:
@@ -161,6 +168,9 @@ def strongest_echo(scene: Scene, sensors: SensorArray, echoes, points: np.ndarra
         both = ir[at] == it
         on = np.abs(dt[both] + dr[at[both]] - length) <= 2 * LOCUS_TOL_M
         hit = it[both][on]
+        if edge[k]:
+            near = pts[hit] - vertex[k]
+            hit = hit[near[:, 0] ** 2 + near[:, 1] ** 2 <= (2 * LOCUS_TOL_M) ** 2]
         best_sorted[hit] = np.maximum(best_sorted[hit], amp[k])
     steps.step("echoes' loci", len(path), len(path))
     best[order] = best_sorted

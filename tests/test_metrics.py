@@ -63,12 +63,13 @@ def test_insonified_is_where_the_echo_loci_meet_the_wall():
 def _insonified_by_definition(scene, sensors, echoes, points, floor):
     """insonified's docstring, echo by echo and point by point: an echo at least ``floor``
     strong, on its locus within 2·LOCUS_TOL_M and inside both beams (in front, sin² of the
-    angle at most the cut)."""
+    angle at most the cut), and an edge's diffraction within 2·LOCUS_TOL_M of its vertex."""
     t, c = scene.transducer, scene.medium.c
     cut = physics.beam_cut_sin2(t.frequency_hz, t.radius_m, t.half_beam_deg, c)
     lit = np.zeros(len(points), dtype=bool)
-    for tx, rx, tof, amp in zip(echoes.tx, echoes.rx, echoes.tof_s, echoes.amplitude,
-                                strict=True):
+    for tx, rx, tof, amp, kind, vertex in zip(echoes.tx, echoes.rx, echoes.tof_s,
+                                              echoes.amplitude, echoes.kind_names(),
+                                              echoes.point, strict=True):
         if amp < floor:
             continue
         dist = {}
@@ -80,6 +81,8 @@ def _insonified_by_definition(scene, sensors, echoes, points, floor):
             cross = axis[0] * d[:, 1] - axis[1] * d[:, 0]
             along = axis[0] * d[:, 0] + axis[1] * d[:, 1]
             inside &= (along > 0) & (cross * cross <= cut * dist[s] * dist[s])
+        if kind == "edge":  # a diffraction speaks of its vertex alone
+            inside &= np.hypot(*(points - vertex).T) <= 2 * LOCUS_TOL_M
         lit |= inside & (np.abs(dist[tx] + dist[rx] - tof * c) <= 2 * LOCUS_TOL_M)
     return lit
 
@@ -142,3 +145,24 @@ def test_detectable_amplitude_is_the_detections_threshold_and_at_least_a_tenth()
     floor = dataclasses.replace(scene, detection=dataclasses.replace(
         scene.detection, min_envelope=2.0))
     assert detectable_amplitude(floor, sensors) == 2.0
+
+
+def test_an_edges_diffraction_insonifies_its_vertex_not_the_faces_its_locus_crosses():
+    """Issue 18: a transducer 1 m from a box corner, 0.3° into the shadow of a face's
+    reflection boundary, hears only the edge's diffraction, about half a mirror's (the
+    uniform theory). Its locus runs along the face for ±20 cm around the vertex; the face
+    there says nothing (no specular point), so only the vertex is insonified."""
+    from clsonar.tools import physics_check as pc
+
+    t = pc._polar(1.0, 180.0 - 90.3)
+    scene = pc._scene([{"type": "polyline", "points": [[-10.0, 0.0], [0.0, 0.0],
+                                                       [0.0, -10.0]]}],
+                      [(t, np.zeros(2))], open_floor=True)
+    geom, sensors, echoes = _setup(scene)
+    assert echoes.kind_names().tolist() == ["edge"] and echoes.amplitude[0] > 2.0
+    truth = truth_points(scene, geom, 0.005)
+    lit = truth[insonified(scene, sensors, echoes, truth)]
+    assert len(lit) > 0 and np.hypot(*lit.T).max() <= 2 * LOCUS_TOL_M
+    path = echoes.tof_s[0] * scene.medium.c
+    on_locus = np.abs(2 * np.hypot(*(truth - t).T) - path) <= 2 * LOCUS_TOL_M
+    assert np.hypot(*truth[on_locus].T).max() > 0.1  # what the locus alone would light
