@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 import clsonar.mapping as mapping
 import clsonar.mapping.launch as map_launch
 from clsonar.mapping import Loci, accumulate_reference, accumulate_with_stats
-from clsonar.opencl import get_context, has_fp64
+from clsonar.opencl import device_kind, get_context, has_fp64
 from clsonar.scene import MappingSettings, Scene, TransducerModel
 from clsonar.sensors import SensorArray
 
@@ -25,6 +25,16 @@ from clsonar.sensors import SensorArray
 @functools.cache
 def context():
     return get_context()
+
+
+def tiles_of(shape, tile) -> int:
+    """How many tiles of ``tile`` = (width, height) pixels cover a map of ``shape``
+    = (width, height)."""
+    return math.ceil(shape[0] / tile[0]) * math.ceil(shape[1] / tile[1])
+
+
+def on_cpu() -> bool:
+    return device_kind(context().devices[0]) == "CPU"
 
 
 def precisions() -> tuple[str, ...]:
@@ -181,7 +191,9 @@ def test_loci_that_miss_the_map_are_binned_nowhere():
     bins = mapping.bin_loci(mapping.prepare_loci(scene, sensors, loci), (32, 32))
     assert len(bins.members) == 0 and not bins.counts.any()
     m, stats = accumulate_with_stats(scene, sensors, loci, context=context())
-    assert not m.any() and stats.tiles_skipped == stats.tiles_total == 16
+    # 100 × 100 pixels: 4 × 4 tiles of a CPU's 32 × 32, 4 × 13 of a GPU's 32 × 8
+    assert not m.any() and stats.tiles_skipped == stats.tiles_total == tiles_of((100, 100),
+                                                                                stats.tile)
     assert stats.pixel_locus_tests == 0 and stats.dense_tests > 0
 
 
@@ -199,16 +211,20 @@ def test_counters_and_launches(precision):
     dense, tiled, stats = draw_both(scene, sensors, loci, precision, (32, 32))
     assert np.array_equal(dense, tiled) and np.count_nonzero(tiled) > 300
     pb = mapping.prepare_loci(scene, sensors, loci)
-    counts = mapping.bin_loci(pb, (32, 32)).counts
-    assert stats.tile == (32, 32) and stats.tiles_total == 10 * 8  # 300 × 250 pixels
+    # 32 × 32 asked; a GPU's kernel may take fewer work items a group: rows are cut
+    tw, th = stats.tile
+    assert tw == 32 and th in (32, 16, 8) and (th == 32 or not on_cpu())
+    counts = mapping.bin_loci(pb, (tw, th)).counts
+    assert stats.tiles_total == tiles_of((300, 250), (tw, th))  # 10 × 8 of 32 × 32
     assert stats.tiles_skipped == int(np.count_nonzero(counts == 0)) > 20
-    assert stats.pixel_locus_tests == int(counts.sum()) * 32 * 32
+    assert stats.pixel_locus_tests == int(counts.sum()) * tw * th
     assert stats.pixel_locus_tests < stats.dense_tests / 3
     assert stats.launches == 1
-    assert stats.as_dict()["tile"] == [32, 32]
+    assert stats.as_dict()["tile"] == [tw, th]
     # one tile per launch: the same map, in as many launches as tiles drawn
     _, split, small = draw_both(scene, sensors, loci, precision, (32, 32), launch_bytes=1)
-    assert np.array_equal(split, tiled) and small.launches == 80 - stats.tiles_skipped
+    assert np.array_equal(split, tiled)
+    assert small.launches == stats.tiles_total - stats.tiles_skipped
     assert small.pixel_locus_tests == stats.pixel_locus_tests
     # dense: every pixel of the padded map tests every locus
     _, dense_stats = accumulate_with_stats(scene, sensors, loci, context=context(),
@@ -284,7 +300,8 @@ def test_a_hundred_metre_hall_at_one_centimetre_fits_in_2_gb():
                           timeout=300, check=True)
     got = json.loads(done.stdout.splitlines()[-1])
     assert got["shape"] == [10000, 10000] and got["dtype"] == "float32"
-    assert got["voted"] > 50_000 and got["tiles_total"] == 313 * 313
+    assert got["voted"] > 50_000 and got["tiles_total"] == tiles_of((10_000, 10_000),
+                                                                     got["tile"])
     assert got["tiles_skipped"] > got["tiles_total"] // 2 and got["launches"] >= 1
     assert got["pixel_locus_tests"] < 1e-3 * got["dense_tests"]
     assert got["peak"] < 2e9, f"peak resident memory {got['peak'] / 1e9:.2f} GB"
@@ -305,11 +322,14 @@ def test_every_vector_width_tiles_the_same_map(vec, group):
         want = accumulate_with_stats(scene, sensors, loci, context=context(),
                                      precision=precision, tiles=False)[0]
         assert np.count_nonzero(want) > 20
-        launch = {("CPU", "float32"): (vec, group), ("CPU", "float64"): (min(vec, 4), group)}
+        kind = device_kind(context().devices[0])
+        launch = {(kind, "float32"): (vec, group), (kind, "float64"): (min(vec, 4), group)}
         with mock.patch.dict(mapping.LAUNCH, launch):
             tile = (32, 8) if vec == 1 else (32, 32)
             _, tiled, stats = draw_both(scene, sensors, loci, precision, tile)
-            assert stats.tile == tile and np.array_equal(tiled, want)
+            # a GPU's kernel may take fewer work items a group than the tile: rows are cut
+            assert stats.tile[0] == tile[0] and (stats.tile == tile or not on_cpu())
+            assert np.array_equal(tiled, want)
 
 
 def test_launches_split_the_tiles_by_count_and_by_pairs(monkeypatch):
