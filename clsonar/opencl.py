@@ -19,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import os
 import re
+import warnings
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
@@ -323,12 +324,18 @@ def _built(context, source: str, options: tuple[str, ...]):
     cl = _cl()
     device = context.devices[0]
     path = _cached_binary(device, source, options)
-    if path is not None and path.is_file():
-        try:
-            return cl.Program(context, [device], [path.read_bytes()]).build(options=list(options))
-        except (cl.Error, OSError):
-            pass
-    program = cl.Program(context, source).build(options=list(options))
+    with warnings.catch_warnings():
+        if not os.environ.get("PYOPENCL_COMPILER_OUTPUT"):
+            # NVIDIA's compiler logs on every build: pyopencl's warning of it would be
+            # printed under every command's output; PYOPENCL_COMPILER_OUTPUT shows the log
+            warnings.simplefilter("ignore", cl.CompilerWarning)
+        if path is not None and path.is_file():
+            try:
+                return cl.Program(context, [device], [path.read_bytes()]).build(
+                    options=list(options))
+            except (cl.Error, OSError):
+                pass
+        program = cl.Program(context, source).build(options=list(options))
     if path is not None:
         _keep_binary(path, program.get_info(cl.program_info.BINARIES)[0])
     return program

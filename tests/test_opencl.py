@@ -66,3 +66,24 @@ def test_no_cache_with_pyopencl_no_cache(context, tmp_path, monkeypatch):
     monkeypatch.setenv("PYOPENCL_NO_CACHE", "1")
     opencl._built(context, SOURCE, OPTIONS)
     assert not (tmp_path / opencl.PROGRAM_CACHE).exists()
+
+
+def test_a_compiler_log_is_no_warning_unless_asked_for(context, tmp_path, monkeypatch):
+    """On an NVIDIA H200 every build logs something, and pyopencl's CompilerWarning of it
+    was printed under every command's output (seen by the GPU run of issue 16): a build
+    warns only with ``PYOPENCL_COMPILER_OUTPUT`` set, which asks for the log."""
+    import warnings
+
+    monkeypatch.setenv("PYOPENCL_NO_CACHE", "1")
+    monkeypatch.delenv("PYOPENCL_COMPILER_OUTPUT", raising=False)
+    noisy = '#warning "a compiler log"\n' + SOURCE
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        program = opencl._built(context, noisy, OPTIONS)
+    assert not [w for w in caught if issubclass(w.category, cl.CompilerWarning)]
+    np.testing.assert_array_equal(_doubled(context, program), 2 * np.arange(8))
+    monkeypatch.setenv("PYOPENCL_COMPILER_OUTPUT", "1")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        opencl._built(context, noisy, OPTIONS)
+    assert [w for w in caught if issubclass(w.category, cl.CompilerWarning)]
