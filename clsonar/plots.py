@@ -15,7 +15,6 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
-from scipy import ndimage
 
 from .geometry import Geometry, curve_point, true_vertices
 from .post import Profile
@@ -66,17 +65,34 @@ def png_bytes(fig: Figure) -> bytes:
     return buf.getvalue()
 
 
+#: Most pixels along either side of a map shown in a figure (its axes are about 800 wide).
+MAP_PIXELS = 700
+
+
+def block_maximum(image: np.ndarray, size: int) -> np.ndarray:
+    """``image`` [ny, nx] shrunk ``size`` times along each side, each pixel the maximum of
+    its ``size`` × ``size`` block of cells (the last blocks padded with the image's least
+    value): a map cell smaller than a pixel of the picture, a thin arc or a one-cell
+    curve, stays visible, and matplotlib resamples no more pixels than it shows."""
+    a = np.asarray(image, dtype=float)
+    if size <= 1 or a.size == 0:
+        return a
+    ny, nx = a.shape
+    by, bx = -(-ny // size), -(-nx // size)
+    padded = np.pad(a, ((0, by * size - ny), (0, bx * size - nx)), constant_values=a.min())
+    return padded.reshape(by, size, bx, size).max(axis=(1, 3))
+
+
 def _map_axes(scene: Scene, geom: Geometry, image: np.ndarray, title: str, binary: bool):
     """A figure showing a map stage (``[iy, ix]``) with the true geometry in red over it."""
     fig, ax = _scene_figure(scene, title)
     xmin, ymin = scene.extent[:2]
-    ny, nx = image.shape
-    # One map cell can be smaller than a pixel of the picture: show each pixel's maximum,
-    # so thin arcs and one-cell curves stay visible.
-    size = max(1, int(np.ceil(max(nx, ny) / 700)))
-    shown = ndimage.maximum_filter(np.asarray(image, dtype=float), size=2 * size - 1)
+    size = max(1, int(np.ceil(max(image.shape) / MAP_PIXELS)))  # map cells per pixel
+    shown = block_maximum(image, size)
+    ny, nx = shown.shape
     im = ax.imshow(shown, origin="lower", interpolation="nearest",
-                   extent=(xmin, xmin + nx * scene.cell, ymin, ymin + ny * scene.cell),
+                   extent=(xmin, xmin + nx * size * scene.cell,
+                           ymin, ymin + ny * size * scene.cell),
                    cmap="gray_r" if binary else "viridis")
     if not binary:
         fig.colorbar(im, ax=ax, shrink=0.8, label="votes")

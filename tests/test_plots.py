@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 import clsonar
 from clsonar import plots
@@ -70,3 +72,28 @@ def test_profile_png_with_and_without_vertices():
     png = plots.profile_png(scene, geom, np.zeros(scene.grid_shape, dtype=bool), "t",
                             Profile(()), sensors)
     assert png[:8] == PNG
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 40), st.integers(1, 40), st.integers(1, 7), st.integers(0, 2**31))
+def test_a_map_is_shown_by_the_maximum_of_each_block(ny, nx, size, seed):
+    """plots.block_maximum against a loop over the blocks: each pixel shown is the maximum
+    of its size × size cells (the last blocks cut at the map's edge)."""
+    image = np.random.default_rng(seed).uniform(-1.0, 3.0, (ny, nx))
+    shown = plots.block_maximum(image, size)
+    want = np.array([[image[i:i + size, j:j + size].max() for j in range(0, nx, size)]
+                     for i in range(0, ny, size)])
+    np.testing.assert_array_equal(shown, want)
+
+
+def test_a_one_cell_curve_stays_visible_on_a_large_map():
+    """A 3000 × 2000-cell map is shown by 5 × 5 blocks (at most MAP_PIXELS a side): a
+    one-cell line and a single voted cell are still drawn."""
+    image = np.zeros((2000, 3000))
+    image[1234, 100:2900] = 1.0
+    image[7, 2999] = 1.0
+    size = -(-3000 // plots.MAP_PIXELS)
+    shown = plots.block_maximum(image, size)
+    assert shown.shape == (400, 600) and size == 5
+    assert shown[1234 // size, 100 // size:2900 // size].all() and shown[1, 599] == 1.0
+    assert np.count_nonzero(shown) == 2900 // size - 100 // size + 1
