@@ -68,3 +68,47 @@ def test_a_detection_s_amplitude_noise_is_the_envelope_s():
     assert amplitude_noise(scene(1.0)) == pytest.approx(0.145, abs=0.005)
     assert amplitude_noise(scene(0.6)) == pytest.approx(0.6 * amplitude_noise(scene(1.0)))
     assert amplitude_noise(scene(0.6, "threshold")) == 0.6
+
+
+def _wall_run(top: float, arrays: list[tuple[float, int, float]]) -> np.ndarray:
+    """The profile of a run, with the defaults, of a wall along x = 8 from y = 0 to
+    ``top`` seen by arrays facing it from x = 5: (centre y, elements, pitch) each, one
+    group each."""
+    from clsonar.opencl import get_context
+    from clsonar.pipeline import run
+    from clsonar.scene import scene_from_dict
+
+    transducers = [{"position": [5.0, float(y0 + (k - (n - 1) / 2) * pitch)],
+                    "heading_deg": 0.0, "group": g}
+                   for g, (y0, n, pitch) in enumerate(arrays) for k in range(n)]
+    scene = scene_from_dict({"clsonar": 1, "name": "free-end", "extent": [4, -1, 9, 5],
+                             "cell": 0.01,
+                             "surfaces": [{"type": "polyline", "points": [[8, 0], [8, top]]}],
+                             "sensors": {"transducers": transducers}}, "free-end")
+    return np.asarray(run(scene, context=get_context(None)).profile.points).reshape(-1, 2)
+
+
+def test_another_array_s_silence_ends_a_wall_past_its_free_end():
+    """A wall that ends 0.125 m past an array's last reflection point, within the region
+    of constant depth of its echoes (0.235 m at 3 m): alone, the array cannot tell, and
+    the wall is drawn past its end; a second array whose pairs would hear the wall just
+    past its end, and hear nothing, ends it between the first array's last reflection
+    point and its own first (patches._clamp_to_silence: every group's pairs, for a
+    plane, over the span drawn)."""
+    top = 2.85
+    alone = _wall_run(top, [(2.5, 10, 0.05)])
+    assert alone[:, 1].max() > top + 0.05  # the end of the region: past the wall
+    both = _wall_run(top, [(2.5, 10, 0.05), (3.1, 10, 0.05)])
+    assert len(both) and both[:, 1].max() <= top + 1e-3
+    assert np.abs(both[:, 0] - 8.0).max() < 1e-3
+
+
+def test_a_wall_ends_halfway_between_its_last_echo_and_the_first_silent_pair():
+    """A 16-element array of 9 cm pitch whose pairs' reflection points lie 4.5 cm apart
+    along a wall that ends 2 cm past one of them: the wall is drawn to halfway to the
+    next (silent) pair's, 2.25 cm past the last echo's reflection point, not stopped at
+    it (off by up to half the gap instead of all of it)."""
+    top = 3.02
+    pts = _wall_run(top, [(3.0, 16, 0.09)])
+    end = float(pts[:, 1].max())
+    assert abs(end - top) < 0.005 and end > 3.0 + 0.01

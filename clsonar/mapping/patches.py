@@ -6,10 +6,12 @@ straight patch, a circle its arc, a point or a corner a located vertex
 reflection point from the other surface points whose path differs from it by less than the
 pulse's resolution (c·σ of the pulse, eq. 2.3) inside both beams; a patch therefore runs
 over the union of its detections' regions, not only over their reflection points
-(:func:`extents`). Where a pair of the same array would have had its reflection point on
-that extension, inside beams as wide as the family's own detections show, and heard no
-echo there, the surface ends somewhere between: the patch stops at its last reflection
-point on that side (:func:`_clamp_to_silence`).
+(:func:`extents`). Where a pair of the same array (or, for a plane, of any group, over
+the span drawn) would have had its reflection point on that extension, inside beams as
+wide as the family's own detections show, and heard no echo there, the surface ends
+somewhere between: a plane whose detections show it straight stops halfway between its
+last reflection point on that side and the nearest silent pair's, any other patch at its
+last reflection point (:func:`_clamp_to_silence`).
 
 Plane patches of the same line (from overlapping stretches of an array, or other arrays)
 join into one, fitted again to all their detections, across gaps up to :data:`JOIN_GAP_M`;
@@ -167,39 +169,67 @@ def patch_of(f: Family, loci: Loci) -> Patch:
 
 def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
                       lo: float, hi: float) -> tuple[float, float]:
-    """The span ``(lo, hi)`` cut where the array heard nothing (module docstring): pairs
+    """The span ``(lo, hi)`` cut where the arrays heard nothing (module docstring): pairs
     whose two-way beam (:func:`~.strength.two_way`) points at the surface beyond the span
     at least as well as for the weakest of the patch's own detections, and that have no
-    echo there (:func:`_silent_beyond`, :data:`SILENCE_PAIRS` pairs of the group at a
-    time)."""
+    echo there (:func:`_silent_beyond`, :data:`SILENCE_PAIRS` pairs of a group at a
+    time). The patch's own group counts wherever beyond its reflection points; another
+    group (another array, which sees the surface from elsewhere) where a plane would be
+    drawn, over the span ``(lo, hi)`` (:func:`_listeners`)."""
     first, last = float(p.u.min()), float(p.u.max())
     if lo >= first and hi <= last:
         return lo, hi  # nothing a silent pair could cut
     ka = scene.transducer.beam(scene.medium.c)[1]
     weakest = two_way(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
                       sensors.axes[p.rx], ka).min()
-    below = above = False
-    for pairs in _group_pairs(sensors, int(p.tx[0])):
+    below, above = -math.inf, math.inf  # the nearest silent reflection points
+    for own, pairs in _listeners(p, sensors):
         steps.poll()
         u = _silent_beyond(p, scene, sensors, heard, pairs, weakest)
-        below, above = below or bool((u < first).any()), above or bool((u > last).any())
-        if below and above:
-            break
-    return (max(lo, first) if below else lo), (min(hi, last) if above else hi)
+        if not own:
+            u = u[(u >= lo) & (u <= hi)]
+        below = max(below, float(u[u < first].max(initial=-math.inf)))
+        above = min(above, float(u[u > last].min(initial=math.inf)))
+    # the surface ends between its last reflection point and the first silent one: halfway
+    # for a plane whose detections show it straight (with its curvature unknown the
+    # silence may be the surface bending away from the line; a circle's pairs are heard
+    # at any strength, so an edge's diffraction past a face's end passes for its echo)
+    share = 0.5 if p.straight and math.isfinite(p.bend) else 0.0
+    return (max(lo, first + share * (below - first)) if below > -math.inf else lo,
+            min(hi, last + share * (above - last)) if above < math.inf else hi)
+
+
+def _listeners(p: Patch, sensors: SensorArray) -> Iterator[tuple[bool, np.ndarray]]:
+    """``(own, pairs)``: the pairs of the patch's own group, then, for a plane, those of
+    every other group (its line is the surface's wherever it is drawn; a circle is only a
+    curved wall's local shape, which another array's pairs, seeing the wall elsewhere,
+    would not hear)."""
+    group = sensors.groups[int(p.tx[0])]
+    for pairs in _group_pairs(sensors, group):
+        yield True, pairs
+    if not p.straight:
+        return
+    for other in np.unique(sensors.groups):
+        if other != group:
+            for pairs in _group_pairs(sensors, other):
+                yield False, pairs
 
 
 def _silent_beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
                    pairs: np.ndarray, weakest: float) -> np.ndarray:
     """The coordinates of the reflection points, beyond the patch's own, of the ``pairs``
-    that would hear the surface there at least as well as the patch's weakest detection
-    and heard nothing (tests in order of cost: each on the pairs the last one kept)."""
+    in front of the surface that would hear it there at least as well as the patch's
+    weakest detection and heard nothing (tests in order of cost: each on the pairs the
+    last one kept)."""
     c = scene.medium.c
     cut_sin2, ka = scene.transducer.beam(c)
     T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
     axT, axR = sensors.axes[pairs[:, 0]], sensors.axes[pairs[:, 1]]
     path, q = curve_paths(p.params, p.x0, T, R)
+    n = np.array([math.cos(float(p.params[0])), math.sin(float(p.params[0]))])
+    front = (dot2(q - T, n) > 0) & (dot2(q - R, n) > 0) if p.straight else True
     ok = np.flatnonzero(in_beams(q, T, axT, cut_sin2) & in_beams(q, R, axR, cut_sin2)
-                        & np.isfinite(path))
+                        & np.isfinite(path) & front)
     u = coordinates(p.params, p.x0, q[ok])
     beyond = (u < p.u.min()) | (u > p.u.max())
     ok, u = ok[beyond], u[beyond]
@@ -216,10 +246,9 @@ def _silent_beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
 SILENCE_PAIRS = 1 << 18
 
 
-def _group_pairs(sensors: SensorArray, sensor: int) -> Iterator[np.ndarray]:
-    """[p, 2] the pairs (T ≤ R) of the group of ``sensor``, about :data:`SILENCE_PAIRS`
-    at a time."""
-    members = np.flatnonzero(sensors.groups == sensors.groups[sensor])
+def _group_pairs(sensors: SensorArray, group: int) -> Iterator[np.ndarray]:
+    """[p, 2] the pairs (T ≤ R) of ``group``, about :data:`SILENCE_PAIRS` at a time."""
+    members = np.flatnonzero(sensors.groups == group)
     n = len(members)
     rows = max(1, SILENCE_PAIRS // max(n, 1))
     for i0 in range(0, n, rows):
