@@ -112,3 +112,25 @@ def test_a_wall_ends_halfway_between_its_last_echo_and_the_first_silent_pair():
     pts = _wall_run(top, [(3.0, 16, 0.09)])
     end = float(pts[:, 1].max())
     assert abs(end - top) < 0.005 and end > 3.0 + 0.01
+
+
+def test_a_face_ends_where_its_echo_falls_to_half_a_mirror_s():
+    """patches._end: past a face's last echo the pairs' echoes at its path, over a
+    mirror's, fall to a half on its edge (the uniform theory): the face ends where they
+    cross a half, linearly between the pairs either side; with nothing heard there (a
+    free end, an edge model without that diffraction) a plane ends halfway to the first
+    silent pair and a circle at its last echo; a patch whose curvature is unknown at its
+    last echo; and one no pair beyond was silent for not at all."""
+    from clsonar.mapping.patches import _end
+
+    along = np.array([-0.05, 0.0, 0.04, 0.08])
+    loud = np.array([True, True, False, False])
+    edge = np.array([1.0, 0.9, 0.3, 0.0])
+    assert _end(along, edge, loud, True, True) == pytest.approx(0.04 * 0.4 / 0.6)
+    free = np.array([1.0, 1.0, 0.0, 0.0])
+    assert _end(along, free, loud, True, True) == pytest.approx(0.02)
+    assert _end(along, free, loud, True, False) == 0.0
+    assert _end(along, edge, loud, False, True) == 0.0
+    assert _end(along, edge, np.ones(4, dtype=bool), True, True) == math.inf
+    fresnel = np.array([1.0, 0.9, 0.55, 0.2])  # weak but above a half: still the face
+    assert _end(along, fresnel, loud, True, True) == pytest.approx(0.04 + 0.04 / 7)

@@ -9,9 +9,9 @@ over the union of its detections' regions, not only over their reflection points
 (:func:`extents`). Where a pair of the same array (or, for a plane, of any group, over
 the span drawn) would have had its reflection point on that extension, inside beams as
 wide as the family's own detections show, and heard no echo there, the surface ends
-somewhere between: a plane whose detections show it straight stops halfway between its
-last reflection point on that side and the nearest silent pair's, any other patch at its
-last reflection point (:func:`_clamp_to_silence`).
+somewhere between: where the pairs' echoes beyond fall to half a mirror's, as a face's
+does with its reflection point on its edge, or, with nothing heard there, halfway to the
+first silent pair (:func:`_clamp_to_silence`, :func:`_end`).
 
 Plane patches of the same line (from overlapping stretches of an array, or other arrays)
 join into one, fitted again to all their detections, across gaps up to :data:`JOIN_GAP_M`;
@@ -36,8 +36,11 @@ from ..signals import envelope_noise_scale, signal_model
 from .envelope import in_beams
 from .families import Family
 from .loci import Loci
-from .models import curve_geometry, curve_paths, dot2
-from .strength import mirror_floor, two_way
+from .models import curve_geometry, curve_paths, dot2, plane_points
+from .strength import EDGE_SHARE, convex_share, mirror_floor, two_way
+
+#: The two-way beams of pairs towards points: (q, T, axT, R, axR).
+Beams = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 #: Spacing of a patch's points, in cells.
 STEP_CELLS = 0.5
@@ -170,33 +173,179 @@ def patch_of(f: Family, loci: Loci) -> Patch:
 def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
                       lo: float, hi: float) -> tuple[float, float]:
     """The span ``(lo, hi)`` cut where the arrays heard nothing (module docstring): pairs
-    whose two-way beam (:func:`~.strength.two_way`) points at the surface beyond the span
-    at least as well as for the weakest of the patch's own detections, and that have no
-    echo there (:func:`_silent_beyond`, :data:`SILENCE_PAIRS` pairs of a group at a
-    time). The patch's own group counts wherever beyond its reflection points; another
-    group (another array, which sees the surface from elsewhere) where a plane would be
-    drawn, over the span ``(lo, hi)`` (:func:`_listeners`)."""
+    in front of the surface whose two-way beam (:func:`~.strength.two_way`) points at it
+    beyond the span at least as well as for the weakest of the patch's own detections,
+    and that have no echo there as strong as its own (:func:`_beyond`, :data:`SILENCE_PAIRS`
+    pairs of a group at a time). The patch's own group counts wherever beyond its
+    reflection points; another group (another array, which sees the surface from
+    elsewhere) where a plane would be drawn, over the span ``(lo, hi)``
+    (:func:`_listeners`). Where it is cut, the patch ends as :func:`_end` says."""
     first, last = float(p.u.min()), float(p.u.max())
     if lo >= first and hi <= last:
         return lo, hi  # nothing a silent pair could cut
     ka = scene.transducer.beam(scene.medium.c)[1]
     weakest = two_way(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
                       sensors.axes[p.rx], ka).min()
-    below, above = -math.inf, math.inf  # the nearest silent reflection points
+    own_pairs = np.sort(np.stack([p.tx, p.rx], axis=-1), axis=-1)
+    beams = (carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
+             sensors.axes[p.rx])
+    found = [(p.u, *_strength(p, scene, heard, own_pairs, p.paths, beams, ka), p.T, p.R)]
     for own, pairs in _listeners(p, sensors):
         steps.poll()
-        u = _silent_beyond(p, scene, sensors, heard, pairs, weakest)
-        if not own:
-            u = u[(u >= lo) & (u <= hi)]
-        below = max(below, float(u[u < first].max(initial=-math.inf)))
-        above = min(above, float(u[u > last].min(initial=math.inf)))
-    # the surface ends between its last reflection point and the first silent one: halfway
-    # for a plane whose detections show it straight (with its curvature unknown the
-    # silence may be the surface bending away from the line; a circle's pairs are heard
-    # at any strength, so an edge's diffraction past a face's end passes for its echo)
-    share = 0.5 if p.straight and math.isfinite(p.bend) else 0.0
-    return (max(lo, first + share * (below - first)) if below > -math.inf else lo,
-            min(hi, last + share * (above - last)) if above < math.inf else hi)
+        u, ratio, loud, T, R = _beyond(p, scene, sensors, heard, pairs, weakest)
+        keep = np.ones(len(u), dtype=bool) if own else (u >= lo) & (u <= hi)
+        found.append((u[keep], ratio[keep], loud[keep], T[keep], R[keep]))
+    u, ratio, loud, T, R = (np.concatenate(parts) for parts in zip(*found, strict=True))
+    gauged = math.isfinite(p.bend) and _flat(p)
+    # a circle the detections cannot tell from its tangent (its ψ within 3σ of 0)
+    line = p.straight or abs(float(p.params[2])) <= p.bend
+    scale = 1.0 if p.straight else abs(float(curve_geometry(p.params, p.x0)[1]))
+    ends = []
+    for end, side, sign in ((first, u <= first, -1.0), (last, u >= last, 1.0)):
+        if line:
+            q, along = _tangent(p, end, T[side], R[side], u[side])
+        else:
+            along = (u[side] - end) * sign * scale  # arc length
+        stop = _end(along, ratio[side], loud[side], gauged, p.straight)
+        if stop == 0 or math.isinf(stop):
+            ends.append(end + sign * stop)
+        elif line:
+            ends.append(float(coordinates(p.params, p.x0,
+                                          (q + stop * _outward(p, end))[None])[0]))
+        else:
+            ends.append(end + sign * stop / scale)
+    return max(lo, ends[0]), min(hi, ends[1])
+
+
+def _outward(p: Patch, end: float) -> np.ndarray:
+    """The unit tangent of ``p``'s carrier at coordinate ``end``, away from its reflection
+    points."""
+    ahead = end + (1e-6 if end >= float(p.u.max()) else -1e-6)
+    step = carrier_points(p.params, p.x0, np.array([end, ahead]))
+    d = step[1] - step[0]
+    return d / max(float(np.hypot(*d)), 1e-300)
+
+
+def _tangent(p: Patch, end: float, T: np.ndarray, R: np.ndarray, u: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """``(q, along)``: ``p``'s point at its reflection points' ``end`` and how far, along
+    its tangent there, away from its reflection points, the pairs (T, R) at coordinates
+    ``u`` (the patch's own, at ``end`` and inside, and those beyond) reflect from the
+    tangent line (a plane's own line; a face's last stretch fitted by a slightly bent
+    circle reflects beyond it, along the face, as the line does: on the circle, the pairs'
+    reflection points are drawn together by its curvature)."""
+    q = carrier_points(p.params, p.x0, np.array([end]))[0]
+    t = _outward(p, end)
+    n = np.array([t[1], -t[0]])
+    if float(dot2(n, T.mean(axis=0) - q)) > 0:
+        n = -n  # the plane's normal points away from the transducers
+    _, on_line = plane_points(math.atan2(n[1], n[0]), float(dot2(n, q)), T, R)
+    along = dot2(on_line - q, t)
+    inside = (u - end) * (1.0 if end >= float(p.u.max()) else -1.0) <= 0
+    return q, np.where(inside, np.minimum(along, 0.0), along)
+
+
+def _end(along: np.ndarray, ratio: np.ndarray, loud: np.ndarray, gauged: bool,
+         halfway: bool) -> float:
+    """How far beyond its last reflection point (``along`` 0; the pairs ``along`` their
+    reflection points' distances away from it, the patch's own at 0 or less) a surface
+    ends, from whether the pairs heard it as strongly as its echo is (``loud``) and their
+    echoes' strength over a mirror's (``ratio``, 0: none): inf where no pair beyond was
+    silent; else, with its curvature and echo unknown (not ``gauged``), 0; else where the
+    echo falls to half a mirror's (:data:`~.strength.EDGE_SHARE`), linearly between the
+    pairs either side — a face's echo is half a mirror's with its reflection point on the
+    face's edge (the uniform theory, Kouyoumjian & Pathak 1974) — and, with no
+    diffraction heard (an edge model that gives none, a free end), halfway between the
+    last echo and the first silent pair if ``halfway`` (a plane: it ends somewhere
+    between, so halfway is off by at most half the gap), else at the last echo (a circle
+    with nothing heard beyond may be a curved surface turning away from it)."""
+    order = np.argsort(along, kind="stable")
+    along, ratio, loud = along[order], ratio[order], loud[order]
+    start = int(np.searchsorted(along, 0.0, side="right"))  # the first beyond
+    silent = np.flatnonzero(~loud[start:]) + start
+    if len(silent) == 0:
+        return math.inf
+    if not gauged:
+        return 0.0
+    prev = int(silent[0]) - 1  # the last heard: one of the patch's own at the latest
+    for k in range(int(silent[0]), len(along)):
+        if ratio[k] < EDGE_SHARE:
+            if ratio[k] <= 0 and not halfway:
+                return max(float(along[prev]), 0.0)
+            drop = float(ratio[prev] - ratio[k])
+            share = (float(ratio[prev]) - EDGE_SHARE) / drop if drop > 0 else 0.5
+            return max(float(along[prev] + min(max(share, 0.0), 1.0)
+                             * (along[k] - along[prev])), 0.0)
+        prev = k
+    return max(float(along[prev]), 0.0)
+
+
+def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.ndarray,
+              beams: Beams, ka: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(ratio, loud)`` of ``pairs`` for ``p`` along ``path`` with the two-way ``beams``
+    (q, T, axT, R, axR): the strongest echo within :data:`HEARD_TOL_M` of the path over a
+    mirror's there (0: none; :func:`_echo_share`), and whether it is as strong as the
+    surface's echo (:func:`_least_echo`)."""
+    amplitude, near = _loudest(heard, pairs, path)
+    share = _echo_share(p, beams)
+    mirror = mirror_echo(scene) * (1.0 if share is None else share) * two_way(*beams, ka)
+    ratio = np.where(near, amplitude / np.maximum(mirror, 1e-300), 0.0)
+    return ratio, near & (amplitude >= _least_echo(p, scene, beams, ka))
+
+
+def _beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
+            pairs: np.ndarray, weakest: float) -> tuple[np.ndarray, ...]:
+    """``(u, ratio, loud, T, R)`` (:func:`_strength`) of the ``pairs`` in front of the surface
+    whose reflection points lie beyond the patch's own, inside both beams, and that would
+    hear it there at least as well as the patch's weakest detection (tests in order of
+    cost: each on the pairs the last one kept); ``u`` their reflection points'
+    coordinates."""
+    c = scene.medium.c
+    cut_sin2, ka = scene.transducer.beam(c)
+    T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
+    axT, axR = sensors.axes[pairs[:, 0]], sensors.axes[pairs[:, 1]]
+    path, q = curve_paths(p.params, p.x0, T, R)
+    n = np.array([math.cos(float(p.params[0])), math.sin(float(p.params[0]))])
+    front = (dot2(q - T, n) > 0) & (dot2(q - R, n) > 0) if p.straight else True
+    ok = np.flatnonzero(in_beams(q, T, axT, cut_sin2) & in_beams(q, R, axR, cut_sin2)
+                        & np.isfinite(path) & front)
+    u = coordinates(p.params, p.x0, q[ok])
+    beyond = (u < p.u.min()) | (u > p.u.max())
+    ok, u = ok[beyond], u[beyond]
+    louder = two_way(q[ok], T[ok], axT[ok], R[ok], axR[ok], ka) >= weakest * (1.0 - 1e-9)
+    ok, u = ok[louder], u[louder]
+    beams = (q[ok], T[ok], axT[ok], R[ok], axR[ok])
+    return (u, *_strength(p, scene, heard, pairs[ok], path[ok], beams, ka), T[ok], R[ok])
+
+
+def _echo_share(p: Patch, beams: Beams) -> np.ndarray | None:
+    """A flat surface's echo over a mirror's at the pairs' ``beams`` (its convex
+    divergence, :func:`~.strength.convex_share`; 1 for a plane); None for a circle more
+    bent than its range."""
+    return convex_share(p.params, p.x0, beams[0], beams[1], beams[3], p.paths)
+
+
+def _least_echo(p: Patch, scene: Scene, beams: Beams, ka: float
+                ) -> np.ndarray:
+    """The least amplitude at which pairs with the two-way ``beams`` (q, T, axT, R, axR)
+    hear ``p``: a plane's a mirror's floor (:func:`~.strength.mirror_floor`), a circle at
+    least as flat as its range the same with the mirror weakened by its convex divergence
+    (:func:`_echo_share`; a face's last echoes, shifted by its edge's diffraction, fit
+    such a circle, and that diffraction past the face's end, half a mirror's on the
+    reflection boundary, is not its echo); anything for a circle more bent (a post's echo
+    may be as weak as an edge's)."""
+    share = _echo_share(p, beams)
+    if share is None:
+        return np.full(len(beams[0]), -np.inf)
+    return mirror_floor(*beams, mirror_echo(scene) * share, ka, amplitude_noise(scene))
+
+
+def _flat(p: Patch) -> bool:
+    """Whether ``p`` is a plane or a circle at least as flat as its range (its radius at
+    least half its median path): a face, or its slightly bent last stretch, whose echo is a
+    mirror's (:func:`_least_echo`), not a curved wall's own bent circle (a post)."""
+    return p.straight or (abs(float(curve_geometry(p.params, p.x0)[1]))
+                          >= 0.5 * float(np.median(p.paths)))
 
 
 def _listeners(p: Patch, sensors: SensorArray) -> Iterator[tuple[bool, np.ndarray]]:
@@ -213,33 +362,6 @@ def _listeners(p: Patch, sensors: SensorArray) -> Iterator[tuple[bool, np.ndarra
         if other != group:
             for pairs in _group_pairs(sensors, other):
                 yield False, pairs
-
-
-def _silent_beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
-                   pairs: np.ndarray, weakest: float) -> np.ndarray:
-    """The coordinates of the reflection points, beyond the patch's own, of the ``pairs``
-    in front of the surface that would hear it there at least as well as the patch's
-    weakest detection and heard nothing (tests in order of cost: each on the pairs the
-    last one kept)."""
-    c = scene.medium.c
-    cut_sin2, ka = scene.transducer.beam(c)
-    T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
-    axT, axR = sensors.axes[pairs[:, 0]], sensors.axes[pairs[:, 1]]
-    path, q = curve_paths(p.params, p.x0, T, R)
-    n = np.array([math.cos(float(p.params[0])), math.sin(float(p.params[0]))])
-    front = (dot2(q - T, n) > 0) & (dot2(q - R, n) > 0) if p.straight else True
-    ok = np.flatnonzero(in_beams(q, T, axT, cut_sin2) & in_beams(q, R, axR, cut_sin2)
-                        & np.isfinite(path) & front)
-    u = coordinates(p.params, p.x0, q[ok])
-    beyond = (u < p.u.min()) | (u > p.u.max())
-    ok, u = ok[beyond], u[beyond]
-    beams = (q[ok], T[ok], axT[ok], R[ok], axR[ok])
-    louder = two_way(*beams, ka) >= weakest * (1.0 - 1e-9)
-    ok, u, beams = ok[louder], u[louder], tuple(b[louder] for b in beams)
-    # a plane is heard at a mirror's strength; a curve's echo may be weaker or stronger
-    least = (mirror_floor(*beams, mirror_echo(scene), ka, amplitude_noise(scene))
-             if p.straight else np.full(len(ok), -np.inf))
-    return u[~_heard(heard, pairs[ok], path[ok], least)]
 
 
 #: Pairs of a group the silence test takes at a time (its memory; about 100 MB).
@@ -289,7 +411,7 @@ def amplitude_noise(scene: Scene) -> float:
 
 @dataclass(frozen=True)
 class Heard:
-    """The detections by pair (either direction), sorted once for :func:`_heard`:
+    """The detections by pair (either direction), sorted once for :func:`_loudest`:
     ``key`` = min(T, R)·base + max(T, R), their path c·τ and amplitude."""
 
     base: int
@@ -306,19 +428,20 @@ def heard_index(loci: Loci, sensors: SensorArray, c: float) -> Heard:
     return Heard(base, key[order], c * loci.tof_s[order], loci.amplitude[order])
 
 
-def _heard(heard: Heard, pairs: np.ndarray, path: np.ndarray,
-           least: np.ndarray) -> np.ndarray:
-    """Whether each pair has a detection (either direction) within :data:`HEARD_TOL_M` of
-    ``path`` and of at least ``least`` amplitude (the surface's echo)."""
+def _loudest(heard: Heard, pairs: np.ndarray, path: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """``(amplitude, near)``: the strongest of each pair's detections (either direction;
+    ``pairs`` T ≤ R) within :data:`HEARD_TOL_M` of ``path``, and whether it has one."""
     want = pairs[:, 0] * heard.base + pairs[:, 1]
     start = np.searchsorted(heard.key, want, side="left")
     count = np.searchsorted(heard.key, want, side="right") - start
     pair = np.repeat(np.arange(len(pairs)), count)  # each of the pairs' detections
     row = np.arange(len(pair)) - np.repeat(np.cumsum(count) - count, count) \
         + np.repeat(start, count)
-    near = ((np.abs(heard.path[row] - path[pair]) <= HEARD_TOL_M)
-            & (heard.amplitude[row] >= least[pair]))
-    return np.bincount(pair[near], minlength=len(pairs)) > 0
+    near = np.abs(heard.path[row] - path[pair]) <= HEARD_TOL_M
+    amplitude = np.zeros(len(pairs))
+    np.maximum.at(amplitude, pair[near], heard.amplitude[row[near]])
+    return amplitude, np.bincount(pair[near], minlength=len(pairs)) > 0
 
 
 def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard) -> Patch:
@@ -379,6 +502,7 @@ __all__ = [
     "HEARD_TOL_M",
     "PATCH_BIAS_M",
     "STEP_CELLS",
+    "Beams",
     "Patch",
     "Patches",
     "amplitude_noise",
