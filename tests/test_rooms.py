@@ -19,7 +19,10 @@ import clsonar
 from clsonar import sight as sight_module
 from clsonar.geometry import EDGE, build_geometry, true_vertices
 from clsonar.mapping import Loci, envelope_links, scan_envelope, tangent_points
+from clsonar.mapping.patches import mirror_echo
+from clsonar.mapping.tangents import _facing_too_weak, sample_loci
 from clsonar.metrics import VERTEX_FOUND_M, cylinder_coverage, evaluate, vertex_errors
+from clsonar.physics import piston_pattern
 from clsonar.post.walls import (
     CIRCLE_RESIDUAL_M,
     COLLINEAR_DEG,
@@ -632,10 +635,43 @@ def test_an_echo_just_after_an_elements_first_is_not_drawn(room_scene):
     sensors = straight_scan([0.0, 3.0])
     ranges = np.array([2.0, 2.08, 2.0, 2.0 + MULTIPATH_M + 0.05])
     loci = Loci(np.array([0, 0, 1, 1]), np.array([0, 0, 1, 1]),
-                2.0 * ranges / scene.medium.c, np.ones(4))
+                2.0 * ranges / scene.medium.c, np.full(4, mirror_echo(scene)))
     points, source = tangent_points(scene, sensors, loci, isolated_bias_m=0.005)
     assert sorted(set(source.tolist())) == [0, 2, 3]
     assert np.abs(points[source != 3, 1] - 2.0).max() < 0.01
+
+
+def test_a_lone_echo_too_weak_for_a_surface_facing_the_beam_is_not_drawn(room_scene):
+    """A lone T = R echo keeps the middle of its in-beam arc only where it is as loud as a
+    concave corner facing the element within the stub's bias (A0·ρ²·b(θ)², a wall's
+    A0·ρ·b(θ)²): a box's face seen 8° off the axis echoes a seventh of a wall's on the
+    axis, and its stub would stand ρ·θ²/2 in front of the face, or in free space past
+    its edge. Nothing is decided where the amplitude cannot tell the angle: threshold
+    detection (a sample, not the echo's peak), a uniform beam."""
+    scene = dataclasses.replace(room_scene, transducer=dataclasses.replace(
+        room_scene.transducer, directivity="piston"))
+    _, ka = scene.transducer.beam(scene.medium.c)
+    sensors = straight_scan([0.0, 3.0])
+    on_axis = mirror_echo(scene)
+    off_axis = on_axis * float(piston_pattern(ka * math.sin(math.radians(8.0)))) ** 2
+    loci = Loci(np.array([0, 1]), np.array([0, 1]), np.full(2, 2 * 1.08 / scene.medium.c),
+                np.array([on_axis, off_axis]))
+    assert _facing_too_weak(scene, sample_loci(scene, sensors, loci), np.arange(2),
+                            0.005).tolist() == [False, True]
+    points, source = tangent_points(scene, sensors, loci, isolated_bias_m=0.005)
+    assert set(source.tolist()) == {0} and np.abs(points[:, 1] - 1.08).max() < 0.01
+    # a reciprocal pair (T ≠ R) is not judged, nor anything under threshold detection
+    pair = Loci(np.array([0]), np.array([1]), np.full(1, 4.0 / scene.medium.c),
+                np.array([off_axis]))
+    assert not _facing_too_weak(scene, sample_loci(scene, sensors, pair), np.arange(1),
+                                0.005).any()
+    thesis = dataclasses.replace(scene, detection=dataclasses.replace(scene.detection,
+                                                                      mode="threshold"))
+    points, source = tangent_points(thesis, sensors, loci, isolated_bias_m=0.005)
+    assert set(source.tolist()) == {0, 1}
+    # nor under a uniform beam, where every angle inside the cut echoes alike
+    points, source = tangent_points(room_scene, sensors, loci, isolated_bias_m=0.005)
+    assert set(source.tolist()) == {0, 1}
 
 
 # --------------------------------------------------------------------------- metrics

@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import steps
-from ..physics import absorption_factor, curved_gain
+from ..physics import absorption_factor, curved_gain, piston_pattern
 from ..scene import Scene
 from ..sensors import SensorArray
 from ..signals import envelope_noise_scale, signal_model
@@ -367,6 +367,37 @@ def _just_after_first(s: SampledLoci, isolated: np.ndarray, stubs: list[int]) ->
     return [k for k, late in zip(stubs, after, strict=True) if late]
 
 
+def _facing_too_weak(scene: Scene, s: SampledLoci, loci: np.ndarray,
+                     bias: float) -> np.ndarray:
+    """[n] Whether the echo of each T = R locus of ``loci`` is too weak for the middle of
+    its in-beam arc: that stub is within ``bias`` of the surface only where a surface
+    faces the element's axis within θ, ρ·(1 − cos θ) = bias, and what faces it so near
+    the axis echoes at least A0·ρ²·b(θ)² (a concave corner's retro-reflection, two
+    reflections, the weakest; a wall's is A0·ρ·b(θ)²; absorbed over 2ρ) — more than the
+    echo by three envelope noise scales to spare. A weaker echo is a surface seen off
+    the axis (the face of a box seen obliquely, its end beside the stub: the stub stands
+    ρ·θ²/2 in front of it, or in free space past its edge), or a weak reflector's that
+    no point or pillar explained. Nothing is decided where the amplitude cannot tell the
+    angle: under threshold detection (a sample, not the echo's peak) or a uniform beam
+    (``transducer.directivity``, the thesis' world: every angle inside the cut echoes
+    alike, and a weaker echo there is one lowered by another overlapping it — a wall's
+    25 cm from a corner at 0.83 of a mirror's in the bundled room-per-wall-steps)."""
+    loci = np.asarray(loci, dtype=np.int64)
+    out = np.zeros(len(loci), dtype=bool)
+    mono = s.loci.tx[loci] == s.loci.rx[loci]
+    _, ka = scene.transducer.beam(scene.medium.c)
+    if scene.detection.mode != "envelope" or ka == 0 or not mono.any():
+        return out
+    rho = s.a[loci[mono]]
+    theta = np.arccos(np.clip(1.0 - bias / rho, -1.0, 1.0))
+    facing = (mirror_echo(scene) * scene.echo.reflection_coefficient
+              * piston_pattern(ka * np.sin(theta)) ** 2
+              * absorption_factor(2.0 * rho, scene.echo.absorption_db_per_m))
+    spare = HEARD_NOISE_SCALES * envelope_noise(scene)
+    out[mono] = s.loci.amplitude[loci[mono]] + spare < facing
+    return out
+
+
 def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: np.ndarray,
                   bias: float, found: list[np.ndarray], source: list[np.ndarray],
                   vertices: list[np.ndarray]) -> None:
@@ -374,7 +405,8 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
     envelope's links between them (:func:`~.envelope.envelope_links`), and each one's
     points (:func:`_isolated_points`), a pillar's stretch for those a pillar explains
     (:func:`_pillars`), the point where they cross for those a point reflector explains
-    (:func:`_points`; the point also to ``vertices``)."""
+    (:func:`_points`; the point also to ``vertices``); a middle of arc that neither
+    explains and whose echo is too weak for it (:func:`_facing_too_weak`) is dropped."""
     if len(isolated) == 0:
         return
     scans = element_scans(scene, sensors, s.loci)
@@ -398,6 +430,10 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
     for k, drawn in [*pillars.items(), *((k, v[None]) for k, v in corners.items())]:
         arcs[k] = drawn
     vertices += list({v.tobytes(): v for v in corners.values()}.values())
+    left = [k for k in stubs if k not in pillars and k not in corners]
+    for k, weak in zip(left, _facing_too_weak(scene, s, isolated[left], bias), strict=True):
+        if weak:
+            arcs[k] = np.zeros((0, 2))
     for locus, arc in zip(isolated, arcs, strict=True):
         found.append(arc)
         source.append(np.full(len(arc), locus))
