@@ -1,8 +1,8 @@
 """The echoes of one linear array split into reflector families (``mapping.mode =
 "reflectors"``): each family is the set of detections one reflector explains — a plane, a
-point (an edge, a thin post), a right-angled corner or a circle (a cylinder, the crest or
-trough of a curved wall) — with the model's parameters and each detection's reflection
-point (:func:`find_families`).
+point (an edge, a thin post), a corner (right-angled, or turned) or a circle (a cylinder,
+the crest or trough of a curved wall) — with the model's parameters and each detection's
+reflection point (:func:`find_families`).
 
 The plane/corner/edge distinction of Kleeman & Kuc (1995): with T ≠ R pairs the three
 predict different times of flight (:mod:`.models`), so the family's pairs decide. The
@@ -225,10 +225,27 @@ def _valid(w: Window, kind: str, params: np.ndarray, idx: np.ndarray,
 def _fit(w: Window, kind: str, idx: np.ndarray, start: np.ndarray) -> Fit:
     T, R, P = w.T[idx], w.R[idx], w.paths[idx]
     if kind == "corner":
-        return fit_corner(T, R, P, start)
+        return _fit_corner(w, idx, start)
     if kind == "point":
         return fit_point(T, R, P, start)
     return fit_curve(w.x0, T, R, P, start, fix_psi=kind == "plane")
+
+
+def _fit_corner(w: Window, idx: np.ndarray, start: np.ndarray) -> Fit:
+    """The corner of the rows ``idx``: right-angled (a point reflection through V), or
+    turned (:func:`~.models.corner_paths`: walls meeting at 90° − β/2) where the rows can
+    tell β (at least :data:`MIN_CURVE`, as a free curve's ψ) and the right angle fits
+    them worse than :data:`SIMPLER_RMS_FACTOR` times the turned corner, plus their noise
+    (the simpler model wins otherwise, as :func:`_simplest` names families)."""
+    T, R, P = w.T[idx], w.R[idx], w.paths[idx]
+    right = fit_corner(T, R, P, start[:2], turn=False)
+    if len(idx) < MIN_CURVE:
+        return right
+    turned = fit_corner(T, R, P, right.params)
+    noise = float(np.median(w.tolerance[idx] - BASE_TOLERANCE_M)) / NOISE_SIGMAS
+    if right.rms <= SIMPLER_RMS_FACTOR * turned.rms + noise + DETECTION_FLOOR_M:
+        return right
+    return turned
 
 
 def _inliers(w: Window, kind: str, params: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -467,7 +484,7 @@ def _family_starts(w: Window, kind: str, params: np.ndarray,
         curve = np.array([phi, d, params[2] if kind == "curve" else 0.0])
         return {"plane": np.array([phi, d, 0.0]), "curve": curve, "point": apex,
                 "corner": apex}
-    point = np.asarray(params, dtype=np.float64)
+    point = np.asarray(params[:2], dtype=np.float64)
     rel = point - w.x0
     reach = max(float(np.hypot(*rel)), 1e-3)
     phi = math.atan2(rel[1], rel[0])

@@ -290,7 +290,7 @@ def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
                for f in steps.each("patches", spread)]
     points = [f for f in families if f.kind in ("point", "corner")]
     vertices = merge_vertices(
-        np.asarray([f.params for f in points], dtype=np.float64).reshape(-1, 2),
+        np.asarray([f.params[:2] for f in points], dtype=np.float64).reshape(-1, 2),
         np.asarray([len(f.rows) for f in points], dtype=np.float64))
     patches, vertices = meet(join_collinear(patches), vertices)
     patches = [clip_to_extent(p, scene.extent) for p in patches]

@@ -18,8 +18,10 @@ edge, a post), 0 < ψ < 1/A a convex cylinder, ψ > 1/A or ψ < 0 a concave one.
 of T = R echoes near X0 are A + x²·ψ/2 along the array, so ψ is what the data measure, and
 planes, cylinders and points are one family of which the fit picks the member.
 
-**Corner model** (:func:`corner_paths`), parameters V: ``|T + R − 2V|``, the double bounce
-of a right-angled corner (the two reflections make a rotation by 180° about V).
+**Corner model** (:func:`corner_paths`), parameters V (and β): ``|T + R − 2V|``, the double
+bounce of a right-angled corner (the two reflections make a rotation by 180° about V); for
+walls meeting at γ = 90° − β/2 the image sources turn R's image by 2γ = π − β instead,
+``|T − V + Rot(−β)(R − V)|``.
 """
 
 from __future__ import annotations
@@ -148,10 +150,19 @@ def point_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
 
 def corner_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray]:
-    """``(path [n], q [n, 2])`` of a right-angled corner at V = ``params``: the double
-    bounce's length |T + R − 2V| (a point reflection through V) and V itself."""
-    v = np.asarray(params, dtype=np.float64)
-    return np.hypot(*(T + R - 2.0 * v).T), np.broadcast_to(v, T.shape).copy()
+    """``(path [n], q [n, 2])`` of a corner at V = ``params[:2]``: the double bounce's
+    length and V itself. By image sources, two reflections in walls through V that meet
+    at an angle γ turn R's image about V by 2γ (the reflections across lines at angles
+    θa, θb compose to a rotation by 2(θa − θb)), so the path is |T − V − Rot(2γ)(R − V)|;
+    with 2γ = π − β (β = ``params[2]``, 0 when absent: a right angle, twice the corner's
+    departure from one; its sign the order in which the walls are met) that is
+    |T − V + Rot(−β)(R − V)|, the point reflection |T + R − 2V| for β = 0."""
+    v = np.asarray(params[:2], dtype=np.float64)
+    beta = float(params[2]) if len(params) > 2 else 0.0
+    c, s = math.cos(beta), math.sin(beta)
+    d = R - v
+    turned = np.stack([c * d[:, 0] + s * d[:, 1], c * d[:, 1] - s * d[:, 0]], axis=-1)
+    return np.hypot(*(T - v + turned).T), np.broadcast_to(v, T.shape).copy()
 
 
 #: ``params → (path, q)`` of one model for fixed pairs.
@@ -254,6 +265,8 @@ def _damped_step(H: np.ndarray, g: np.ndarray, lam: float) -> np.ndarray:
 #: position (ψ's straddles the plane's threshold :data:`PSI_PLANE` with circles of 10⁴ m).
 CURVE_STEPS = np.array([1e-7, 1e-7, 1e-4])
 CORNER_STEPS = np.array([1e-7, 1e-7])
+#: ... and of a corner's (V, β).
+TURN_STEPS = np.array([1e-7, 1e-7, 1e-7])
 
 
 def fit_curve(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
@@ -271,9 +284,14 @@ def fit_curve(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
                          exact=np.array([False, False, True]))
 
 
-def fit_corner(T: np.ndarray, R: np.ndarray, paths: np.ndarray, start: np.ndarray) -> Fit:
-    """The corner model's least-squares vertex V from ``start``."""
-    return least_squares(lambda p: corner_paths(p, T, R), paths, start, CORNER_STEPS)
+def fit_corner(T: np.ndarray, R: np.ndarray, paths: np.ndarray, start: np.ndarray,
+               turn: bool = True) -> Fit:
+    """The corner model's least-squares vertex V and turn β (:func:`corner_paths`) from
+    ``start`` (V, or V and β: 0 if not given); β held at its start without ``turn``."""
+    p0 = np.zeros(3)
+    p0[:min(len(start), 3)] = np.asarray(start, dtype=np.float64)[:3]
+    return least_squares(lambda p: corner_paths(p, T, R), paths, p0, TURN_STEPS,
+                         fixed=np.array([False, False, not turn]))
 
 
 def fit_point(T: np.ndarray, R: np.ndarray, paths: np.ndarray, start: np.ndarray) -> Fit:
