@@ -136,18 +136,12 @@ def test_a_face_ends_where_its_echo_falls_to_half_a_mirror_s():
     assert _end(along, fresnel, loud, True, True) == pytest.approx(0.04 + 0.04 / 7)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "issue 14: echoes of a face that another array located, left to the tangent map, draw "
-    "a stub past its edge; dropping every row a family of any array shadows passes this "
-    "(zoo seed 5: 66 -> 68 of 71, seeds 0-4 unchanged) but costs docs/reproduce 2-3 "
-    "points of completeness (corner 9 m, cylinder 4 m, sinusoid 6 m)"))
 def test_another_array_s_echoes_of_a_located_face_draw_no_tangent_points():
     """Zoo seed 5, edge-03 (random lines at a 95° edge, scenes nobody tuned on): three of
     the face's last echoes, heard by lines that found no family of their own and moved by
     the edge's diffraction arriving with them, were left to the tangent map, whose arcs'
-    middles drew a stub 17 cm past the edge (accuracy 1.7 cm). Within the pulse's
-    resolution of another line's face, they are that face's echoes, which must not draw
-    a surface past the face's edge."""
+    middles drew a stub 17 cm past the edge (accuracy 1.7 cm): a face that ends at a
+    located vertex does not go on past it (``reflectors.past_located_ends``)."""
     from clsonar import pipeline
     from clsonar.opencl import get_context
     from clsonar.tools.zoo import zoo
@@ -157,3 +151,22 @@ def test_another_array_s_echoes_of_a_located_face_draw_no_tangent_points():
     row = score(case, pipeline.run(case.scene, context=get_context()))
     assert row["accuracy_m"] is not None and row["accuracy_m"] <= 0.002
     assert row["vertex_error_m"] is not None and row["vertex_error_m"] <= 0.002
+
+
+def test_no_tangent_point_continues_a_face_past_its_located_end():
+    """``past_located_ends``: points within 0.5 m beyond a patch's end that a located
+    vertex marks, close to the patch's line (1 cm plus a tenth of the distance), go;
+    points before the end, off the line, past an end no vertex marks, or with no patch
+    drawn at all, stay."""
+    from clsonar.mapping.patches import Patches
+    from clsonar.mapping.reflectors import past_located_ends
+
+    face = np.column_stack([np.linspace(0.0, 1.0, 51), np.zeros(51)])  # (0,0) to (1,0)
+    drawn = Patches(face, np.zeros(51, np.int64), np.array([[1.005, 0.0]]), np.array([51]))
+    points = np.array([[1.1, 0.005], [1.3, 0.035], [1.3, 0.06], [0.9, 0.0], [-0.1, 0.0],
+                       [1.6, 0.0]])
+    assert past_located_ends(points, drawn).tolist() == [True, True, False, False, False,
+                                                        False]
+    no_patch = Patches(np.zeros((0, 2)), np.zeros(0, np.int64), np.array([[1.0, 0.0]]),
+                       np.zeros(0, np.int64))
+    assert not past_located_ends(points, no_patch).any()

@@ -176,7 +176,43 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
     points, source, vertices = tangent_map(scene, sensors, _subset(loci, rest),
                                            isolated_bias_m=chosen(scene.mapping.isolated_bias_m,
                                                                   "mapping.isolated_bias_m"))
-    return drawn.plus(points, rest[source], vertices)
+    keep = ~past_located_ends(points, drawn)
+    return drawn.plus(points[keep], rest[source[keep]], vertices)
+
+
+#: A face that ends at a located vertex (within this, metres) does not go on past it: no
+#: tangent point is drawn within :data:`PAST_END_M` beyond that end, within
+#: :data:`PAST_END_WIDTH_M` plus :data:`PAST_END_SLOPE` of the distance from its line.
+END_AT_VERTEX_M = 0.02
+PAST_END_M = 0.5
+PAST_END_WIDTH_M = 0.01
+PAST_END_SLOPE = 0.1
+
+
+def past_located_ends(points: np.ndarray, drawn: Patches) -> np.ndarray:
+    """[n] bool: which ``points`` (tangent points of echoes no family explains) continue a
+    drawn patch past an end of it that a located vertex (an edge, a corner) marks: the
+    face ends there, and such a point is another array's echo of the face's last stretch,
+    moved by the edge's diffraction arriving with it, drawn at the middle of its in-beam
+    arc (a stub past the edge)."""
+    out = np.zeros(len(points), dtype=bool)
+    if len(points) == 0 or len(drawn.vertices) == 0 or len(drawn.ends) == 0:
+        return out
+    starts = np.r_[0, drawn.ends[:-1]]
+    for a, b in zip(starts, drawn.ends, strict=True):
+        if b - a < 2:
+            continue
+        for end, before in ((drawn.points[b - 1], drawn.points[b - 2]),
+                            (drawn.points[a], drawn.points[a + 1])):
+            if np.hypot(*(drawn.vertices - end).T).min() > END_AT_VERTEX_M:
+                continue
+            u = (end - before) / max(float(np.hypot(*(end - before))), 1e-12)
+            rel = points - end
+            along = dot2(rel, u)
+            across = np.abs(rel[:, 0] * u[1] - rel[:, 1] * u[0])
+            out |= (along > 0) & (along <= PAST_END_M) & (
+                across <= PAST_END_WIDTH_M + PAST_END_SLOPE * along)
+    return out
 
 
 __all__ = ["LINEAR_TOL_M", "WINDOW_M", "in_a_room", "linear_groups", "reflector_points",
