@@ -31,6 +31,7 @@ from .patches import (
     carrier_points,
     coordinates,
     draw_patch,
+    flat,
     heard_index,
     patch_of,
     spread_patch,
@@ -195,7 +196,7 @@ def meet(patches: list[Patch], vertices: np.ndarray) -> tuple[list[Patch], np.nd
     for k, p in enumerate(patches):
         for v in vertices:
             foot, off = _foot(p, v)
-            if abs(off) > VERTEX_ON_LINE_M or not (p.straight or _nearly_flat(p)):
+            if abs(off) > VERTEX_ON_LINE_M or not flat(p):
                 continue
             if not p.straight:  # a circle is a curved wall's local one: cut, not extended
                 patches[k] = p = _cut(p, foot)
@@ -206,17 +207,9 @@ def meet(patches: list[Patch], vertices: np.ndarray) -> tuple[list[Patch], np.nd
     return patches, np.concatenate(found)
 
 
-def _nearly_flat(p: Patch) -> bool:
-    """Whether ``p``'s circle is at least as flat as its range (its radius at least half
-    its median path): the slight bend of a face's last stretch (:func:`_foot`), not a
-    curved wall's own circle (a cylinder, a sinusoid's crest or trough), whose located
-    crest a circle must not stop at."""
-    return abs(float(curve_geometry(p.params, p.x0)[1])) >= 0.5 * float(np.median(p.paths))
-
-
 def _foot(p: Patch, v: np.ndarray) -> tuple[np.ndarray, float]:
     """The point of ``p``'s line or circle nearest ``v``, and ``v``'s signed distance from
-    it: a located edge on a nearly flat circle (:func:`_nearly_flat`), beyond its
+    it: a located edge on a nearly flat circle (:func:`~.patches.flat`), beyond its
     reflection points, ends it as one on a plane's line does (the echoes of a face's last
     stretch, their times shifted by up to a millimetre by its edge's diffraction arriving
     with them, may be fitted best by a slightly bent circle)."""

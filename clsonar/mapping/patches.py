@@ -37,7 +37,7 @@ from .envelope import in_beams
 from .families import Family
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2, plane_points
-from .strength import EDGE_SHARE, convex_share, mirror_floor, two_way
+from .strength import EDGE_SHARE, as_flat_as_its_range, convex_share, mirror_floor, two_way
 
 #: The two-way beams of pairs towards points: (q, T, axT, R, axR).
 Beams = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
@@ -184,11 +184,10 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard
     if lo >= first and hi <= last:
         return lo, hi  # nothing a silent pair could cut
     ka = scene.transducer.beam(scene.medium.c)[1]
-    weakest = two_way(carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
-                      sensors.axes[p.rx], ka).min()
-    own_pairs = np.sort(np.stack([p.tx, p.rx], axis=-1), axis=-1)
     beams = (carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
              sensors.axes[p.rx])
+    weakest = two_way(*beams, ka).min()
+    own_pairs = np.sort(np.stack([p.tx, p.rx], axis=-1), axis=-1)
     found = [(p.u, *_strength(p, scene, heard, own_pairs, p.paths, beams, ka), p.T, p.R)]
     for own, pairs in _listeners(p, sensors):
         steps.poll()
@@ -196,7 +195,7 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard
         keep = np.ones(len(u), dtype=bool) if own else (u >= lo) & (u <= hi)
         found.append((u[keep], ratio[keep], loud[keep], T[keep], R[keep]))
     u, ratio, loud, T, R = (np.concatenate(parts) for parts in zip(*found, strict=True))
-    gauged = math.isfinite(p.bend) and _flat(p)
+    gauged = math.isfinite(p.bend) and flat(p)
     # a circle the detections cannot tell from its tangent (its ψ within 3σ of 0)
     line = p.straight or abs(float(p.params[2])) <= p.bend
     scale = 1.0 if p.straight else abs(float(curve_geometry(p.params, p.x0)[1]))
@@ -340,12 +339,11 @@ def _least_echo(p: Patch, scene: Scene, beams: Beams, ka: float
     return mirror_floor(*beams, mirror_echo(scene) * share, ka, amplitude_noise(scene))
 
 
-def _flat(p: Patch) -> bool:
-    """Whether ``p`` is a plane or a circle at least as flat as its range (its radius at
-    least half its median path): a face, or its slightly bent last stretch, whose echo is a
-    mirror's (:func:`_least_echo`), not a curved wall's own bent circle (a post)."""
-    return p.straight or (abs(float(curve_geometry(p.params, p.x0)[1]))
-                          >= 0.5 * float(np.median(p.paths)))
+def flat(p: Patch) -> bool:
+    """Whether ``p`` is a plane or a circle at least as flat as its range
+    (:func:`~.strength.as_flat_as_its_range`): a face, or its slightly bent last stretch,
+    whose echo is a mirror's (:func:`_least_echo`), not a curved wall's own bent circle."""
+    return p.straight or as_flat_as_its_range(p.params, p.x0, p.paths)
 
 
 def _listeners(p: Patch, sensors: SensorArray) -> Iterator[tuple[bool, np.ndarray]]:
@@ -510,6 +508,7 @@ __all__ = [
     "coordinates",
     "draw_patch",
     "extents",
+    "flat",
     "nearest_index",
     "patch_of",
     "spread_patch",

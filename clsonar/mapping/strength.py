@@ -57,6 +57,16 @@ def two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray, axR: n
     return out
 
 
+def as_flat_as_its_range(params: np.ndarray, x0: np.ndarray, paths: np.ndarray) -> bool:
+    """Whether the curve model ``params`` (about ``x0``) is at least as flat as its range:
+    its radius at least half the median of ``paths`` (a plane always). A face, or the
+    slight bend of its last stretch (its echoes' times shifted by its edge's diffraction
+    arriving with them), whose echo is a mirror's; not a curved wall's own circle (a
+    post, a cylinder, a sinusoid's crest), whose echo the strength cannot tell from an
+    edge's."""
+    return abs(float(curve_geometry(params, x0)[1])) >= 0.5 * float(np.median(paths))
+
+
 def convex_share(params: np.ndarray, x0: np.ndarray, q: np.ndarray, T: np.ndarray,
                  R: np.ndarray, paths: np.ndarray) -> np.ndarray | None:
     """The echo of the curve model ``params`` (about ``x0``) at the reflection points ``q``
@@ -70,7 +80,7 @@ def convex_share(params: np.ndarray, x0: np.ndarray, q: np.ndarray, T: np.ndarra
     centre, rho, _ = curve_geometry(params, x0)
     if not np.all(np.isfinite(centre)):
         return np.ones(len(q))
-    if not len(q) or abs(rho) < 0.5 * float(np.median(paths)):
+    if not len(q) or not as_flat_as_its_range(params, x0, paths):
         return None
     d1 = np.maximum(np.hypot(*(T - q).T), 1e-12)
     d2 = np.maximum(np.hypot(*(R - q).T), 1e-12)
@@ -80,5 +90,6 @@ def convex_share(params: np.ndarray, x0: np.ndarray, q: np.ndarray, T: np.ndarra
     return np.minimum(curved_gain(d1, d2, kappa, cos_i), 1.0)
 
 
-__all__ = ["EDGE_SHARE", "MIRROR_SHARE", "convex_share", "mirror_floor", "mirror_strong",
+__all__ = ["EDGE_SHARE", "MIRROR_SHARE", "as_flat_as_its_range", "convex_share", "mirror_floor",
+           "mirror_strong",
            "two_way"]
