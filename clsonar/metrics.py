@@ -25,11 +25,11 @@ import math
 from typing import TypedDict
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from . import physics, steps
 from .echoes import EDGE
 from .geometry import Geometry, curve_point, nearest_surface_point, point_cells, true_vertices
+from .neighbours import nearest, nearest_within
 from .scene import Polyline, Scene, Sinusoid
 from .sensors import SensorArray
 from .signals import envelope_noise_scale, signal_model
@@ -298,8 +298,7 @@ def vertex_errors(geom: Geometry, located: np.ndarray) -> list[VertexError]:
     :data:`VERTEX_FOUND_M`."""
     truth = true_vertices(geom)
     located = np.asarray(located, dtype=np.float64).reshape(-1, 2)
-    gap = (cKDTree(located).query(truth)[0] if len(located) and len(truth)
-           else np.full(len(truth), np.inf))
+    gap = nearest(located, truth)
     return [{"x": float(v[0]), "y": float(v[1]),
              "error_m": float(g) if np.isfinite(g) else None,
              "found": bool(g <= VERTEX_FOUND_M)} for v, g in zip(truth, gap, strict=True)]
@@ -319,12 +318,11 @@ def cylinder_coverage(geom: Geometry, points: np.ndarray, spacing: float) -> lis
     """For each circle of the scene: the share of its perimeter (sampled every ``spacing``)
     with an estimated point within :data:`CYLINDER_TOL_M`."""
     out = []
-    tree = cKDTree(points) if len(points) else None
     for cx, cy, r in geom.circles:
         n = max(8, math.ceil(2 * math.pi * r / spacing))
         a = 2 * math.pi * (np.arange(n) + 0.5) / n
         perimeter = np.stack([cx + r * np.cos(a), cy + r * np.sin(a)], axis=-1)
-        gap = tree.query(perimeter)[0] if tree is not None else np.full(n, np.inf)
+        gap = nearest_within(points, perimeter, 2 * CYLINDER_TOL_M)  # exact to the bound
         out.append({"x": float(cx), "y": float(cy), "radius_m": float(r),
                     "coverage_2cm": float(np.mean(gap <= CYLINDER_TOL_M))})
     return out
@@ -374,7 +372,7 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
         out["spurious_share"] = None
     steps.poll()
     if len(lit):
-        gap = cKDTree(points).query(lit)[0] if len(points) else np.full(len(lit), np.inf)
+        gap = nearest_within(points, lit, 2 * max(COMPLETENESS_RADII))  # exact to the radii
         out["completeness"] = {f"{round(r * 100)}cm": float(np.mean(gap <= r))
                                for r in COMPLETENESS_RADII}
     else:

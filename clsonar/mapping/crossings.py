@@ -7,7 +7,6 @@ Wijk & Christensen 2000, :func:`triangulated_points`)."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from ..scene import Scene
 from ..sensors import SensorArray
@@ -93,6 +92,8 @@ def support_clusters(points: np.ndarray, radius_m: float, min_support: int) -> n
     labels = np.full(len(points), -1, dtype=np.int64)
     if len(points) < max(min_support, 1):
         return labels
+    from scipy.spatial import cKDTree  # only here (the arc maps' clusters): 0.3 s to import
+
     tree = cKDTree(points)
     support = tree.query_ball_point(points, radius_m, return_length=True)
     for seed in np.argsort(-support, kind="stable"):
