@@ -5,6 +5,7 @@ surface; and the beam test of sampled points (:func:`in_beams`)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -232,28 +233,41 @@ def _link_radius(a: EnvelopePoint, b: EnvelopePoint) -> float | None:
     return radius if length * length <= 8.0 * radius * LINK_SAGITTA_M else None
 
 
-def _chains(scan: ElementScan) -> list[tuple[list[EnvelopePoint], float]]:
+#: A run of envelope points: the points, the smallest radius its links show, its loci.
+Chain = tuple[list[EnvelopePoint], float, set[int]]
+
+
+def _chains(scan: ElementScan, two_poses: bool = False) -> list[Chain]:
     """The runs of consecutive envelope points of one element (no pose between them
     without one) that lie on one nearly flat surface (:func:`_link_radius`) and hold two
     or more points from central differences (a run's one-sided ends alone do not tell a
-    plane from a corner seen from afar), each with the smallest radius its links show; a
-    midway point as its later locus'."""
-    chains: list[tuple[list[EnvelopePoint], float]] = []
-    run: list[tuple[EnvelopePoint, bool]] = []
+    plane from a corner seen from afar), each with the smallest radius its links show and
+    the loci it holds; a midway point as its later locus'. ``two_poses``: instead, the
+    runs of two points or more with fewer from central differences (two consecutive
+    poses' one-sided points and the midway one, where each lies in the beams), which the
+    envelope alone cannot tell from a point reflector's (:func:`two_pose_links`)."""
+    chains: list[Chain] = []
+    run: list[tuple[EnvelopePoint, bool, int]] = []
+    loci: set[int] = set()
     radius, last = math.inf, 0
+
+    def close() -> None:
+        central = [place for _, o, place in run if not o]
+        if len(run) >= 2 and len(central) < 2 if two_poses else len(central) >= 2:
+            chains.append(([q for q, _, _ in run], radius, loci))
+
     for place, points, one_sided in scan:
         p = points[-1]
         link = _link_radius(run[-1][0], p) if run and place - last <= 2 else None
         if link is None:
-            if sum(not o for _, o in run) >= 2:
-                chains.append(([q for q, _ in run], radius))
-            run, radius = [], math.inf
+            close()
+            run, radius, loci = [], math.inf, set()
         else:
             radius = min(radius, link)
-        run.append((p, one_sided))
+        run.append((p, one_sided, place))
+        loci |= {q[0] for q in points}
         last = place
-    if sum(not o for _, o in run) >= 2:
-        chains.append(([q for q, _ in run], radius))
+    close()
     return chains
 
 
@@ -272,21 +286,48 @@ def envelope_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: 
     Returns ``(points [m, 2], loci [m, 2])``: samples every ``step`` and the loci at both
     ends of the stretch each lies on. ``scans``: :func:`element_scans`, if the caller has
     them."""
-    points, ends = [], []
+    chains = [c for scan in (element_scans(scene, sensors, loci) if scans is None else scans)
+              for c in _chains(scan)]
+    return _stretches(chains, step, bias)
+
+
+def two_pose_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: float,
+                   plane: Callable[[list[int], np.ndarray], bool],
+                   scans: list[ElementScan] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`envelope_links` of the runs of two consecutive poses of one element (two
+    loci: the face of a box a ring passes, heard by one element from two poses only)
+    where ``plane(loci, normal)`` says the two loci are a plane's (with
+    unit ``normal`` from the surface towards the transducers' side, their common
+    tangent's): two circles always have a common tangent, so the envelope alone cannot
+    tell a plane from a point reflector heard twice (a concave corner's retro-reflection,
+    both loci through its vertex); the caller decides from what else the scan heard."""
+    chains = []
     for scan in element_scans(scene, sensors, loci) if scans is None else scans:
-        for run, radius in _chains(scan):
-            q = np.array([p[3] for p in run])
-            first, last = q[0] - q[1], q[-1] - q[-2]
-            curved = math.sqrt(2.0 * radius * LINK_SAGITTA_M)
-            ext = [min(math.sqrt(2.0 * end[2] * bias), curved) for end in (run[0], run[-1])]
-            q = np.r_[q[:1] + first / np.hypot(*first) * ext[0], q,
-                      q[-1:] + last / np.hypot(*last) * ext[1]]
-            run = [run[0], *run, run[-1]]
-            for k in range(len(run) - 1):
-                n = max(2, math.ceil(math.hypot(*(q[k + 1] - q[k])) / step) + 1)
-                t = np.linspace(0.0, 1.0, n)[:, None]
-                points.append(q[k] + t * (q[k + 1] - q[k]))
-                ends.append(np.tile([run[k][0], run[k + 1][0]], (n, 1)))
+        for run, radius, ids in _chains(scan, two_poses=True):
+            first = run[0]  # every point of the run has the common tangent's normal
+            if len(ids) == 2 and plane(sorted(ids), (first[1] - first[3]) / first[2]):
+                chains.append((run, radius, ids))
+    return _stretches(chains, step, bias)
+
+
+def _stretches(chains: list[Chain], step: float, bias: float) -> tuple[np.ndarray, np.ndarray]:
+    """The samples (every ``step``) of the straight stretches between the consecutive
+    points of each run in ``chains`` and past its ends (:func:`envelope_links`), and the
+    loci at both ends of the stretch each lies on."""
+    points, ends = [], []
+    for run, radius, _ in chains:
+        q = np.array([p[3] for p in run])
+        first, last = q[0] - q[1], q[-1] - q[-2]
+        curved = math.sqrt(2.0 * radius * LINK_SAGITTA_M)
+        ext = [min(math.sqrt(2.0 * end[2] * bias), curved) for end in (run[0], run[-1])]
+        q = np.r_[q[:1] + first / np.hypot(*first) * ext[0], q,
+                  q[-1:] + last / np.hypot(*last) * ext[1]]
+        run = [run[0], *run, run[-1]]
+        for k in range(len(run) - 1):
+            n = max(2, math.ceil(math.hypot(*(q[k + 1] - q[k])) / step) + 1)
+            t = np.linspace(0.0, 1.0, n)[:, None]
+            points.append(q[k] + t * (q[k + 1] - q[k]))
+            ends.append(np.tile([run[k][0], run[k + 1][0]], (n, 1)))
     if not points:
         return np.zeros((0, 2)), np.zeros((0, 2), np.int64)
     return np.concatenate(points), np.concatenate(ends).astype(np.int64)

@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from .. import steps
+from .strength import EDGE_SHARE
 
 #: Candidate loci whose middle-of-arc points lie within this of each other are fitted
 #: together, metres.
@@ -312,6 +313,40 @@ def _one_by_one(middles: np.ndarray, best: Callable[[np.ndarray], tuple | None]
             explained = found[-1]
             yield found, members[explained]
             members = members[~explained]
+
+
+#: The loudest a plane's echo gets against a mirror's as its reflection point nears the
+#: plane's edge: the first maximum of the Fresnel pattern of a straight edge, |F| = 1.17
+#: (Born & Wolf §8.7); the least is half a mirror's, the reflection point on the edge
+#: (:data:`~.strength.EDGE_SHARE`).
+FRESNEL_PEAK = 1.17
+
+
+def loci_crossing(T: np.ndarray, rho: np.ndarray, near: np.ndarray) -> np.ndarray:
+    """The crossing of the circles (``T[0]``, ``rho[0]``) and (``T[1]``, ``rho[1]``) nearer
+    ``near`` (where they only touch, the point between them on the line of centres): a
+    point reflector heard by both would lie there."""
+    d = T[1] - T[0]
+    dist = max(float(np.hypot(*d)), 1e-12)
+    along = (rho[0] ** 2 - rho[1] ** 2 + dist**2) / (2 * dist)
+    across = math.sqrt(max(float(rho[0] ** 2 - along**2), 0.0))
+    u = d / dist
+    v = np.array([-u[1], u[0]])
+    points = T[0] + along * u + np.array([across, -across])[:, None] * v
+    return points[int(np.argmin(np.hypot(*(points - near).T)))]
+
+
+def a_plane_not_a_corner(heard: np.ndarray, plane: np.ndarray, corner: np.ndarray,
+                         spare: float) -> bool:
+    """Whether the echoes ``heard`` of two loci are a plane's rather than a point
+    reflector's (Kleeman & Kuc 1995's plane/corner test, by their strengths): each between
+    :data:`~.strength.EDGE_SHARE` and :data:`FRESNEL_PEAK` of the ``plane``'s echo (its
+    edge's diffraction arriving with it; ``spare`` for noise), and nearer to the plane's
+    echoes than to a concave corner's at the loci's crossing (``corner``: its
+    retro-reflection, as loud from any angle inside the beam, changes with the angle
+    between the poses where a plane's stays)."""
+    inside = (heard >= EDGE_SHARE * plane - spare) & (heard <= FRESNEL_PEAK * plane + spare)
+    return bool(np.all(inside) and np.sum((heard - plane) ** 2) < np.sum((heard - corner) ** 2))
 
 
 def pillar_arcs(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,

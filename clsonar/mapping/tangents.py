@@ -14,11 +14,25 @@ from ..physics import absorption_factor, curved_gain, piston_pattern
 from ..scene import Scene
 from ..sensors import SensorArray
 from ..signals import envelope_noise_scale, signal_model
-from .envelope import ENVELOPE_ARC_BIAS_M, element_scans, envelope_links, in_beams, scan_envelope
+from .envelope import (
+    ENVELOPE_ARC_BIAS_M,
+    element_scans,
+    envelope_links,
+    in_beams,
+    scan_envelope,
+    two_pose_links,
+)
 from .families import two_way, window_tolerance
 from .loci import Loci, as_loci
 from .patches import mirror_echo
-from .pillars import MIN_PILLAR_LOCI, PILLAR_TOL_M, pillar_arcs, point_reflectors
+from .pillars import (
+    MIN_PILLAR_LOCI,
+    PILLAR_TOL_M,
+    a_plane_not_a_corner,
+    loci_crossing,
+    pillar_arcs,
+    point_reflectors,
+)
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
@@ -398,6 +412,47 @@ def _facing_too_weak(scene: Scene, s: SampledLoci, loci: np.ndarray,
     return out
 
 
+def _plane_echoes(scene: Scene, s: SampledLoci, loci: list[int], normal: np.ndarray) -> bool:
+    """Whether the two T = R ``loci`` are a plane's with unit ``normal`` (towards the
+    transducers; :func:`~.pillars.a_plane_not_a_corner`): heard as loud as its echo at
+    each reflection point T − ρ·n would be (a mirror's A0·ρ times the two-way beam there
+    and the absorption over 2ρ), rather than as a concave corner's at their crossing (two
+    reflections: the reflection coefficient squared, as in :func:`_facing_too_weak`),
+    three envelope noise scales to spare. False where the amplitude cannot tell
+    (threshold detection, a uniform beam)."""
+    _, ka = scene.transducer.beam(scene.medium.c)
+    idx = np.asarray(loci, dtype=np.int64)
+    if scene.detection.mode != "envelope" or ka == 0 or np.any(s.loci.tx[idx] != s.loci.rx[idx]):
+        return False
+    T, axes, rho = s.T[idx], s.axes[s.loci.tx[idx]], s.a[idx]
+    q = T - rho[:, None] * normal
+    corner = np.tile(loci_crossing(T, rho, q.mean(axis=0)), (len(idx), 1))
+    mirror = mirror_echo(scene) * absorption_factor(2.0 * rho, scene.echo.absorption_db_per_m)
+    return a_plane_not_a_corner(
+        s.loci.amplitude[idx], mirror * two_way(q, T, axes, T, axes, ka),
+        mirror * scene.echo.reflection_coefficient * two_way(corner, T, axes, T, axes, ka),
+        HEARD_NOISE_SCALES * envelope_noise(scene))
+
+
+def _two_pose_faces(scene: Scene, sensors: SensorArray, s: SampledLoci, points: np.ndarray,
+                    scans: list, isolated: np.ndarray, bias: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The stretches between the two loci of one element heard from two consecutive poses
+    only (:func:`~.envelope.two_pose_links`: the face of a box a ring passes obliquely)
+    where both are isolated, neither a point reflector's nor a pillar's (``points``: the
+    loci those explain), and their echoes are the plane's of their common tangent
+    (:func:`_plane_echoes`): two circles always have one, and a concave corner heard
+    twice has both loci through its vertex, heard at angles either side of the tangent's
+    (one louder than the plane would be, one weaker, or both weaker), and a pillar echoes
+    sqrt(R/(R + d)) of a plane."""
+
+    def plane(loci: list[int], normal: np.ndarray) -> bool:
+        return (bool(np.all(np.isin(loci, isolated))) and not np.any(np.isin(loci, points))
+                and _plane_echoes(scene, s, loci, normal))
+
+    return two_pose_links(scene, sensors, s.loci, LINK_STEP_M, bias, plane, scans)
+
+
 def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: np.ndarray,
                   bias: float, found: list[np.ndarray], source: list[np.ndarray],
                   vertices: list[np.ndarray]) -> None:
@@ -406,7 +461,8 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
     points (:func:`_isolated_points`), a pillar's stretch for those a pillar explains
     (:func:`_pillars`), the point where they cross for those a point reflector explains
     (:func:`_points`; the point also to ``vertices``); a middle of arc that neither
-    explains and whose echo is too weak for it (:func:`_facing_too_weak`) is dropped."""
+    explains and whose echo is too weak for it (:func:`_facing_too_weak`) is dropped;
+    and the faces heard from two poses only (:func:`_two_pose_faces`)."""
     if len(isolated) == 0:
         return
     scans = element_scans(scene, sensors, s.loci)
@@ -434,6 +490,10 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
     for k, weak in zip(left, _facing_too_weak(scene, s, isolated[left], bias), strict=True):
         if weak:
             arcs[k] = np.zeros((0, 2))
+    points, ends = _two_pose_faces(scene, sensors, s, isolated[[*pillars, *corners]], scans,
+                                   isolated, min(bias, ENVELOPE_ARC_BIAS_M))
+    found.append(points)
+    source.append(ends[:, 0])
     for locus, arc in zip(isolated, arcs, strict=True):
         found.append(arc)
         source.append(np.full(len(arc), locus))
