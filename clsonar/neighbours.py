@@ -2,11 +2,11 @@
 scipy.sparse, linalg and special: 0.3 s of a room's 1.5 s run as a process, issue 16).
 
 The scores and the profile ask three questions of point sets, each answered exactly, with
-the distances and bounds of ``cKDTree`` (the square root of dx² + dy²; within a radius r
-where dx² + dy² ≤ r²):
+the distances and bounds of ``cKDTree`` (the square root of dx² + dy²; a query's upper
+bound r holds where dx² + dy² < r², a pair within r where dx² + dy² ≤ r²):
 
-- :func:`nearest_within`: each query's distance to the nearest point where that is within
-  a radius (``inf`` beyond). The points are binned into square cells of the radius
+- :func:`nearest_within`: each query's distance to the nearest point where that is less
+  than a radius (``inf`` from it on). The points are binned into square cells of the radius
   (:class:`_Cells`) and each query tests the points of its own cell and the 8 around it, a
   chunk of queries at a time (bounded memory on a 100 m floor's million points);
 - :func:`pairs_within`: the pairs of points within a radius, by the same cells;
@@ -89,7 +89,7 @@ def _squared(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def nearest_within(points: np.ndarray, queries: np.ndarray, radius: float) -> np.ndarray:
     """[Q] the distance from each of ``queries`` [Q, 2] to the nearest of ``points`` [P, 2]
-    where it is at most ``radius`` (> 0), else ``inf``: ``cKDTree(points).query(queries,
+    where it is less than ``radius`` (> 0), else ``inf``: ``cKDTree(points).query(queries,
     distance_upper_bound=radius)[0]``."""
     pts, q = _as_points(points), _as_points(queries)
     best = np.full(len(q), np.inf)
@@ -107,7 +107,7 @@ def nearest_within(points: np.ndarray, queries: np.ndarray, radius: float) -> np
             has = count > 0
             first = (np.cumsum(count) - count)[has]
             part[has] = np.minimum(part[has], np.minimum.reduceat(d2, first))
-    return np.where(best <= radius * radius, np.sqrt(best), np.inf)
+    return np.where(best < radius * radius, np.sqrt(best), np.inf)  # strictly, as the tree
 
 
 def pairs_within(points: np.ndarray, radius: float) -> np.ndarray:
