@@ -33,14 +33,22 @@ MIN_PILLAR_LOCI = 3
 
 
 def _clusters(points: np.ndarray) -> list[np.ndarray]:
-    """Single-linkage groups (index arrays) of ``points`` within :data:`CLUSTER_M`."""
+    """Single-linkage groups (index arrays) of ``points`` within :data:`CLUSTER_M`: point i
+    in turn merges every group holding a point within reach of it into its own group
+    (``label`` the group of each point; ``mark`` which groups merge, a table by label in
+    place of ``np.isin``: the same labels)."""
     label = np.arange(len(points))
+    mark = np.zeros(len(points), dtype=bool)
     for i in range(len(points)):
         if i % 64 == 0:
             steps.poll()
         near = np.flatnonzero(np.hypot(*(points - points[i]).T) <= CLUSTER_M)
-        label[np.isin(label, label[near])] = label[i]
-    return [np.flatnonzero(label == k) for k in np.unique(label)]
+        merged = label[near]
+        mark[merged] = True
+        label[mark[label]] = label[i]
+        mark[merged] = False
+    order = np.argsort(label, kind="stable")  # each group's indices ascending, by label
+    return np.split(order, np.flatnonzero(np.diff(label[order])) + 1) if len(order) else []
 
 
 def _directions(x: np.ndarray, T: np.ndarray) -> np.ndarray:
@@ -53,8 +61,9 @@ def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray,
     """Least-squares circle ``(C, R)`` with |C − T_k| = ρ_k + R (:func:`_gauss_newton`
     from ``start`` and R = 0.1 m), and the residuals."""
 
-    def residual(x: np.ndarray) -> np.ndarray:
-        return np.hypot(*(x[:2] - T).T) - rho - x[2]
+    def residual(x: np.ndarray) -> np.ndarray:  # x [3] or [m, 3]: [k] or [m, k]
+        d = x[..., None, :2] - T
+        return np.hypot(d[..., 0], d[..., 1]) - rho - x[..., 2, None]
 
     def jacobian(x: np.ndarray) -> np.ndarray:
         return np.column_stack([_directions(x[:2], T), -np.ones(len(T))])
@@ -67,24 +76,60 @@ def _gauss_newton(residual: Callable[[np.ndarray], np.ndarray],
                   jacobian: Callable[[np.ndarray], np.ndarray], start: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """``(x, residual(x))``: least squares by Gauss–Newton from ``start``, each step halved
-    until the cost falls, to a step of :data:`GN_STEP_M` (two or three unknowns: a
-    solver's set-up would cost more than the solve, and this runs once per seed set)."""
+    until the cost falls (up to 29 times, :func:`_halved`), to a step of :data:`GN_STEP_M`
+    (two or three unknowns: a solver's set-up would cost more than the solve, and this
+    runs once per seed set). ``residual`` takes one x [n] or several [m, n]."""
     x = np.asarray(start, dtype=np.float64)
     r = residual(x)
+    cost = r @ r
     for _ in range(GN_ITERATIONS):
         step = _least_squares_step(jacobian(x), r)
-        for _ in range(30):  # halve the step until the cost falls
-            trial = x - step
-            r_trial = residual(trial)
-            if r_trial @ r_trial <= r @ r:
+        trial = x - step
+        r_trial = residual(trial)
+        if not r_trial @ r_trial <= cost:
+            halved = _halved(residual, x, step, cost)
+            if halved is None:
                 break
-            step = 0.5 * step
-        else:
-            break
+            step, trial, r_trial = halved
         x, r = trial, r_trial
-        if float(np.linalg.norm(step)) <= GN_STEP_M:
+        cost = r @ r
+        if math.sqrt(float(step @ step)) <= GN_STEP_M:  # numpy.linalg.norm's own form
             break
     return x, r
+
+
+#: The halvings of a Gauss–Newton step tried after the whole step (:func:`_halved`).
+GN_HALVINGS = 29
+_HALVES = 0.5 ** np.arange(1, GN_HALVINGS + 1)[:, None]
+_TINY = float(np.finfo(np.float64).tiny)
+_EPS = float(np.finfo(np.float64).eps)
+
+
+def _halved(residual: Callable[[np.ndarray], np.ndarray], x: np.ndarray, step: np.ndarray,
+            cost: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """``(step, x − step, its residual)`` for the first of ``step``/2, ``step``/4, … (up
+    to :data:`GN_HALVINGS` times) at which the cost ``r·r`` is at most ``cost``, or None:
+    the halvings one after another, their residuals evaluated together (a power of two
+    scales exactly, so each trial is the one the halving loop would reach).
+
+    The cost of each is summed by ``r @ r`` (BLAS's order of summation) only where another
+    order's sum of the k squares, within (k + 2)·ε of it either way (Higham, *Accuracy
+    and Stability of Numerical Algorithms*, §3.1), leaves it in doubt."""
+    nonzero = np.abs(step[step != 0])
+    if len(nonzero) and nonzero.min() * _HALVES[-1, 0] >= _TINY:
+        halvings = step * _HALVES
+    else:  # a halving may round (subnormal): one after another, as the loop would
+        halvings = np.empty((GN_HALVINGS, len(step)))
+        for j in range(GN_HALVINGS):
+            halvings[j] = 0.5 * (step if j == 0 else halvings[j - 1])
+    trials = x - halvings
+    r_trials = residual(trials)
+    k = r_trials.shape[1]
+    rough = np.einsum("ij,ij->i", r_trials, r_trials)
+    for j in np.flatnonzero(~(rough > cost * (1.0 + 4.0 * (k + 2) * _EPS) + 1e-300)).tolist():
+        if r_trials[j] @ r_trials[j] <= cost:
+            return halvings[j], trials[j], r_trials[j]
+    return None
 
 
 def _least_squares_step(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -207,6 +252,8 @@ def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nd
         explained = np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
         if best is None or explained.sum() > best[2].sum():
             best = (centre, radius, explained)
+            if explained.all():  # no later seed set can explain more
+                break
     if best is None:
         return None
     found = fit_pillar(T[best[2]], rho[best[2]], middles[best[2]], tol[best[2]])
@@ -218,8 +265,14 @@ def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nd
 
 def _point_residual(v: np.ndarray, T: np.ndarray, R: np.ndarray, a: np.ndarray
                     ) -> np.ndarray:
-    """[k] how far the point ``v`` lies off each locus, (|v − T_k| + |v − R_k|)/2 − a_k."""
-    return 0.5 * (np.hypot(*(v - T).T) + np.hypot(*(v - R).T)) - a
+    """[k] how far the point ``v`` lies off each locus, (|v − T_k| + |v − R_k|)/2 − a_k
+    ([m, k] for points ``v`` [m, 2]; ``R is T``: |v − T_k| − a_k, the same to the bit)."""
+    dT = v[..., None, :] - T
+    hT = np.hypot(dT[..., 0], dT[..., 1])
+    if R is T:  # 0.5·(h + h) is h: doubling and halving are exact
+        return hT - a
+    dR = v[..., None, :] - R
+    return 0.5 * (hT + np.hypot(dR[..., 0], dR[..., 1])) - a
 
 
 def _positions(T: np.ndarray) -> int:
@@ -232,6 +285,11 @@ def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
     """Least-squares point V on the loci (|V − T_k| + |V − R_k|)/2 = a_k (a corner or an
     edge seen from several positions; T = R: |V − T_k| = ρ_k), and the residuals
     (:func:`_gauss_newton` from ``start``)."""
+    if R is not T and T.shape == R.shape and T.tobytes() == R.tobytes():
+        R = T  # T = R: each distance computed once
+    if R is T:  # 0.5·(d + d) is d
+        return _gauss_newton(lambda v: _point_residual(v, T, T, a),
+                             lambda v: _directions(v, T), start)
     return _gauss_newton(lambda v: _point_residual(v, T, R, a),
                          lambda v: 0.5 * (_directions(v, T) + _directions(v, R)), start)
 
@@ -254,6 +312,8 @@ def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray
         explained = explains(v)
         if best is None or explained.sum() > best[1].sum():
             best = (v, explained)
+            if explained.all():  # no later seed set can explain more
+                break
     if best is None:
         return None
     v, _ = _point_from(T[best[1]], R[best[1]], a[best[1]], best[0])

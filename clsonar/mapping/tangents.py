@@ -151,43 +151,53 @@ def run_starts(inside: np.ndarray) -> np.ndarray:
     return np.where(starts.any(axis=-1), np.argmax(starts, axis=-1), 0)
 
 
-def _neighbours(s: SampledLoci, groups: np.ndarray, i: int, max_bias_m: float) -> np.ndarray:
-    """The later loci of i's viewpoint whose centres lie within sqrt(8·a·max_bias_m) of
-    i's (none when i has no sample in its beams)."""
-    others = np.flatnonzero((groups == groups[i]) & (np.arange(len(s.loci)) > i))
-    if len(others) == 0 or not s.inside[i].any():
-        return others[:0]
-    reach = np.sqrt(8.0 * s.a[i] * max_bias_m)
-    return others[np.hypot(*(s.centre[others] - s.centre[i]).T) <= reach]
-
-
-def _residual(s: SampledLoci, q: np.ndarray, others: np.ndarray) -> np.ndarray:
-    """[others, q]: each other locus' path-length residual |q−T| + |q−R| − 2a at ``q``."""
-    return (np.hypot(*(q[None] - s.T[others, None]).transpose(2, 0, 1))
-            + np.hypot(*(q[None] - s.R[others, None]).transpose(2, 0, 1))
-            - 2 * s.a[others, None])
+def _neighbour_pairs(s: SampledLoci, groups: np.ndarray, lo: int, hi: int,
+                     max_bias_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(mine, other)``: for each locus from ``lo`` to ``hi`` that has a sample in its
+    beams, the later loci of its viewpoint whose centres lie within sqrt(8·a·max_bias_m)
+    of its own; by locus, then by other."""
+    i, j = np.arange(lo, hi)[:, None], np.arange(len(s.loci))
+    has = np.asarray(s.inside[lo:hi].any(axis=1))[:, None]
+    mine, other = np.nonzero((groups[j] == groups[i]) & (j > i) & has)
+    mine = mine + lo
+    near = np.hypot(*(s.centre[other] - s.centre[mine]).T) <= np.sqrt(8.0 * s.a[mine] * max_bias_m)
+    return mine[near], other[near]
 
 
 def _crossings(s: SampledLoci, i: int, others: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(q, k, b)``: where locus i crosses ``others`` between samples k and k+1 (both in
-    i's beams), interpolated, and the locus b crossed; in every beam of b or not, unchecked.
-    The residuals are evaluated only at those steps (the in-beam arc is a small part)."""
-    pi = s.p[i]  # [S, 2]
-    steps = np.flatnonzero(s.inside[i] & np.roll(s.inside[i], -1))
-    none = (np.zeros((0, 2)), np.zeros(0, np.int64), np.zeros(0, np.int64))
-    if len(steps) == 0:
-        return none
-    g_here = _residual(s, pi[steps], others)
-    g_next = _residual(s, pi[(steps + 1) % LOCUS_SAMPLES], others)
-    j, m = np.nonzero(np.sign(g_here) != np.sign(g_next))
-    if len(j) == 0:
-        return none
-    k = steps[m]
-    g0, g1 = g_here[j, m], g_next[j, m]
-    t = g0 / (g0 - g1)
-    q = pi[k] + t[:, None] * (pi[(k + 1) % LOCUS_SAMPLES] - pi[k])
-    return q, k, others[j]
+    i's beams), interpolated, and the locus b crossed; in every beam of b or not, unchecked
+    (:func:`_pair_crossings` of the pairs (i, b))."""
+    q, k, _, b = _pair_crossings(s, np.full(len(others), i), np.asarray(others, np.int64))
+    return q, k, b
+
+
+def _pair_crossings(s: SampledLoci, mine: np.ndarray, other: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(q, k, i, b)``: where each locus ``mine[n]`` crosses ``other[n]`` between its samples k
+    and k+1 (both in its beams), interpolated: the sign changes of b's path-length
+    residual |q−T| + |q−R| − 2a, evaluated only at those steps (the in-beam arc is a small
+    part); ordered by pair, then by k. Element by element as for one locus at a time."""
+    rows, inv = np.unique(mine, return_inverse=True)
+    ok = s.inside[rows] & np.roll(s.inside[rows], -1, axis=-1)
+    row_of, step_of = np.nonzero(ok)  # each row's steps, ascending
+    first = np.searchsorted(row_of, np.arange(len(rows)))
+    count = np.count_nonzero(ok, axis=-1)[inv]
+    pair = np.repeat(np.arange(len(mine)), count)
+    k = step_of[np.repeat(first[inv] - np.cumsum(count) + count, count) + np.arange(len(pair))]
+    i, b = mine[pair], other[pair]
+    here, there = s.p[i, k], s.p[i, (k + 1) % LOCUS_SAMPLES]
+    g_here, g_next = _path_residual(s, here, b), _path_residual(s, there, b)
+    n = np.flatnonzero(np.sign(g_here) != np.sign(g_next))
+    t = g_here[n] / (g_here[n] - g_next[n])
+    return here[n] + t[:, None] * (there[n] - here[n]), k[n], i[n], b[n]
+
+
+def _path_residual(s: SampledLoci, q: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Each locus b's path-length residual |q−T| + |q−R| − 2a at its ``q``."""
+    dT, dR = q - s.T[b], q - s.R[b]
+    return np.hypot(dT[:, 0], dT[:, 1]) + np.hypot(dR[:, 0], dR[:, 1]) - 2 * s.a[b]
 
 
 def locus_crossings(s: SampledLoci, i: int, others: np.ndarray
@@ -537,20 +547,22 @@ def tangent_map(scene: Scene, sensors: SensorArray, loci,
     found: list[np.ndarray] = []
     source: list[np.ndarray] = []
     crossed = np.zeros(len(loci), dtype=bool)
-    for i in range(len(loci)):
-        if i % 64 == 0:
-            steps.step("loci", i, len(loci))
-        others = _neighbours(s, groups, i, max_bias_m)
-        if len(others) == 0:
-            continue
-        q, k, b = locus_crossings(s, i, others)
-        found.append(q)
-        source.append(np.full(len(q), i))
-        crossed[i] |= len(q) > 0
-        crossed[b] = True
-        for segment in _tangent_segments(s, i, k, max_bias_m):
-            found.append(segment)
-            source.append(np.full(len(segment), i))
+    for lo in range(0, len(loci), 64):
+        steps.step("loci", lo, len(loci))
+        mine, other = _neighbour_pairs(s, groups, lo, min(lo + 64, len(loci)), max_bias_m)
+        q, k, owner, b = _pair_crossings(s, mine, other)
+        keep = (in_beams(q, s.T[b], s.axes[s.loci.tx[b]], s.cut_sin2)
+                & in_beams(q, s.R[b], s.axes[s.loci.rx[b]], s.cut_sin2))
+        crossed[b[keep]] = True
+        q, k, owner, mine = q[keep], k[keep], owner[keep], np.unique(mine)
+        ends = np.searchsorted(owner, [mine, mine + 1]).tolist()
+        for i, n0, n1 in zip(mine.tolist(), *ends, strict=True):
+            found.append(q[n0:n1])  # as locus_crossings(s, i, its neighbours) gives them
+            source.append(np.full(n1 - n0, i))
+            crossed[i] |= n1 > n0
+            for segment in _tangent_segments(s, i, k[n0:n1], max_bias_m):
+                found.append(segment)
+                source.append(np.full(len(segment), i))
     isolated = np.flatnonzero(~crossed & s.inside.any(axis=1) & (isolated_bias_m > 0))
     vertices: list[np.ndarray] = []
     _add_isolated(scene, sensors, s, isolated, isolated_bias_m, found, source, vertices)

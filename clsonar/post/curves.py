@@ -37,10 +37,10 @@ def trace_curves(thin_map: np.ndarray, min_cells: int = MIN_CURVE_CELLS) -> list
     rows, cols = voted_box(t, margin=1)  # only the set cells' box is looked at
     part = t[rows, cols]
     iy, ix = np.nonzero(part)
-    cells = set(zip((iy + rows.start).tolist(), (ix + cols.start).tolist(), strict=True))
-    node = {(y + rows.start, x + cols.start) for y, x, d in
-            zip(iy.tolist(), ix.tolist(), _degrees(part, iy, ix).tolist(), strict=True)
-            if d != 2}
+    codes = _codes(part, iy, ix)
+    cells = dict(zip(zip((iy + rows.start).tolist(), (ix + cols.start).tolist(), strict=True),
+                     codes.tolist(), strict=True))
+    node = {c for c, code in cells.items() if len(_OFFSETS[code]) != 2}
     used_edges: set[tuple[Cell, Cell]] = set()
     curves = []
     for start in sorted(node):
@@ -48,7 +48,7 @@ def trace_curves(thin_map: np.ndarray, min_cells: int = MIN_CURVE_CELLS) -> list
             if (start, first) not in used_edges:
                 curves.append(_walk(start, first, cells, node, used_edges))
     visited = {c for curve in curves for c in curve}
-    for start in sorted(cells - visited - node):  # closed loops without junctions
+    for start in sorted(cells.keys() - visited - node):  # closed loops without junctions
         if start in visited:
             continue
         first = _neighbours(start, cells)[0]
@@ -58,15 +58,20 @@ def trace_curves(thin_map: np.ndarray, min_cells: int = MIN_CURVE_CELLS) -> list
     return [np.asarray(c) for c in curves if len(c) >= min_cells]
 
 
-def _degrees(part: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
-    """The number of set 8-neighbours of the set cells ``(iy, ix)`` of ``part`` (cells
-    outside it unset), counted at those cells only: a few per cent of the map."""
+#: Per 8-bit code (bit s set: the neighbour ``_STEPS[s]`` is set), those neighbours' steps.
+_OFFSETS = [tuple(st for bit, st in enumerate(_STEPS) if code >> bit & 1) for code in range(256)]
+
+
+def _codes(part: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
+    """Which of the 8 neighbours of the set cells ``(iy, ix)`` of ``part`` are set (cells
+    outside it unset), bit s for ``_STEPS[s]``, at those cells only: a few per cent of the
+    map. The number of bits set is the cell's degree."""
     p = np.pad(part, 1)
-    return sum((p[iy + 1 + dy, ix + 1 + dx].astype(np.int64) for dy, dx in _STEPS),
-               start=np.zeros(len(iy), dtype=np.int64))
+    return sum((p[iy + 1 + dy, ix + 1 + dx].astype(np.int64) << bit
+                for bit, (dy, dx) in enumerate(_STEPS)), start=np.zeros(len(iy), dtype=np.int64))
 
 
-def _walk(start: Cell, first: Cell, cells: set[Cell], node: set[Cell],
+def _walk(start: Cell, first: Cell, cells: dict[Cell, int], node: set[Cell],
           used_edges: set[tuple[Cell, Cell]]) -> list[Cell]:
     """The cells from ``start`` through its neighbour ``first`` on to the next end or
     junction (``node``), or back to ``start``; marks each step taken in ``used_edges``."""
@@ -78,8 +83,8 @@ def _walk(start: Cell, first: Cell, cells: set[Cell], node: set[Cell],
         nxt = [n for n in _neighbours(here, cells) if n != prev and (here, n) not in used_edges]
         if not nxt:
             break
-        # prefer the 4-neighbour, which is the curve's next cell at a staircase
-        nxt.sort(key=lambda n: abs(n[0] - here[0]) + abs(n[1] - here[1]))
+        if len(nxt) > 1:  # prefer the 4-neighbour, which is the curve's next cell at a staircase
+            nxt.sort(key=lambda n: abs(n[0] - here[0]) + abs(n[1] - here[1]))
         prev, here = here, nxt[0]
         used_edges.add((prev, here))
         used_edges.add((here, prev))
@@ -87,9 +92,11 @@ def _walk(start: Cell, first: Cell, cells: set[Cell], node: set[Cell],
     return path
 
 
-def _neighbours(c: Cell, cells: set[Cell]) -> list[Cell]:
-    """The 8-neighbours of ``c`` among ``cells``."""
-    return [(c[0] + dy, c[1] + dx) for dy, dx in _STEPS if (c[0] + dy, c[1] + dx) in cells]
+def _neighbours(c: Cell, cells: dict[Cell, int]) -> list[Cell]:
+    """The 8-neighbours of ``c`` among ``cells`` (each cell's code of :func:`_codes`), in
+    the order of ``_STEPS``."""
+    y, x = c
+    return [(y + dy, x + dx) for dy, dx in _OFFSETS[cells[c]]]
 
 
 def bridge_gaps(curves: list[np.ndarray], max_gap: float) -> list[np.ndarray]:
