@@ -95,26 +95,34 @@ def least_amplitude(scene: Scene) -> float:
     return LEAST_SHARE * scene.transducer.amplitude
 
 
-def detectable_amplitude(scene: Scene, sensors: SensorArray | None = None) -> float:
-    """The weakest echo the run's detection could detect, and at least
-    :func:`least_amplitude` (units): the signal's threshold (``detection.mode``
-    ``"threshold"``, thesis §2.1.1), else the envelope's lowest threshold — the floor
-    (``detection.min_envelope``, chosen from the scene with ``sensors`` where the file leaves
-    it out; the Polaroid receiver's comparator level) or, with noise, ``false_alarm_sigmas``
-    times the envelope noise's Rayleigh scale (docs/detection.md), whichever is higher. An
-    isolated echo of amplitude A reads A on either detector, so an echo weaker than this
-    gives no detection and speaks of nothing a map could show."""
+def detection_level(scene: Scene, sensors: SensorArray | None = None) -> float:
+    """The weakest echo the run's detection could detect (units): the signal's threshold
+    (``detection.mode`` ``"threshold"``, thesis §2.1.1), else the envelope's lowest
+    threshold — the floor (``detection.min_envelope``, chosen from the scene with
+    ``sensors`` where the file leaves it out; the Polaroid receiver's comparator level) or,
+    with noise, ``false_alarm_sigmas`` times the envelope noise's Rayleigh scale
+    (docs/detection.md), whichever is higher. An isolated echo of amplitude A reads A on
+    either detector, so an echo weaker than this gives no detection. (Without a floor to
+    read: :func:`least_amplitude`.)"""
     if scene.detection.min_envelope is None and sensors is not None:
         scene = with_detection_chosen(scene, sensors)
     if scene.detection.mode == "threshold":
-        return max(least_amplitude(scene), float(scene.signal.threshold))
+        return float(scene.signal.threshold)
     if scene.detection.min_envelope is None:
         return least_amplitude(scene)
     model = signal_model(scene)
     floor = envelope_floor(model)
     if model.receiver is None:
         floor = max(floor, model.false_alarm_sigmas * envelope_noise_scale(model))
-    return max(least_amplitude(scene), floor)
+    return floor
+
+
+def detectable_amplitude(scene: Scene, sensors: SensorArray | None = None) -> float:
+    """:func:`detection_level`, and at least :func:`least_amplitude` (units): the echoes
+    whose loci the metrics call insonified — an echo weaker than the detection's level
+    speaks of nothing a map could show, and the metrics read none weaker than a tenth of
+    the transmitted amplitude whatever the detection."""
+    return max(least_amplitude(scene), detection_level(scene, sensors))
 
 
 def insonified(scene: Scene, sensors: SensorArray, echoes, points: np.ndarray,

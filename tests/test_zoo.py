@@ -30,7 +30,10 @@ from clsonar.tools.zoo import (
     ZooCase,
     zoo,
 )
-from clsonar.tools.zoo.score import score
+from clsonar.geometry import true_vertices
+from clsonar.metrics import insonified
+from clsonar.tools.zoo.cases import draw
+from clsonar.tools.zoo.score import FACES_NEAR_M, between_faces, in_view, score
 
 
 @functools.cache
@@ -171,6 +174,35 @@ def test_fast_zoo_case_meets_its_threshold(name, criterion):
         assert t.vertex_m is not None and row["vertices_in_view"] > 0
         assert row["vertex_error_m"] is not None and row["vertex_error_m"] <= t.vertex_m
     assert row["pass"][criterion] is True
+
+
+def _ray(degrees: float, start: float = 0.005) -> np.ndarray:
+    r = np.linspace(start, 0.2, 40)[:, None]
+    return r * np.array([np.cos(np.radians(degrees)), np.sin(np.radians(degrees))])
+
+
+def test_a_vertex_is_in_view_between_two_insonified_faces():
+    v = np.array([[2.0, -1.0]])
+    assert not between_faces(v, v + _ray(30))[0]  # one face: its end
+    assert between_faces(v, v + np.concatenate([_ray(0), _ray(90)]))[0]  # a corner
+    assert between_faces(v, v + np.concatenate([_ray(170), _ray(-170)]))[0]  # round -pi
+    assert not between_faces(v, v + np.concatenate([_ray(0), _ray(10)]))[0]  # 10 deg: one
+    far = v + np.concatenate([_ray(0), _ray(90, start=FACES_NEAR_M + 0.01)])
+    assert not between_faces(v, far)[0]  # the second face heard only farther away
+
+
+@pytest.mark.parametrize(("seed", "kind", "index", "before", "now"), [
+    (1, "corridor", 3, 1, 0),  # a side opening's wall end: its face's echoes only
+    (1, "edge", 0, 0, 1),  # a box corner 2-5 m from arrays: its diffraction detected
+])
+def test_a_vertex_is_in_view_where_the_echoes_locate_it(seed, kind, index, before, now):
+    """Not where any echo's locus passes it (the rule before): a face's echo says where its
+    reflection point is, not where the face ends; an edge's own diffraction that the run
+    detects locates it, however weak beside a mirror's."""
+    result = pipeline.run(draw(seed, kind, index).scene, context=_context())
+    truth = true_vertices(result.geometry)
+    assert int(insonified(result.scene, result.sensors, result.echoes, truth).sum()) == before
+    assert int(in_view(result).sum()) == now
 
 
 # --------------------------------------------------------------------------- the command

@@ -7,11 +7,15 @@
   lie on the locus of an echo inside both beams that the run's detection could detect
   (:func:`clsonar.metrics.insonified`, :func:`clsonar.metrics.detectable_amplitude`), what a
   perfect map could recover — with a profile point within 3 cm (``completeness.3cm``);
-- **vertex**: every true corner and edge in view (itself insonified: on the locus of an echo
-  the detection could detect, as a corner's double bounce and an edge's diffraction are) to
-  the nearest profile point or located vertex (Kleeman & Kuc 1995: a corner and an edge map
-  to a point); the worst one. An edge whose diffraction stays under the detection's floor
-  (a room's 1 unit) is not in view: no detection can come from it (issue 18);
+- **vertex**: every true corner and edge in view (:func:`in_view`) to the nearest profile
+  point or located vertex (Kleeman & Kuc 1995: a corner and an edge map to a point); the
+  worst one. A vertex is in view when the echoes locate it: its own echo — a corner's
+  double bounce, an edge's diffraction — is at least what the run's detection detects
+  (:func:`clsonar.metrics.detection_level`), or the insonified truth reaches within
+  :data:`FACES_NEAR_M` of it on two faces (it is where their lines meet). A wall's free
+  end that only its own face's echoes reach, or an edge whose diffraction stays under the
+  detection's floor (a room's 1 unit, issue 18) without its second face heard, is not in
+  view: a face's echo says where its reflection point is, not where the face ends;
 - **seconds**: the run's stages summed (``report.json``'s ``seconds.total``).
 
 A criterion is None (not scored) where it does not apply: completeness where nothing is
@@ -20,17 +24,65 @@ insonified, the vertex where no corner or edge is in view.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
+from ...echoes.table import KINDS
 from ...geometry import true_vertices
-from ...metrics import insonified
+from ...metrics import detectable_amplitude, detection_level, insonified, lit_truth
+from ...neighbours import nearest
 from ...outputs import metric
 from ...pipeline import RunResult
 from .cases import ZooCase
 from .thresholds import THRESHOLDS
+
+#: A vertex is in view by its faces when the insonified truth comes within this of it...
+FACES_NEAR_M = 0.05
+
+#: ... in directions (seen from the vertex) at least this far apart: two faces, not one.
+FACES_APART_RAD = math.radians(20.0)
+
+#: The echoes that come from a vertex itself: a corner's double bounce, an edge's diffraction.
+OWN_ECHOES = (KINDS.index("corner"), KINDS.index("edge"))
+
+
+def _own_echoes(echoes):
+    """The rows of ``echoes`` (an EchoTable) of the kinds :data:`OWN_ECHOES`."""
+    keep = np.isin(np.asarray(echoes.kind), OWN_ECHOES)
+    return dataclasses.replace(echoes, **{f.name: np.asarray(getattr(echoes, f.name))[keep]
+                                          for f in dataclasses.fields(echoes)})
+
+
+def between_faces(vertices: np.ndarray, lit: np.ndarray) -> np.ndarray:
+    """[V] bool: which ``vertices`` [V, 2] have insonified truth points ``lit`` [n, 2]
+    within :data:`FACES_NEAR_M` in directions at least :data:`FACES_APART_RAD` apart (the
+    widest gap between their directions round the vertex leaves at least that much)."""
+    out = np.zeros(len(vertices), dtype=bool)
+    for i, v in enumerate(vertices):
+        d = lit - v
+        r2 = d[:, 0] ** 2 + d[:, 1] ** 2
+        d = d[(r2 <= FACES_NEAR_M**2) & (r2 > 1e-12)]
+        if len(d) >= 2:
+            a = np.sort(np.arctan2(d[:, 1], d[:, 0]))
+            widest = np.max(np.diff(np.r_[a, a[0] + 2 * math.pi]))
+            out[i] = 2 * math.pi - widest >= FACES_APART_RAD
+    return out
+
+
+def in_view(result: RunResult) -> np.ndarray:
+    """[V] bool: which true corners and edges (``geometry.true_vertices``) the echoes locate
+    (module docstring, **vertex**)."""
+    scene, sensors, echoes = result.scene, result.sensors, result.echoes
+    truth = true_vertices(result.geometry)
+    if len(truth) == 0:
+        return np.zeros(0, dtype=bool)
+    own = insonified(scene, sensors, _own_echoes(echoes), truth,
+                     detection_level(scene, sensors))
+    points, strongest = lit_truth(scene, result.geometry, sensors, echoes)
+    return own | between_faces(truth, points[strongest >= detectable_amplitude(scene, sensors)])
 
 
 def vertex_error(result: RunResult) -> tuple[int, float | None]:
@@ -39,12 +91,12 @@ def vertex_error(result: RunResult) -> tuple[int, float | None]:
     truth = true_vertices(result.geometry)
     if len(truth) == 0:
         return 0, None
-    seen = truth[insonified(result.scene, result.sensors, result.echoes, truth)]
+    seen = truth[in_view(result)]
     found = np.concatenate([result.profile.points.reshape(-1, 2),
                             np.asarray(result.profile.vertices, float).reshape(-1, 2)])
     if len(seen) == 0 or len(found) == 0:
         return len(seen), None
-    return len(seen), float(np.max(cKDTree(found).query(seen)[0]))
+    return len(seen), float(np.max(nearest(found, seen)))
 
 
 def judge(case: ZooCase, row: dict[str, Any]) -> dict[str, bool | None]:
