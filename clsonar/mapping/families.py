@@ -12,6 +12,8 @@ each model; each model then takes every unexplained detection it predicts to wit
 tolerance (and whose reflection point lies in both beams), is fitted again to them, and so
 on; the model that explains most wins the detections, and the simplest model (plane,
 point, corner) that explains them about as well as the free curve names the family.
+The models' first fits are :mod:`.starts`. A plane takes the detections no family
+explained, every array's, that it predicts (:func:`widened`).
 """
 
 from __future__ import annotations
@@ -33,9 +35,9 @@ from .models import (
     fit_curve,
     fit_point,
     gram,
-    plane_start,
     point_paths,
 )
+from .starts import MIN_CURVE, START_TOLERANCE_M, family_starts, starts
 from .strength import convex_share, mirror_strong, two_way
 
 #: Path residual every detection may have (m): planes, points and corners are exact models
@@ -59,12 +61,6 @@ MIN_FAMILY = 3
 
 #: Rounds of taking the explained rows and fitting again.
 GROW_ROUNDS = 6
-
-#: A free curve (three parameters) needs this many detections.
-MIN_CURVE = 5
-
-#: The rows a start explains to within this are the first fit's, metres of path.
-START_TOLERANCE_M = 0.005
 
 #: Detections in a seed's first fit.
 SEED_SIZE = 10
@@ -94,13 +90,6 @@ NOISY_OUTSIDE_SHARE = 0.1
 
 #: Path precision of a noise-free detection (measured: a few µm), metres.
 DETECTION_FLOOR_M = 2e-5
-
-#: The free curve started at a point starts as a post of this radius (a circle of radius
-#: 0 has no normal to move it by).
-POINT_START_RADIUS_M = 0.01
-
-#: Normals tried for a seed's first plane: around its transmitter's axis, ± this, 0.25° apart.
-START_SPREAD_RAD = math.radians(20.0)
 
 #: Kinds of family.
 KINDS = ("plane", "point", "corner", "curve")
@@ -335,62 +324,6 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
     return np.sort(found[order[:SEED_SIZE]])
 
 
-def _corner_start(w: Window, seed: int, rows: np.ndarray) -> np.ndarray | None:
-    """The vertex V, of the crossings of the seed's corner locus (the circle of centre
-    (T + R)/2 and radius c·τ/2, :func:`~.models.corner_paths`) with the other rows', that
-    the most rows agree with to within :data:`START_TOLERANCE_M` (None: no crossing)."""
-    m = 0.5 * (w.T[rows] + w.R[rows])
-    r = 0.5 * w.paths[rows]
-    m0, r0 = 0.5 * (w.T[seed] + w.R[seed]), 0.5 * w.paths[seed]
-    d = m - m0
-    dist = np.hypot(*d.T)
-    ok = (dist > 1e-9) & (dist <= r + r0) & (dist >= np.abs(r - r0))
-    if not ok.any():
-        return None
-    d, dist, r = d[ok], dist[ok], r[ok]
-    a = (r0 * r0 - r * r + dist * dist) / (2 * dist)
-    h = np.sqrt(np.maximum(r0 * r0 - a * a, 0.0))
-    u = d / dist[:, None]
-    v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
-    cand = np.concatenate([m0 + a[:, None] * u + h[:, None] * v,
-                           m0 + a[:, None] * u - h[:, None] * v])
-    pred = np.hypot(*(w.T[rows][None] + w.R[rows][None] - 2 * cand[:, None]).transpose(2, 0, 1))
-    votes = np.sum(np.abs(pred - w.paths[rows][None]) <= START_TOLERANCE_M, axis=1)
-    return np.asarray(cand[int(np.argmax(votes))])
-
-
-def _starts(w: Window, seed: int, rows: np.ndarray) -> list[tuple[str, np.ndarray]]:
-    """First parameters for the seed's rows, each robust to rows of other reflectors among
-    them: the plane whose tangents to the loci agree best (median), the corner (or point:
-    for T = R echoes the same) at the crossing of loci most rows agree with, and the free
-    curve (planes and points are its members, named by :func:`_simplest`) from whichever
-    of the two explains more rows."""
-    axis = math.atan2(w.axT[seed, 1], w.axT[seed, 0])
-    phis = axis + np.arange(-START_SPREAD_RAD, START_SPREAD_RAD, math.radians(0.25))
-    plane = plane_start(w.x0, w.T[rows], w.R[rows], w.paths[rows], phis)
-    n = np.array([math.cos(plane[0]), math.sin(plane[0])])
-    point = _corner_start(w, seed, rows)
-    if point is None:
-        mid = 0.5 * (w.T[rows] + w.R[rows]).mean(axis=0)
-        point = mid + 0.5 * float(np.median(w.paths[rows])) * n
-    rel = point - w.x0
-    reach = max(float(np.hypot(*rel)), 1e-3)
-    phi = math.atan2(rel[1], rel[0])
-    along = float(np.hypot(*rel) + dot2(np.array([math.cos(phi), math.sin(phi)]), w.x0))
-    as_point = np.array([phi, along, 1.0 / (reach + POINT_START_RADIUS_M)])
-    starts = [("plane", plane), ("corner", point), ("point", point)]
-    if len(rows) >= MIN_CURVE:
-        starts.append(("curve", max((plane, as_point), key=lambda p: _explained(w, p, rows))))
-    return starts
-
-
-def _explained(w: Window, params: np.ndarray, rows: np.ndarray) -> int:
-    """How many ``rows`` the curve model ``params`` predicts to within
-    :data:`START_TOLERANCE_M`."""
-    path, _ = _predict(w, "curve", params, rows)
-    return int(np.count_nonzero(np.abs(path - w.paths[rows]) <= START_TOLERANCE_M))
-
-
 def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
     """The model that, grown from ``seed``, explains the most free rows (ties: the lower
     RMS), named by :func:`_simplest`; None if none explains :data:`MIN_FAMILY`."""
@@ -400,7 +333,7 @@ def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
     # the curve model about the seed's own middle: its normal then points at the reflector
     w = replace(w, x0=0.5 * (w.T[rows] + w.R[rows]).mean(axis=0))
     best: tuple[np.ndarray, Fit, str] | None = None
-    for kind, start in _starts(w, seed, rows):
+    for kind, start in starts(w, seed, rows):
         if w.curve_tolerance > 0 and kind != "curve":
             continue  # the loose pass is the free curve's alone
         grown = _grow(w, kind, start, rows, free)
@@ -424,8 +357,8 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
     and corner whose RMS is within :data:`SIMPLER_RMS_FACTOR` of the best fit's and that
     still explains every member."""
     fits: dict[str, Fit] = {kind: fit}
-    starts = _family_starts(w, kind, fit.params, members)
-    for other, start in starts.items():
+    first = family_starts(w, kind, fit.params, members)
+    for other, start in first.items():
         if other in fits or len(members) < _least(other):
             continue
         path, _ = _predict(w, other, start, members)
@@ -434,7 +367,7 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
     floor = min(f.rms for f in fits.values())
     noise = float(np.median(w.tolerance[members] - BASE_TOLERANCE_M)) / NOISE_SIGMAS
     limit = SIMPLER_RMS_FACTOR * floor + noise + DETECTION_FLOOR_M
-    bend = _bend(w, members, fits.get("curve"), noise)
+    bend = _measured_bend(w, members, fits, first, noise)
     for name in ("plane", "corner", "point", "curve"):
         f = fits.get(name)
         if f is None or (f.rms > limit and name != "curve"):
@@ -456,6 +389,30 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
     return Family(kind, fit.params, w.x0, members, q, fit.rms, w, bend)
 
 
+#: The free curve measures a family's bend (:func:`_bend`) from this many detections: one
+#: residual more than its three parameters (it names a family only from
+#: :data:`MIN_CURVE`).
+MIN_BEND = 4
+
+
+def _measured_bend(w: Window, members: np.ndarray, fits: dict[str, Fit],
+                   first: dict[str, np.ndarray], noise: float) -> float:
+    """How far from the family's model the surface's curvature may be (1/m): 3σ of the
+    free curve's ψ (:func:`_bend`), the curve fitted to name the family; or, with fewer
+    members than a curve needs to name one but at least :data:`MIN_BEND`, or for a plane
+    widened by other arrays' echoes (:func:`widened`), of the curve fitted for its bend
+    alone where its ψ is within that of none: the rows show the plane straight (four
+    T = R echoes of scattered elements, metres apart on one face). Inf otherwise: the
+    curvature is unknown (a cylinder's four echoes, named a plane, show it bent)."""
+    if "curve" in fits:
+        return _bend(w, members, fits["curve"], noise)
+    if len(members) < MIN_BEND or "curve" not in first:
+        return math.inf
+    curve = _fit(w, "curve", members, first["curve"])
+    bend = _bend(w, members, curve, noise)
+    return bend if abs(float(curve.params[2])) <= bend else math.inf
+
+
 def _bend(w: Window, members: np.ndarray, fit: Fit | None, noise: float) -> float:
     """3σ of the free curve's ψ (the curvature the rows measure, 1/m), from its fit's
     Jacobian and its RMS (at least the detections' noise, :data:`DETECTION_FLOOR_M`):
@@ -472,26 +429,35 @@ def _bend(w: Window, members: np.ndarray, fit: Fit | None, noise: float) -> floa
     return 3.0 * math.sqrt(max(float(cov[2, 2]), 0.0))
 
 
-def _family_starts(w: Window, kind: str, params: np.ndarray,
-                   members: np.ndarray) -> dict[str, np.ndarray]:
-    """Starting parameters of every model from the fitted ``kind``'s: a plane or curve's
-    apex is the point and corner, a point's or corner's position the apex of a plane
-    facing the window's middle and of a post of radius :data:`POINT_START_RADIUS_M`."""
-    if kind in ("plane", "curve"):
-        phi, d = float(params[0]), float(params[1])
-        n = np.array([math.cos(phi), math.sin(phi)])
-        apex = w.x0 + (d - float(dot2(n, w.x0))) * n
-        curve = np.array([phi, d, params[2] if kind == "curve" else 0.0])
-        return {"plane": np.array([phi, d, 0.0]), "curve": curve, "point": apex,
-                "corner": apex}
-    point = np.asarray(params[:2], dtype=np.float64)
-    rel = point - w.x0
-    reach = max(float(np.hypot(*rel)), 1e-3)
-    phi = math.atan2(rel[1], rel[0])
-    d = float(dot2(point, np.array([math.cos(phi), math.sin(phi)])))
-    return {"plane": np.array([phi, d, 0.0]),
-            "curve": np.array([phi, d, 1.0 / (reach + POINT_START_RADIUS_M)]),
-            "point": point, "corner": point}
+def widened(f: Family, w: Window, free: np.ndarray) -> tuple[Family, np.ndarray]:
+    """``(family, taken)``: the plane family ``f`` with the rows ``free`` of ``w`` (the
+    detections no family explained, every array's) that its plane predicts within their
+    tolerance, in front of it and inside both beams, as strong as a mirror's echo there
+    (:func:`_inliers`): other elements' echoes of the same face, too few or too far apart
+    to be a family of their own. Refitted to all of its rows, with its bend measured
+    over all of them (:func:`_bend`); ``f`` itself (nothing taken) when it is no plane,
+    takes none, or the refitted plane no longer explains them all."""
+    found = _inliers(w, "plane", f.params, free) if f.kind == "plane" else free[:0]
+    if len(found) == 0:
+        return f, found
+    a, b = f.window, f.rows
+
+    def cat(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.concatenate([x[b], y[found]])
+
+    T, R = cat(a.T, w.T), cat(a.R, w.R)
+    both = replace(w, rows=cat(a.rows, w.rows), T=T, R=R, axT=cat(a.axT, w.axT),
+                   axR=cat(a.axR, w.axR), paths=cat(a.paths, w.paths),
+                   amplitude=cat(a.amplitude, w.amplitude),
+                   tolerance=cat(a.tolerance, w.tolerance), x0=0.5 * (T + R).mean(axis=0))
+    every = np.arange(len(both.paths))
+    fit = _fit(both, "plane", every, f.params)
+    if len(_inliers(both, "plane", fit.params, every)) < len(every):
+        return f, found[:0]
+    noise = float(np.median(both.tolerance - BASE_TOLERANCE_M)) / NOISE_SIGMAS
+    bend = _measured_bend(both, every, {}, {"curve": fit.params}, noise)
+    q = _predict(both, "plane", fit.params, every)[1]
+    return Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend), found
 
 
 def shadowed(w: Window, families: list[Family], rows: np.ndarray,
@@ -576,4 +542,4 @@ def find_families(w: Window, resolution: float) -> tuple[list[Family], np.ndarra
 
 
 __all__ = ["BASE_TOLERANCE_M", "KINDS", "MIN_FAMILY", "Family", "Window", "find_families",
-           "predict", "shadowed", "window_tolerance"]
+           "predict", "shadowed", "widened", "window_tolerance"]

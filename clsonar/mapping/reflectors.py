@@ -6,7 +6,9 @@ Each pair group whose transducers lie on one line (a linear array) is cut into s
 at most :data:`WINDOW_M` (half overlapping); the detections of each stretch's pairs are
 split into reflector families (:func:`~clsonar.mapping.families.find_families`): planes,
 points (edges, thin posts), right-angled corners and circles (cylinders, a curved wall's
-crests and troughs). A plane is drawn over its reflection points' span and a circle over
+crests and troughs); the detections none explains are searched again, all arrays
+together, and each plane takes those of them it predicts (:func:`_widened`: another
+element's echo of its face). A plane is drawn over its reflection points' span and a circle over
 its arc (:mod:`.patches`); points and corners are located vertices. Loci that cross at one
 point so map to that point, and loci tangent to one curve to the curve, whatever the angle
 between the surface and the array.
@@ -29,7 +31,7 @@ from ..scene import Scene
 from ..scene.settings import chosen
 from ..sensors import SensorArray
 from ..survey import DEFAULT_MIN_ENVELOPE, in_a_room
-from .families import MIN_FAMILY, Family, Window, find_families, window_tolerance
+from .families import MIN_FAMILY, Family, Window, find_families, widened, window_tolerance
 from .joins import draw_families
 from .loci import Loci, _subset
 from .models import dot2
@@ -156,7 +158,25 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
         found, free = find_families(w, resolution)
         families += found
         rest = rest[free]
-    return families, rest
+    return _widened(scene, sensors, loci, families, rest)
+
+
+def _widened(scene: Scene, sensors: SensorArray, loci: Loci, families: list[Family],
+             rest: np.ndarray) -> tuple[list[Family], np.ndarray]:
+    """``families`` with each plane widened by the detections of ``rest`` (those no family
+    explained) that its plane predicts (:func:`~.families.widened`: another element's
+    echo of the same face, alone or too far from the others to be a family), largest
+    family first; and the rows still left."""
+    if len(rest) == 0 or not families:
+        return families, rest
+    x0 = sensors.positions[loci.tx[rest]].mean(axis=0)
+    w = _window(scene, sensors, loci, rest, x0, math.inf)
+    free = np.ones(len(rest), dtype=bool)
+    out = list(families)
+    for k in sorted(range(len(out)), key=lambda k: -len(out[k].rows)):
+        out[k], taken = widened(out[k], w, np.flatnonzero(free))
+        free[taken] = False
+    return out, rest[free]
 
 
 def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
