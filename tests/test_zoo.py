@@ -16,6 +16,8 @@ import pytest
 
 from clsonar import pipeline
 from clsonar.cli import main
+from clsonar.geometry import true_vertices
+from clsonar.metrics import insonified
 from clsonar.opencl import get_context
 from clsonar.scene import Polyline, scene_from_dict
 from clsonar.tools.bench import zoo_markdown
@@ -30,8 +32,6 @@ from clsonar.tools.zoo import (
     ZooCase,
     zoo,
 )
-from clsonar.geometry import true_vertices
-from clsonar.metrics import insonified
 from clsonar.tools.zoo.cases import draw
 from clsonar.tools.zoo.score import FACES_NEAR_M, between_faces, in_view, score
 
