@@ -7,12 +7,15 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from clsonar.geometry import cell_centres
 from clsonar.mapping import pillars, tangents
 from clsonar.mapping.loci import Loci
 from clsonar.mapping.pillars import CLUSTER_M, GN_ITERATIONS, GN_STEP_M
 from clsonar.mapping.tangents import LOCUS_SAMPLES, SampledLoci
-from clsonar.post import curves
+from clsonar.post import curves, profile
 from clsonar.post.curves import _STEPS
+from clsonar.post.fits import Profile
+from clsonar.scene import PostSettings
 
 
 def _clusters_loop(points):
@@ -275,3 +278,60 @@ def test_the_crossings_of_all_pairs_are_the_loops(case):
         q0, k0, b0 = _crossings_loop(s, i, want[i])
         assert q[owner == i].tobytes() == q0.tobytes()
         assert np.array_equal(k[owner == i], k0) and np.array_equal(b[owner == i], b0)
+
+
+def _curves_in_metres_loop(linked, extent, cell, settings, weights, counts, sums):
+    """profile._curves_in_metres as it was, curve by curve."""
+    out = []
+    for c in linked:
+        if settings.subcell and counts is not None and sums is not None:
+            refined = curves.refine_to_points(c, counts, sums)
+            if refined is not None:
+                out.append(refined)
+            continue
+        if settings.subcell and weights is not None:
+            c = curves.refine_cells(c, weights)
+        out.append(cell_centres(extent, cell, c[:, 0], c[:, 1]))
+    return out
+
+
+def _bound_loop(prof, occupied, extent, cell, origin, max_gap, near):
+    """profile.bound_profile as it was, curve by curve."""
+    out = []
+    for c in prof.curves:
+        inside = profile._inside(c, extent)
+        keep = inside & profile._near_occupied(c, occupied, extent, cell, origin, near)
+        if profile._closed(c) and keep.any() and not keep.all():
+            start = int(np.flatnonzero(keep & ~np.roll(keep, 1))[0])
+            c, keep, inside = (np.roll(a, -start, axis=0) for a in (c, keep, inside))
+        keep |= inside & profile._bridged(c, keep, max_gap, prof.vertices, cell)
+        cuts = np.flatnonzero(np.diff(keep.astype(np.int8)) != 0) + 1
+        for piece, kept in zip(np.split(c, cuts), np.split(keep, cuts), strict=True):
+            if kept[0]:
+                out.append(piece)
+    return out
+
+
+@settings(max_examples=100, deadline=None)
+@given(thin_maps(), st.integers(0, 2**32 - 1), st.sampled_from(["points", "weights", "none"]))
+def test_the_curves_in_metres_and_their_bounds_are_the_loops(thin, seed, refine):
+    rng = np.random.default_rng(seed)
+    linked = curves.trace_curves(thin, 1)
+    ny, nx = thin.shape
+    extent, cell = (-0.3, 0.2, -0.3 + nx * 0.01, 0.2 + ny * 0.01), 0.01
+    counts = np.where(rng.random(thin.shape) < 0.5, rng.integers(0, 4, thin.shape), 0) * thin
+    sums = counts[..., None] * (cell_centres(extent, cell, *np.indices(thin.shape))
+                                + rng.normal(0, 0.002, (ny, nx, 2)))
+    weights = rng.random(thin.shape) * thin
+    args = (extent, cell, PostSettings(subcell=refine != "none"),
+            weights if refine == "weights" else None,
+            counts if refine == "points" else None, sums if refine == "points" else None)
+    got, want = profile._curves_in_metres(linked, *args), _curves_in_metres_loop(linked, *args)
+    assert len(got) == len(want)
+    assert all(g.tobytes() == w.tobytes() for g, w in zip(got, want, strict=True))
+    prof = Profile(tuple(want), rng.uniform(-0.3, 0.3, (int(rng.integers(0, 3)), 2)))
+    occupied = rng.random(thin.shape) < 0.3
+    bound = profile.bound_profile(prof, occupied, extent, cell, (0, 0), 0.05)
+    want = _bound_loop(prof, occupied, extent, cell, (0, 0), 0.05, profile.NEAR_CELLS)
+    assert len(bound.curves) == len(want)
+    assert all(g.tobytes() == w.tobytes() for g, w in zip(bound.curves, want, strict=True))

@@ -58,8 +58,11 @@ def trace_curves(thin_map: np.ndarray, min_cells: int = MIN_CURVE_CELLS) -> list
     return [np.asarray(c) for c in curves if len(c) >= min_cells]
 
 
-#: Per 8-bit code (bit s set: the neighbour ``_STEPS[s]`` is set), those neighbours' steps.
+#: Per 8-bit code (bit s set: the neighbour ``_STEPS[s]`` is set), those neighbours' steps,
+#: and the same with the 4-neighbours first (a stable sort: ``_STEPS`` order within each).
 _OFFSETS = [tuple(st for bit, st in enumerate(_STEPS) if code >> bit & 1) for code in range(256)]
+_BY_NEARNESS = [tuple(sorted(steps, key=lambda st: abs(st[0]) + abs(st[1])))
+                for steps in _OFFSETS]
 
 
 def _codes(part: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
@@ -74,18 +77,22 @@ def _codes(part: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
 def _walk(start: Cell, first: Cell, cells: dict[Cell, int], node: set[Cell],
           used_edges: set[tuple[Cell, Cell]]) -> list[Cell]:
     """The cells from ``start`` through its neighbour ``first`` on to the next end or
-    junction (``node``), or back to ``start``; marks each step taken in ``used_edges``."""
+    junction (``node``), or back to ``start``; marks each step taken in ``used_edges``.
+    Each step goes to the first neighbour not come from nor stepped to before, the
+    4-neighbours first (the curve's next cell at a staircase), in ``_STEPS`` order."""
     path = [start, first]
     used_edges.add((start, first))
     used_edges.add((first, start))
     prev, here = start, first
     while here not in node and here != start:
-        nxt = [n for n in _neighbours(here, cells) if n != prev and (here, n) not in used_edges]
-        if not nxt:
+        y, x = here
+        for dy, dx in _BY_NEARNESS[cells[here]]:
+            n = (y + dy, x + dx)
+            if n != prev and (here, n) not in used_edges:
+                break
+        else:
             break
-        if len(nxt) > 1:  # prefer the 4-neighbour, which is the curve's next cell at a staircase
-            nxt.sort(key=lambda n: abs(n[0] - here[0]) + abs(n[1] - here[1]))
-        prev, here = here, nxt[0]
+        prev, here = here, n
         used_edges.add((prev, here))
         used_edges.add((here, prev))
         path.append(here)
@@ -186,15 +193,24 @@ def refine_to_points(cells: np.ndarray, counts: np.ndarray, sums: np.ndarray,
     """[n, 2] metres: the mean of the points counted in the (2·radius + 1)² cells around each
     of ``cells`` (``counts`` per cell and ``sums`` [ny, nx, 2] of their coordinates); cells
     with no point nearby are dropped (None if none is left)."""
+    n, total = point_means(cells, counts, sums, radius)
+    keep = n > 0
+    return total[keep] / n[keep, None] if keep.any() else None
+
+
+def point_means(cells: np.ndarray, counts: np.ndarray, sums: np.ndarray, radius: int = 1
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """``(n [k], sum [k, 2])``: the points counted in the (2·radius + 1)² cells around each
+    of ``cells`` [k, 2] and the sum of their coordinates (:func:`refine_to_points`), cell
+    by cell."""
     cells = np.asarray(cells, dtype=np.int64)
     n = np.zeros(len(cells))
     total = np.zeros((len(cells), 2))
     for _, _, iy, ix, inside in _around(cells, counts.shape, radius):
         n += np.where(inside, counts[iy, ix], 0.0)
         total += np.where(inside[:, None], sums[iy, ix], 0.0)
-    keep = n > 0
-    return total[keep] / n[keep, None] if keep.any() else None
+    return n, total
 
 
-__all__ = ["MIN_CURVE_CELLS", "bridge_gaps", "refine_cells", "refine_to_points",
+__all__ = ["MIN_CURVE_CELLS", "bridge_gaps", "point_means", "refine_cells", "refine_to_points",
            "trace_curves"]

@@ -8,7 +8,7 @@ import numpy as np
 from ..geometry import cell_centres
 from ..scene import PostSettings
 from ..scene.settings import chosen
-from .curves import MIN_CURVE_CELLS, bridge_gaps, refine_cells, refine_to_points, trace_curves
+from .curves import MIN_CURVE_CELLS, bridge_gaps, point_means, refine_cells, trace_curves
 from .fits import Profile, fit_polynomial, fit_spline
 from .walls import fit_walls
 
@@ -68,9 +68,8 @@ def bound_profile(profile: Profile, occupied: np.ndarray, extent: tuple[float, .
     - no point and no located vertex outside the ``extent`` is kept.
     """
     curves = []
-    for c in profile.curves:
-        inside = _inside(c, extent)
-        keep = inside & _near_occupied(c, occupied, extent, cell, origin, near)
+    insides, keeps = _supported(profile.curves, occupied, extent, cell, origin, near)
+    for c, inside, keep in zip(profile.curves, insides, keeps, strict=True):
         if _closed(c) and keep.any() and not keep.all():
             start = int(np.flatnonzero(keep & ~np.roll(keep, 1))[0])  # a loop: start at
             c, keep, inside = (np.roll(a, -start, axis=0) for a in (c, keep, inside))  # data
@@ -82,6 +81,21 @@ def bound_profile(profile: Profile, occupied: np.ndarray, extent: tuple[float, .
     vertices = profile.vertices[_inside(profile.vertices, extent)]
     left = sum(len(c) for c in curves)
     return Profile(tuple(curves), vertices, len(profile.points) - left)
+
+
+def _supported(curves: tuple[np.ndarray, ...], occupied: np.ndarray, extent: tuple[float, ...],
+               cell: float, origin: tuple[int, int], near: int
+               ) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per curve, [n] whether each point lies inside ``extent``, and whether it is also
+    near an occupied cell (:func:`_near_occupied`): all curves' points at once, point by
+    point."""
+    if not curves:
+        return [], []
+    every = np.concatenate(curves)
+    inside = _inside(every, extent)
+    keep = inside & _near_occupied(every, occupied, extent, cell, origin, near)
+    cuts = np.cumsum([len(c) for c in curves])[:-1]
+    return np.split(inside, cuts), np.split(keep, cuts)
 
 
 def _closed(curve: np.ndarray) -> bool:
@@ -153,17 +167,17 @@ def _curves_in_metres(linked: list[np.ndarray], extent: tuple[float, ...], cell:
     points around each cell (``subcell`` with ``counts`` and ``sums``; a curve with none
     left is dropped), else the cell centres, at the centroid of ``weights`` (``subcell``
     with ``weights``) or as they are."""
-    curves = []
-    for c in linked:
-        if settings.subcell and counts is not None and sums is not None:
-            refined = refine_to_points(c, counts, sums)
-            if refined is not None:
-                curves.append(refined)
-            continue
-        if settings.subcell and weights is not None:
-            c = refine_cells(c, weights)
-        curves.append(cell_centres(extent, cell, c[:, 0], c[:, 1]))
-    return curves
+    if not linked:
+        return []
+    every = np.concatenate(linked)  # all curves' cells at once, element by element
+    cuts = np.cumsum([len(c) for c in linked])[:-1]
+    if settings.subcell and counts is not None and sums is not None:
+        n, total = point_means(every, counts, sums)
+        return [t[k] / m[k, None] for m, t in zip(np.split(n, cuts), np.split(total, cuts),
+                                                   strict=True) if (k := m > 0).any()]
+    if settings.subcell and weights is not None:
+        every = refine_cells(every, weights)
+    return np.split(cell_centres(extent, cell, every[:, 0], every[:, 1]), cuts)
 
 
 def runs(points: np.ndarray, keep: np.ndarray, least: int = 2) -> list[np.ndarray]:
