@@ -460,6 +460,20 @@ def widened(f: Family, w: Window, free: np.ndarray) -> tuple[Family, np.ndarray]
     return Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend), found
 
 
+def a_corners_echoes(f: Family, corner: Family) -> bool:
+    """Whether every echo of ``f`` (a plane, point or curve family) is the double bounce
+    of the located ``corner`` (a family of more rows): its model predicts each of them
+    within their tolerance, its vertex inside both beams (:func:`_inliers`). Kleeman &
+    Kuc's pairs tell a corner from a plane by about L²/(4r) of path (L the pair's
+    separation, r the range): a few elements of an array far away, or its last stretch's
+    weak echoes, cannot, and their echoes of the vertex fit a plane through it, square to
+    their line of sight, as well; the corner that pairs farther apart located explains
+    them as one reflector."""
+    if corner.kind != "corner" or f.kind == "corner" or len(corner.rows) <= len(f.rows):
+        return False
+    return len(_inliers(f.window, "corner", corner.params, f.rows)) == len(f.rows)
+
+
 def shadowed(w: Window, families: list[Family], rows: np.ndarray,
              resolution: float) -> np.ndarray:
     """Which ``rows`` lie within ``resolution`` (the pulse's, c·σ) of the path a family
@@ -541,5 +555,6 @@ def find_families(w: Window, resolution: float) -> tuple[list[Family], np.ndarra
     return families, np.flatnonzero(~taken)
 
 
-__all__ = ["BASE_TOLERANCE_M", "KINDS", "MIN_FAMILY", "Family", "Window", "find_families",
+__all__ = ["BASE_TOLERANCE_M", "KINDS", "MIN_FAMILY", "Family", "Window", "a_corners_echoes",
+           "find_families",
            "predict", "shadowed", "widened", "window_tolerance"]
