@@ -28,6 +28,7 @@ from .models import (
     CURVE_STEPS,
     Fit,
     _jacobian,
+    corner_images,
     corner_paths,
     curve_paths,
     dot2,
@@ -37,7 +38,7 @@ from .models import (
     gram,
     point_paths,
 )
-from .starts import MIN_CURVE, START_TOLERANCE_M, family_starts, starts
+from .starts import MIN_CURVE, START_TOLERANCE_M, family_starts, starts, turned_start
 from .strength import convex_share, mirror_strong, two_way
 
 #: Path residual every detection may have (m): planes, points and corners are exact models
@@ -203,8 +204,11 @@ def _valid(w: Window, kind: str, params: np.ndarray, idx: np.ndarray,
            q: np.ndarray) -> np.ndarray:
     """Reflection points inside both beams (and, for the curve model, in front of both
     transducers: on the far side of the surface's tangent from neither)."""
-    ok = (in_beams(q, w.T[idx], w.axT[idx], w.cut_sin2)
-          & in_beams(q, w.R[idx], w.axR[idx], w.cut_sin2))
+    at_t, at_r = q, q
+    if kind == "corner":  # the double bounce leaves T towards R's image, not V
+        at_t, at_r = corner_images(params, w.T[idx], w.R[idx])
+    ok = (in_beams(at_t, w.T[idx], w.axT[idx], w.cut_sin2)
+          & in_beams(at_r, w.R[idx], w.axR[idx], w.cut_sin2))
     if kind in ("plane", "curve"):
         n = np.array([math.cos(params[0]), math.sin(params[0])])
         ok &= (dot2(q - w.T[idx], n) > 0) & (dot2(q - w.R[idx], n) > 0)
@@ -230,11 +234,21 @@ def _fit_corner(w: Window, idx: np.ndarray, start: np.ndarray) -> Fit:
     right = fit_corner(T, R, P, start[:2], turn=False)
     if len(idx) < MIN_CURVE:
         return right
-    turned = fit_corner(T, R, P, right.params)
+    turned = min((fit_corner(T, R, P, p) for p in _turns(start, right.params)),
+                 key=lambda f: f.rms)
     noise = float(np.median(w.tolerance[idx] - BASE_TOLERANCE_M)) / NOISE_SIGMAS
     if right.rms <= SIMPLER_RMS_FACTOR * turned.rms + noise + DETECTION_FLOOR_M:
         return right
     return turned
+
+
+def _turns(start: np.ndarray, right: np.ndarray) -> list[np.ndarray]:
+    """Starts of a turned corner's fit: the right angle's (β = 0), and ``start`` where it
+    is turned (:func:`~.starts.turned_start`'s)."""
+    out = [np.asarray(right, dtype=np.float64)]
+    if len(start) > 2 and float(start[2]) != 0.0:
+        out.append(np.asarray(start, dtype=np.float64))
+    return out
 
 
 def _inliers(w: Window, kind: str, params: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -264,11 +278,30 @@ def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
     them if those are too few), then alternately take the rows of ``free`` it explains and
     fit again, until they no longer change (at most :data:`GROW_ROUNDS` rounds); the
     members are those the last fit explains. None if the start of a plane, point or corner
-    explains fewer rows than it needs (:func:`_least`), or the last fit does."""
-    least = _least(kind)
+    explains fewer rows than it needs (:func:`_least`), or the last fit does. A corner
+    that so grows fewer than :data:`MIN_CURVE` members (a β needs them) is grown again
+    from a turned corner's start where that explains more of the seed's rows
+    (:func:`~.starts.turned_start`), and the larger kept."""
     path, _ = _predict(w, kind, start, seed_rows)
     close = seed_rows[np.abs(path - w.paths[seed_rows])
                       <= START_TOLERANCE_M + w.tolerance[seed_rows]]
+    grown = _grown(w, kind, start, close, seed_rows, free)
+    if kind != "corner" or (grown is not None and len(grown[0]) >= MIN_CURVE):
+        return grown
+    turned, start = turned_start(w, start, seed_rows, close,
+                                 lambda p: _inliers(w, "corner", p, seed_rows))
+    if len(turned) <= len(close):
+        return grown
+    other = _grown(w, kind, start, turned, seed_rows, free)
+    if other is None or (grown is not None and len(grown[0]) >= len(other[0])):
+        return grown
+    return other
+
+
+def _grown(w: Window, kind: str, start: np.ndarray, close: np.ndarray,
+           seed_rows: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, Fit] | None:
+    """:func:`_grow` from the seed's rows ``close`` to ``start``."""
+    least = _least(kind)
     if len(close) < least and kind != "curve":
         return None  # the start explains too few: another model's seed
     members = close if len(close) >= least else seed_rows

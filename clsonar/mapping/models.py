@@ -21,7 +21,9 @@ planes, cylinders and points are one family of which the fit picks the member.
 **Corner model** (:func:`corner_paths`), parameters V (and β): ``|T + R − 2V|``, the double
 bounce of a right-angled corner (the two reflections make a rotation by 180° about V); for
 walls meeting at γ = 90° − β/2 the image sources turn R's image by 2γ = π − β instead,
-``|T − V + Rot(−β)(R − V)|``.
+``|T − V + Rot(−β)(R − V)|``, turned by −β instead on the pair's other side (a pair and
+its reciprocal hear one path: :func:`corner_paths`); the beams hold its legs, towards the
+images of :func:`corner_images`.
 """
 
 from __future__ import annotations
@@ -156,13 +158,41 @@ def corner_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
     θa, θb compose to a rotation by 2(θa − θb)), so the path is |T − V − Rot(2γ)(R − V)|;
     with 2γ = π − β (β = ``params[2]``, 0 when absent: a right angle, twice the corner's
     departure from one; its sign the order in which the walls are met) that is
-    |T − V + Rot(−β)(R − V)|, the point reflection |T + R − 2V| for β = 0."""
+    |T − V + Rot(−β)(R − V)|, the point reflection |T + R − 2V| for β = 0. The order is
+    the pair's side: β where R lies clockwise of V as seen from T, −β otherwise
+    (:func:`_sides`), so a pair and its reciprocal, which hear one path (reciprocity: T →
+    a → b → R is R → b → a → T backwards), have one prediction; the other order, where a
+    pair hears it too, is a second family."""
     v = np.asarray(params[:2], dtype=np.float64)
     beta = float(params[2]) if len(params) > 2 else 0.0
-    c, s = math.cos(beta), math.sin(beta)
-    d = R - v
-    turned = np.stack([c * d[:, 0] + s * d[:, 1], c * d[:, 1] - s * d[:, 0]], axis=-1)
+    turned = _rotate(R - v, -beta * _sides(v, T, R))
     return np.hypot(*(T - v + turned).T), np.broadcast_to(v, T.shape).copy()
+
+
+def corner_images(params: np.ndarray, T: np.ndarray, R: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """``(R*, T*)``: the double bounce of :func:`corner_paths` unfolded — R's image in the
+    two walls, V − Rot(−β)(R − V), which T's first leg points at, and T's, V − Rot(β)(T −
+    V), which R's last leg comes from (2V − R and 2V − T for a right angle): the
+    directions the two beams must hold, which for T ≠ R or a turned corner are not the
+    vertex's (|T − R*| = |R − T*| is the path)."""
+    v = np.asarray(params[:2], dtype=np.float64)
+    beta = float(params[2]) if len(params) > 2 else 0.0
+    turn = beta * _sides(v, T, R)
+    return v - _rotate(R - v, -turn), v - _rotate(T - v, turn)
+
+
+def _sides(v: np.ndarray, T: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """+1 where R lies clockwise of V as seen from T (or on the line T–V), −1 otherwise:
+    swapping T and R swaps the sign."""
+    a, b = v - T, R - T
+    return np.where(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0] > 0, -1.0, 1.0)
+
+
+def _rotate(d: np.ndarray, angle: np.ndarray | float) -> np.ndarray:
+    """``d`` [n, 2] turned by ``angle`` (radians, anticlockwise; one or one per row)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([c * d[:, 0] - s * d[:, 1], s * d[:, 0] + c * d[:, 1]], axis=-1)
 
 
 #: ``params → (path, q)`` of one model for fixed pairs.
@@ -320,6 +350,7 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
 
 
 __all__ = ["CORNER_STEPS", "CURVE_STEPS", "PSI_PLANE", "SPECULAR_STEPS", "Fit", "PathModel",
-           "circle_points", "corner_paths", "curve_geometry", "curve_paths", "dot2",
+           "circle_points", "corner_images", "corner_paths", "curve_geometry", "curve_paths",
+           "dot2",
            "fit_corner", "fit_curve", "fit_point", "gram", "least_squares", "plane_points",
            "plane_start", "point_paths", "project_paths"]
