@@ -33,7 +33,7 @@ from clsonar.tools.zoo import (
     zoo,
 )
 from clsonar.tools.zoo.cases import draw
-from clsonar.tools.zoo.score import FACES_NEAR_M, between_faces, in_view, score
+from clsonar.tools.zoo.score import FACES_FROM_M, FACES_NEAR_M, between_faces, in_view, score
 
 
 @functools.cache
@@ -189,6 +189,10 @@ def test_a_vertex_is_in_view_between_two_insonified_faces():
     assert not between_faces(v, v + np.concatenate([_ray(0), _ray(10)]))[0]  # 10 deg: one
     far = v + np.concatenate([_ray(0), _ray(90, start=FACES_NEAR_M + 0.01)])
     assert not between_faces(v, far)[0]  # the second face heard only farther away
+    up = _ray(90)[:2]  # 0.5 and 1 cm up the second face
+    assert np.hypot(*up.T).max() < FACES_FROM_M
+    leak = v + np.concatenate([_ray(0), up])
+    assert not between_faces(v, leak)[0]  # the first face's locus band, crossing the second
 
 
 @pytest.mark.parametrize(("seed", "kind", "index", "before", "now"), [

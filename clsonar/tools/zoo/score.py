@@ -12,7 +12,8 @@
   worst one. A vertex is in view when the echoes locate it: its own echo — a corner's
   double bounce, an edge's diffraction — is at least what the run's detection detects
   (:func:`clsonar.metrics.detection_level`), or the insonified truth reaches within
-  :data:`FACES_NEAR_M` of it on two faces (it is where their lines meet). A wall's free
+  :data:`FACES_NEAR_M` of it on two faces (it is where their lines meet; nearer than
+  :data:`FACES_FROM_M` a face's locus band also crosses the other face). A wall's free
   end that only its own face's echoes reach, or an edge whose diffraction stays under the
   detection's floor (a room's 1 unit, issue 18) without its second face heard, is not in
   view: a face's echo says where its reflection point is, not where the face ends;
@@ -32,7 +33,13 @@ import numpy as np
 
 from ...echoes.table import KINDS
 from ...geometry import true_vertices
-from ...metrics import detectable_amplitude, detection_level, insonified, lit_truth
+from ...metrics import (
+    LOCUS_TOL_M,
+    detectable_amplitude,
+    detection_level,
+    insonified,
+    lit_truth,
+)
 from ...neighbours import nearest
 from ...outputs import metric
 from ...pipeline import RunResult
@@ -41,6 +48,10 @@ from .thresholds import THRESHOLDS
 
 #: A vertex is in view by its faces when the insonified truth comes within this of it...
 FACES_NEAR_M = 0.05
+
+#: ... farther from it than this (a face's echo's locus band, ±LOCUS_TOL_M in range, also
+#: crosses the other face within LOCUS_TOL_M of the corner: that is not the other face heard)...
+FACES_FROM_M = 2 * LOCUS_TOL_M
 
 #: ... in directions (seen from the vertex) at least this far apart: two faces, not one.
 FACES_APART_RAD = math.radians(20.0)
@@ -58,13 +69,14 @@ def _own_echoes(echoes):
 
 def between_faces(vertices: np.ndarray, lit: np.ndarray) -> np.ndarray:
     """[V] bool: which ``vertices`` [V, 2] have insonified truth points ``lit`` [n, 2]
-    within :data:`FACES_NEAR_M` in directions at least :data:`FACES_APART_RAD` apart (the
-    widest gap between their directions round the vertex leaves at least that much)."""
+    between :data:`FACES_FROM_M` and :data:`FACES_NEAR_M` from them in directions at least
+    :data:`FACES_APART_RAD` apart (the widest gap between their directions round the vertex
+    leaves at least that much)."""
     out = np.zeros(len(vertices), dtype=bool)
     for i, v in enumerate(vertices):
         d = lit - v
         r2 = d[:, 0] ** 2 + d[:, 1] ** 2
-        d = d[(r2 <= FACES_NEAR_M**2) & (r2 > 1e-12)]
+        d = d[(r2 <= FACES_NEAR_M**2) & (r2 > FACES_FROM_M**2)]
         if len(d) >= 2:
             a = np.sort(np.arctan2(d[:, 1], d[:, 0]))
             widest = np.max(np.diff(np.r_[a, a[0] + 2 * math.pi]))
