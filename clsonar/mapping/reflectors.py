@@ -33,7 +33,9 @@ from ..scene.settings import chosen
 from ..sensors import SensorArray
 from ..survey import DEFAULT_MIN_ENVELOPE, in_a_room
 from .families import (
+    BASE_TOLERANCE_M,
     MIN_FAMILY,
+    NOISY_OUTSIDE_SHARE,
     Family,
     Window,
     a_corners_echoes,
@@ -167,7 +169,8 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
         found, free = find_families(w, resolution)
         families += found
         rest = rest[free]
-    return _widened(scene, sensors, loci, corners_own(families), rest)
+    families, dropped = planes_own(corners_own(families))
+    return _widened(scene, sensors, loci, families, np.union1d(rest, dropped))
 
 
 def corners_own(families: list[Family]) -> list[Family]:
@@ -178,6 +181,38 @@ def corners_own(families: list[Family]) -> list[Family]:
     a 110° corner seen by a long array at 2.5 m and a short one at 7.7 m)."""
     corners = sorted((f for f in families if f.kind == "corner"), key=lambda f: -len(f.rows))
     return [f for f in families if not any(a_corners_echoes(f, c) for c in corners)]
+
+
+def planes_own(families: list[Family]) -> tuple[list[Family], np.ndarray]:
+    """``(families, left)``: ``families`` with each corner whose echoes a plane family of
+    more rows predicts (within their tolerance, in front of it, inside both beams, as
+    strong as a mirror's echo: :func:`~.families.widened`) taken into that plane,
+    refitted to both, and the loci of such a corner's echoes it leaves out: the converse
+    of :func:`corners_own`. A corner's double bounce and a plane's echo differ by about
+    L²/(4r) of path (Kleeman & Kuc 1995), so a short array far away, with noise, fits
+    its echoes of a wall's specular point as well by a right-angled corner there (its own
+    plane left one echo outside its tolerance); the plane another array located through
+    that point is the one reflector (the zoo's seed 3 wall-08: 6 elements at 6 m, σ 1.2).
+    With noise the plane may leave :data:`~.families.NOISY_OUTSIDE_SHARE` of the echoes
+    out, as the naming lets the best fit (a detection's noise exceeds its tolerance now
+    and then)."""
+    out, left = list(families), []
+    corners = sorted((f for f in out if f.kind == "corner"), key=lambda f: len(f.rows))
+    for corner in corners:
+        w, rows = corner.window, corner.rows
+        noisy = float(np.median(w.tolerance[rows])) > BASE_TOLERANCE_M * (1.0 + 1e-9)
+        least = len(rows) - (int(NOISY_OUTSIDE_SHARE * len(rows)) if noisy else 0)
+        planes = sorted((k for k, f in enumerate(out)
+                         if f.kind == "plane" and len(f.rows) > len(rows)),
+                        key=lambda k: -len(out[k].rows))
+        for k in planes:
+            plane, taken = widened(out[k], w, rows)
+            if len(taken) >= max(least, MIN_FAMILY):
+                out[k] = plane
+                out = [f for f in out if f is not corner]
+                left.append(w.rows[np.setdiff1d(rows, taken)])
+                break
+    return out, np.concatenate(left) if left else np.zeros(0, np.int64)
 
 
 def _widened(scene: Scene, sensors: SensorArray, loci: Loci, families: list[Family],
