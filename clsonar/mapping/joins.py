@@ -286,7 +286,8 @@ def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
     cells."""
     spread = [f for f in families if f.kind in ("plane", "curve")]
     heard = heard_index(loci, sensors, scene.medium.c)
-    patches = [spread_patch(patch_of(f, loci), scene, sensors, heard)
+    patches = [spread_patch(patch_of(f, loci), scene, sensors, heard,
+                            loci.amplitude[f.loci])
                for f in steps.each("patches", spread)]
     points = [f for f in families if f.kind in ("point", "corner")]
     vertices = merge_vertices(
