@@ -38,7 +38,7 @@ from .models import (
     gram,
     point_paths,
 )
-from .starts import MIN_CURVE, START_TOLERANCE_M, family_starts, starts, turned_start
+from .starts import MIN_CURVE, START_TOLERANCE_M, family_starts, starts
 from .strength import convex_share, mirror_strong, two_way
 
 #: Path residual every detection may have (m): planes, points and corners are exact models
@@ -234,21 +234,11 @@ def _fit_corner(w: Window, idx: np.ndarray, start: np.ndarray) -> Fit:
     right = fit_corner(T, R, P, start[:2], turn=False)
     if len(idx) < MIN_CURVE:
         return right
-    turned = min((fit_corner(T, R, P, p) for p in _turns(start, right.params)),
-                 key=lambda f: f.rms)
+    turned = fit_corner(T, R, P, right.params)
     noise = float(np.median(w.tolerance[idx] - BASE_TOLERANCE_M)) / NOISE_SIGMAS
     if right.rms <= SIMPLER_RMS_FACTOR * turned.rms + noise + DETECTION_FLOOR_M:
         return right
     return turned
-
-
-def _turns(start: np.ndarray, right: np.ndarray) -> list[np.ndarray]:
-    """Starts of a turned corner's fit: the right angle's (β = 0), and ``start`` where it
-    is turned (:func:`~.starts.turned_start`'s)."""
-    out = [np.asarray(right, dtype=np.float64)]
-    if len(start) > 2 and float(start[2]) != 0.0:
-        out.append(np.asarray(start, dtype=np.float64))
-    return out
 
 
 def _inliers(w: Window, kind: str, params: np.ndarray, free: np.ndarray) -> np.ndarray:
@@ -278,29 +268,10 @@ def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
     them if those are too few), then alternately take the rows of ``free`` it explains and
     fit again, until they no longer change (at most :data:`GROW_ROUNDS` rounds); the
     members are those the last fit explains. None if the start of a plane, point or corner
-    explains fewer rows than it needs (:func:`_least`), or the last fit does. A corner
-    that so grows fewer than :data:`MIN_CURVE` members (a β needs them) is grown again
-    from a turned corner's start where that explains more of the seed's rows
-    (:func:`~.starts.turned_start`), and the larger kept."""
+    explains fewer rows than it needs (:func:`_least`), or the last fit does."""
     path, _ = _predict(w, kind, start, seed_rows)
     close = seed_rows[np.abs(path - w.paths[seed_rows])
                       <= START_TOLERANCE_M + w.tolerance[seed_rows]]
-    grown = _grown(w, kind, start, close, seed_rows, free)
-    if kind != "corner" or (grown is not None and len(grown[0]) >= MIN_CURVE):
-        return grown
-    turned, start = turned_start(w, start, seed_rows, close,
-                                 lambda p: _inliers(w, "corner", p, seed_rows))
-    if len(turned) <= len(close):
-        return grown
-    other = _grown(w, kind, start, turned, seed_rows, free)
-    if other is None or (grown is not None and len(grown[0]) >= len(other[0])):
-        return grown
-    return other
-
-
-def _grown(w: Window, kind: str, start: np.ndarray, close: np.ndarray,
-           seed_rows: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, Fit] | None:
-    """:func:`_grow` from the seed's rows ``close`` to ``start``."""
     least = _least(kind)
     if len(close) < least and kind != "curve":
         return None  # the start explains too few: another model's seed

@@ -5,12 +5,11 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from typing import Protocol
 
 import numpy as np
 
-from .models import corner_paths, curve_paths, dot2, fit_corner, plane_start
+from .models import curve_paths, dot2, plane_start
 
 
 class Window(Protocol):
@@ -31,9 +30,6 @@ class Window(Protocol):
 
     @property
     def x0(self) -> np.ndarray: ...  # [2] the curve model's reference point
-
-    @property
-    def tolerance(self) -> np.ndarray: ...  # [m] path residual allowed
 
 #: A free curve (three parameters) needs this many detections.
 MIN_CURVE = 5
@@ -127,42 +123,5 @@ def family_starts(w: Window, kind: str, params: np.ndarray,
             "point": point, "corner": point}
 
 
-#: The turns a turned corner's first fits start from (rad; ±β are one another's reciprocal
-#: pairs): from one only, the fit may stop in a local minimum (seed 4 corner-07's seed
-#: rows from 0.1: β = 0.034 at 3.8 mm RMS, where 0.3 reaches the corner's 0.173 at 2 µm).
-TURN_STARTS = (0.1, 0.3, 0.6)
-
-
-def turned_start(w: Window, start: np.ndarray, seed_rows: np.ndarray, close: np.ndarray,
-                 explained: Callable[[np.ndarray], np.ndarray]
-                 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(close, start)`` of a corner: the right angle's, or, where a turned corner
-    (:func:`~.models.corner_paths`) fitted to the seed's rows from its vertex explains
-    more of them — at least :data:`MIN_CURVE`, as many as β needs; ``explained`` gives the
-    rows a corner's parameters explain (within their tolerance and inside both beams:
-    :func:`~.families._inliers`) — those and the turned corner. A corner a few degrees
-    off square misses the right angle's paths by centimetres (27 mm at T = R for 85° at
-    3.6 m): its echoes never reach the rows a β could be fitted to. Each fit, from each
-    of :data:`TURN_STARTS`, drops the row farthest outside its tolerance and is fitted
-    again, down to :data:`MIN_CURVE` rows (another reflector's echoes among the seed's)."""
-    if len(seed_rows) < MIN_CURVE or len(close) >= len(seed_rows):
-        return close, start
-    best = (close, start)
-    for turn in TURN_STARTS:
-        rows, params = seed_rows, np.array([*start[:2], turn])
-        while True:
-            params = fit_corner(w.T[rows], w.R[rows], w.paths[rows], params).params
-            off = (np.abs(corner_paths(params, w.T[rows], w.R[rows])[0] - w.paths[rows])
-                   - w.tolerance[rows])
-            if len(rows) <= MIN_CURVE or off.max() <= 0:
-                break
-            rows = np.delete(rows, int(np.argmax(off)))
-        turned = explained(params)
-        if len(turned) >= MIN_CURVE and len(turned) > len(best[0]):
-            best = (turned, params)
-    return best
-
-
 __all__ = ["MIN_CURVE", "POINT_START_RADIUS_M", "START_SPREAD_RAD", "START_TOLERANCE_M",
-           "TURN_STARTS", "Window", "corner_start", "explained", "family_starts", "starts",
-           "turned_start"]
+           "Window", "corner_start", "explained", "family_starts", "starts"]
