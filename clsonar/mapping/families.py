@@ -379,8 +379,7 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
         path, q = _predict(w, name, f.params, members)
         within = np.abs(path - w.paths[members]) <= _tolerance(w, name, members)
         best_fit = f.rms <= floor * (1.0 + 1e-9)
-        if np.count_nonzero(~within) > (NOISY_OUTSIDE_SHARE * len(members)
-                                        if noise > 0 and best_fit else 0):
+        if np.count_nonzero(~within) > (outside_allowed(w, members) if best_fit else 0):
             continue
         kept, q = members[within], q[within]
         if name in ("plane", "point"):  # a face's echoes and its edge's apart
@@ -431,6 +430,14 @@ def _bend(w: Window, members: np.ndarray, fit: Fit | None, noise: float) -> floa
     except np.linalg.LinAlgError:
         return math.inf
     return 3.0 * math.sqrt(max(float(cov[2, 2]), 0.0))
+
+
+def outside_allowed(w: Window, rows: np.ndarray) -> float:
+    """How many of ``rows`` a model that fits them best may leave outside their tolerance:
+    :data:`NOISY_OUTSIDE_SHARE` of them where the detections are noisy (a detection's
+    noise exceeds its tolerance now and then), none where they are not."""
+    noisy = float(np.median(w.tolerance[rows] - BASE_TOLERANCE_M)) > 0
+    return NOISY_OUTSIDE_SHARE * len(rows) if noisy else 0.0
 
 
 def widened(f: Family, w: Window, free: np.ndarray) -> tuple[Family, np.ndarray]:

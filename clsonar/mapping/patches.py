@@ -170,6 +170,13 @@ def patch_of(f: Family, loci: Loci) -> Patch:
                  loci.rx[f.loci], w.T[f.rows], w.R[f.rows], w.paths[f.rows])
 
 
+def own_beams(p: Patch, sensors: SensorArray) -> Beams:
+    """The beams of ``p``'s own detections at their reflection points: ``(q, T, axis of T,
+    R, axis of R)`` for :func:`~.strength.two_way`."""
+    return (carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
+            sensors.axes[p.rx])
+
+
 def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
                       lo: float, hi: float) -> tuple[float, float]:
     """The span ``(lo, hi)`` cut where the arrays heard nothing (module docstring): pairs
@@ -184,8 +191,7 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard
     if lo >= first and hi <= last:
         return lo, hi  # nothing a silent pair could cut
     ka = scene.transducer.beam(scene.medium.c)[1]
-    beams = (carrier_points(p.params, p.x0, p.u), p.T, sensors.axes[p.tx], p.R,
-             sensors.axes[p.rx])
+    beams = own_beams(p, sensors)
     weakest = two_way(*beams, ka).min()
     own_pairs = np.sort(np.stack([p.tx, p.rx], axis=-1), axis=-1)
     found = [(p.u, *_strength(p, scene, heard, own_pairs, p.paths, beams, ka), p.T, p.R)]
@@ -478,9 +484,9 @@ def strength_bend(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.nd
             or len(amplitude) < 2):
         return math.inf
     ka = scene.transducer.beam(scene.medium.c)[1]
-    q = carrier_points(p.params, p.x0, p.u)
-    mirror = mirror_echo(scene) * two_way(q, p.T, sensors.axes[p.tx], p.R, sensors.axes[p.rx],
-                                          ka)
+    beams = own_beams(p, sensors)
+    q = beams[0]
+    mirror = mirror_echo(scene) * two_way(*beams, ka)
     d1 = np.maximum(np.hypot(*(p.T - q).T), 1e-12)
     d2 = np.maximum(np.hypot(*(p.R - q).T), 1e-12)
     n = np.array([math.cos(float(p.params[0])), math.sin(float(p.params[0]))])

@@ -33,13 +33,12 @@ from ..scene.settings import chosen
 from ..sensors import SensorArray
 from ..survey import DEFAULT_MIN_ENVELOPE, in_a_room
 from .families import (
-    BASE_TOLERANCE_M,
     MIN_FAMILY,
-    NOISY_OUTSIDE_SHARE,
     Family,
     Window,
     a_corners_echoes,
     find_families,
+    outside_allowed,
     widened,
     window_tolerance,
 )
@@ -193,15 +192,13 @@ def planes_own(families: list[Family]) -> tuple[list[Family], np.ndarray]:
     its echoes of a wall's specular point as well by a right-angled corner there (its own
     plane left one echo outside its tolerance); the plane another array located through
     that point is the one reflector (the zoo's seed 3 wall-08: 6 elements at 6 m, σ 1.2).
-    With noise the plane may leave :data:`~.families.NOISY_OUTSIDE_SHARE` of the echoes
-    out, as the naming lets the best fit (a detection's noise exceeds its tolerance now
-    and then)."""
+    With noise the plane may leave some of the echoes out, as the naming lets the best
+    fit (:func:`~.families.outside_allowed`)."""
     out, left = list(families), []
     corners = sorted((f for f in out if f.kind == "corner"), key=lambda f: len(f.rows))
     for corner in corners:
         w, rows = corner.window, corner.rows
-        noisy = float(np.median(w.tolerance[rows])) > BASE_TOLERANCE_M * (1.0 + 1e-9)
-        least = len(rows) - (int(NOISY_OUTSIDE_SHARE * len(rows)) if noisy else 0)
+        least = len(rows) - int(outside_allowed(w, rows))
         planes = sorted((k for k, f in enumerate(out)
                          if f.kind == "plane" and len(f.rows) > len(rows)),
                         key=lambda k: -len(out[k].rows))
