@@ -34,6 +34,8 @@ import math
 
 import numpy as np
 
+from .numerics import j1
+
 #: First zero of the Bessel function J1: the piston pattern's first null (ka·sinθ = j1).
 J1_FIRST_ZERO = 3.8317059702075125
 
@@ -80,9 +82,7 @@ def piston_pattern(x: np.ndarray | float) -> np.ndarray:
     """Circular-piston far-field amplitude ``2·J1(x)/x`` with ``x = k·a·sinθ`` (1 at x = 0)."""
     x = np.asarray(x, dtype=np.float64)
     safe = np.where(x == 0.0, 1.0, x)
-    from scipy import special  # when a pattern is first drawn: 0.2 s the CLI's start need not pay
-
-    return np.where(x == 0.0, 1.0, 2.0 * special.j1(safe) / safe)
+    return np.where(x == 0.0, 1.0, 2.0 * j1(safe) / safe)
 
 
 def beam_cut_sin2(frequency_hz: float, radius_m: float, half_beam_deg: float, c: float) -> float:

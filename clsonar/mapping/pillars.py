@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from .. import steps
+from ..numerics import minimize_bounded
 from .strength import EDGE_SHARE
 
 #: Candidate loci whose middle-of-arc points lie within this of each other are fitted
@@ -330,17 +331,14 @@ def _a_plane(centres: np.ndarray, a: np.ndarray, tol: np.ndarray) -> bool:
     or stepping little for its range, all pass through the foot of the wall as a point
     reflector's would (Kleeman & Kuc 1995 tell the two apart by the same test). The
     normal is scanned every degree, then refined."""
-    from scipy.optimize import minimize_scalar
-
     def spread(theta: np.ndarray) -> np.ndarray:
         r = a[:, None] + centres @ np.stack([np.cos(theta), np.sin(theta)])
         return np.abs(r - r.mean(axis=0)).max(axis=0)
 
     grid = np.radians(np.arange(360.0))
     best = grid[int(np.argmin(spread(grid)))]
-    found = minimize_scalar(lambda t: float(spread(np.array([t]))[0]),
-                            bounds=(best - 0.02, best + 0.02), method="bounded")
-    return bool(spread(np.array([found.x]))[0] <= 2.0 * float(np.max(tol)))
+    found = minimize_bounded(lambda t: float(spread(np.array([t]))[0]), best - 0.02, best + 0.02)
+    return bool(spread(np.array([found]))[0] <= 2.0 * float(np.max(tol)))
 
 
 def point_reflectors(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,

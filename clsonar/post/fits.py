@@ -8,6 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..numerics import parametric_spline, spline_values
+
 
 @dataclass(frozen=True, eq=False)
 class Profile:
@@ -54,11 +56,10 @@ def fit_polynomial(points: np.ndarray, order: int, spacing: float) -> list[np.nd
 
 
 def fit_spline(curve: np.ndarray, spacing: float, noise: float) -> np.ndarray:
-    """A smoothing spline through an ordered curve of points (scipy's parametric spline,
+    """A smoothing spline through an ordered curve of points (FITPACK's parametric spline,
+    :func:`clsonar.numerics.parametric_spline`,
     smoothing chosen so the residual RMS is about ``noise``), sampled every ``spacing`` of
     arc length. Short or degenerate curves come back unchanged."""
-    from scipy import interpolate
-
     p = np.asarray(curve, dtype=np.float64)
     keep = np.r_[True, np.any(np.diff(p, axis=0) != 0, axis=1)]
     p = p[keep]
@@ -71,11 +72,11 @@ def fit_spline(curve: np.ndarray, spacing: float, noise: float) -> np.ndarray:
         steps = np.r_[steps, np.hypot(*(p[-1] - p[-2]))]
     arc = np.r_[0.0, np.cumsum(steps)]
     try:
-        tck, _ = interpolate.splprep(p.T, u=arc, s=len(p) * noise**2, k=3, per=int(closed))
+        spline = parametric_spline(p.T, arc, len(p) * noise**2, bool(closed))
     except (ValueError, TypeError):
         return p
     samples = np.arange(0.0, arc[-1] + 0.5 * spacing, spacing)
-    return np.stack(interpolate.splev(samples, tck), axis=-1)
+    return np.stack(list(spline_values(samples, spline)), axis=-1)
 
 
 __all__ = ["Profile", "fit_polynomial", "fit_spline"]

@@ -1,0 +1,257 @@
+"""The numerical routines a run needs, reached without importing scipy's packages:
+``import scipy.special`` costs a process about 0.1 s, ``scipy.optimize`` 0.35 s and
+``scipy.interpolate`` 0.5 s (each pulls linalg, sparse, special and fft), more than a room's
+whole mapping (issue 16: nothing imported that the command does not use).
+
+- :func:`j1`, the Bessel function of the first kind of order one, by Cephes' rational
+  approximations (S. L. Moshier, Cephes Math Library, ``j1.c``), the same coefficients and
+  order of operations as ``scipy.special.j1``, so that the piston pattern
+  (:func:`clsonar.physics.piston_pattern`) is scipy's to the bit;
+- :func:`minimize_bounded`, Brent's minimiser of a function of one variable on an interval
+  (R. P. Brent, *Algorithms for Minimization without Derivatives*, 1973, ch. 5; Forsythe,
+  Malcolm & Moler's ``fmin``), step for step ``scipy.optimize.minimize_scalar(...,
+  method="bounded")``;
+- :func:`parametric_spline` and :func:`spline_values`, Dierckx's FITPACK smoothing spline of
+  a curve (``parcur``/``clocur``, P. Dierckx, *Curve and Surface Fitting with Splines*,
+  1993) and its values (``splev``): scipy's compiled FITPACK itself, loaded straight from
+  its extension files (:func:`_fitpack`, 1 ms) rather than through ``scipy.interpolate``'s
+  package, with the arguments ``scipy.interpolate.splprep``/``splev`` pass — so the same
+  spline to the bit. Where those files are not found (another scipy's layout), the public
+  ``splprep``/``splev`` are used instead.
+
+tests/test_numerics.py holds them all to scipy's answers.
+"""
+
+from __future__ import annotations
+
+import importlib.machinery
+import importlib.util
+import math
+import os
+import sys
+import warnings
+from collections.abc import Callable
+from functools import cache
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+# Cephes j1.c: |x| <= 5, J1(x) = x·(x² − z1)(x² − z2)·RP(x²)/RQ(x²), z1, z2 the squares of
+# its first two zeros; beyond, the asymptotic form with the phase and modulus polynomials.
+_RP = (-8.99971225705559398224E8, 4.52228297998194034323E11, -7.27494245221818276015E13,
+       3.68295732863852883286E15)
+_RQ = (1.0, 6.20836478118054335476E2, 2.56987256757748830383E5, 8.35146791431949253037E7,
+       2.21511595479792499675E10, 4.74914122079991414898E12, 7.84369607876235854894E14,
+       8.95222336184627338078E16, 5.32278620332680085395E18)
+_PP = (7.62125616208173112003E-4, 7.31397056940917570436E-2, 1.12719608129684925192E0,
+       5.11207951146807644818E0, 8.42404590141772420927E0, 5.21451598682361504063E0,
+       1.00000000000000000254E0)
+_PQ = (5.71323128072548699714E-4, 6.88455908754495404082E-2, 1.10514232634061696926E0,
+       5.07386386128601488557E0, 8.39985554327604159757E0, 5.20982848682361821619E0,
+       9.99999999999999997461E-1)
+_QP = (5.10862594750176621635E-2, 4.98213872951233449420E0, 7.58238284132545283818E1,
+       3.66779609360150777800E2, 7.10856304998926107277E2, 5.97489612400613639965E2,
+       2.11688757100572135698E2, 2.52070205858023719784E1)
+_QQ = (1.0, 7.42373277035675149943E1, 1.05644886038262816351E3, 4.98641058337653607651E3,
+       9.56231892404756170795E3, 7.99704160447350683650E3, 2.82619278517639096600E3,
+       3.36093607810698293419E2)
+_Z1 = 1.46819706421238932572E1
+_Z2 = 4.92184563216946036703E1
+_THPIO4 = 2.35619449019234492885  # 3π/4
+_SQ2OPI = 7.9788456080286535587989E-1  # √(2/π)
+
+
+def _polynomial(z: np.ndarray, coefficients: tuple[float, ...]) -> np.ndarray:
+    """Horner's rule, highest power first; a leading 1 is Cephes' ``p1evl`` (the first
+    product skipped, as there)."""
+    if coefficients[0] == 1.0:
+        out, rest = z + coefficients[1], coefficients[2:]
+    else:
+        out, rest = np.full_like(z, coefficients[0]), coefficients[1:]
+    for c in rest:
+        out = out * z + c
+    return out
+
+
+def j1(x: np.ndarray | float) -> np.ndarray:
+    """Bessel function J1(x), float64, as ``scipy.special.j1`` (Cephes)."""
+    x = np.asarray(x, dtype=np.float64)
+    a = np.abs(x)
+    out = np.empty_like(a)
+    small = a <= 5.0
+    s = a[small]
+    z = s * s
+    out[small] = _polynomial(z, _RP) / _polynomial(z, _RQ) * s * (z - _Z1) * (z - _Z2)
+    big = a[~small]
+    if big.size:
+        w = 5.0 / big
+        z = w * w
+        p = _polynomial(z, _PP) / _polynomial(z, _PQ)
+        q = _polynomial(z, _QP) / _polynomial(z, _QQ)
+        phase = (big - _THPIO4).tolist()  # the C library's cos and sin, as Cephes calls them
+        cos = np.array([math.cos(v) for v in phase])
+        sin = np.array([math.sin(v) for v in phase])
+        out[~small] = (p * cos - w * q * sin) * _SQ2OPI / np.sqrt(big)
+    return np.where(x < 0, -out, out)
+
+
+def minimize_bounded(f: Callable[[float], float], lower: float, upper: float,
+                     xatol: float = 1e-5, max_evaluations: int = 500) -> float:
+    """The x in [lower, upper] that minimises ``f``: Brent's golden-section search with
+    parabolic steps, stopped when the bracket is within ``xatol`` (absolute) and
+    ``√ε·|x|`` of its best point — ``scipy.optimize.minimize_scalar(f, bounds=(lower,
+    upper), method="bounded").x`` step for step (the same evaluations, the same answer)."""
+    sqrt_eps = math.sqrt(2.2e-16)
+    golden = 0.5 * (3.0 - math.sqrt(5.0))
+    a, b = lower, upper
+    v = w = x = a + golden * (b - a)  # the best point so far is x, then w, then v
+    fx = fw = fv = f(x)
+    step = previous = 0.0
+    evaluations = 1
+    middle = 0.5 * (a + b)
+    tol1 = sqrt_eps * np.abs(x) + xatol / 3.0
+    tol2 = 2.0 * tol1
+    while np.abs(x - middle) > tol2 - 0.5 * (b - a):
+        parabolic = False
+        if np.abs(previous) > tol1:  # the parabola through (v, w, x), if acceptable
+            r = (x - w) * (fx - fv)
+            q = (x - v) * (fx - fw)
+            p = (x - v) * q - (x - w) * r
+            q = 2.0 * (q - r)
+            if q > 0.0:
+                p = -p
+            q = np.abs(q)
+            r, previous = previous, step
+            if np.abs(p) < np.abs(0.5 * q * r) and q * (a - x) < p < q * (b - x):
+                parabolic = True
+                step = (p + 0.0) / q
+                u = x + step
+                if (u - a) < tol2 or (b - u) < tol2:  # not so near either bound
+                    step = tol1 * (np.sign(middle - x) + ((middle - x) == 0))
+        if not parabolic:  # a golden-section step into the larger part
+            previous = (a - x) if x >= middle else (b - x)
+            step = golden * previous
+        u = x + (np.sign(step) + (step == 0)) * np.maximum(np.abs(step), tol1)
+        fu = f(u)
+        evaluations += 1
+        if fu <= fx:
+            if u >= x:
+                a = x
+            else:
+                b = x
+            v, fv, w, fw, x, fx = w, fw, x, fx, u, fu
+        else:
+            if u < x:
+                a = u
+            else:
+                b = u
+            if fu <= fw or w == x:
+                v, fv, w, fw = w, fw, u, fu
+            elif fu <= fv or v == x or v == w:
+                v, fv = u, fu
+        middle = 0.5 * (a + b)
+        tol1 = sqrt_eps * np.abs(x) + xatol / 3.0
+        tol2 = 2.0 * tol1
+        if evaluations >= max_evaluations:
+            break
+    return float(x)
+
+
+#: A spline as FITPACK gives it: knots, one row of coefficients per coordinate, degree.
+Spline = tuple[np.ndarray, np.ndarray, int]
+
+#: FITPACK's curfit/parcur error codes above 0 that still return a spline (scipy warns).
+_USABLE_IER = {1: "the storage needed exceeds the storage available (s too small)",
+               2: "a theoretically impossible result (s too small)",
+               3: "the maximum of 20 iterations reached (s too small)"}
+
+
+def _extension(package: str, name: str) -> ModuleType | None:
+    """The compiled module ``package.name`` from its file, without running ``package``'s
+    ``__init__`` (None where no such file is found)."""
+    full = f"{package}.{name}"
+    if full in sys.modules:
+        return sys.modules[full]
+    found = importlib.util.find_spec(package.split(".")[0])
+    if found is None or found.origin is None:
+        return None
+    folder = os.path.join(os.path.dirname(found.origin), *package.split(".")[1:])
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        path = os.path.join(folder, name + suffix)
+        if os.path.exists(path):
+            spec = importlib.util.spec_from_file_location(full, path)
+            if spec is None or spec.loader is None:
+                return None
+            module = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(module)
+            return module
+    return None
+
+
+@cache
+def _fitpack() -> tuple[Any, Any] | None:
+    """scipy's FITPACK wrappers ``(_fitpack, _dfitpack)``, the modules its ``splprep`` and
+    ``splev`` call, or None where they cannot be loaded so."""
+    if sys.modules.get("scipy.interpolate") is not None:  # paid for: take the package's own
+        from scipy.interpolate import _dfitpack, _fitpack
+
+        return _fitpack, _dfitpack
+    try:
+        c, f2py = (_extension("scipy.interpolate", "_fitpack"),
+                   _extension("scipy.interpolate", "_dfitpack"))
+    except ImportError:
+        return None
+    if c is None or f2py is None or not hasattr(c, "_parcur") or not hasattr(f2py, "splev"):
+        return None
+    return c, f2py
+
+
+def parametric_spline(points: np.ndarray, u: np.ndarray, s: float, closed: bool,
+                      k: int = 3) -> Spline:
+    """The smoothing spline of degree ``k`` through the [dims, m] ``points`` at parameter
+    values ``u`` with smoothing factor ``s`` (FITPACK's parcur; clocur, periodic, where
+    ``closed``; the first and last points of a closed curve must be equal): scipy's
+    ``splprep(points, u=u, s=s, k=k, per=closed)`` without its package import. Raises
+    ValueError or TypeError as splprep does where FITPACK refuses the data."""
+    modules = _fitpack()
+    if modules is None:
+        from scipy import interpolate
+
+        (t, c, k), _ = interpolate.splprep(points, u=u, s=s, k=k, per=int(closed))
+        return t, np.asarray(c), k
+    c_module, f2py = modules
+    x = np.atleast_1d(points)
+    dims, m = x.shape
+    if m <= k:
+        raise TypeError("m > k must hold")
+    nest = max(m + 2 * k if (s != 0 or closed) else m + k + 1, 2 * k + 3)
+    t, c, out = c_module._parcur(
+        np.ravel(np.transpose(x)), np.ones(m, float), u, u[0], u[-1], k, 0, True, s,
+        np.array([], float), nest, np.array([], float),
+        np.array([], f2py.types.intvar.dtype), int(closed))
+    ier = out["ier"]
+    if ier in _USABLE_IER:
+        warnings.warn(RuntimeWarning(f"FITPACK: {_USABLE_IER[ier]}"), stacklevel=2)
+    elif ier > 0:
+        raise (ValueError if ier == 10 else TypeError)(f"FITPACK refused the curve (ier {ier})")
+    return t, c.reshape((dims, len(t) - k - 1)), k
+
+
+def spline_values(x: np.ndarray, spline: Spline) -> np.ndarray:
+    """[dims, len(x)] the values of a :func:`parametric_spline` at ``x`` (FITPACK's splev,
+    extrapolating beyond the knots): scipy's ``splev(x, spline)``."""
+    t, c, k = spline
+    modules = _fitpack()
+    if modules is None:
+        from scipy import interpolate
+
+        return np.asarray(interpolate.splev(x, (t, list(c), k)))
+    x = np.atleast_1d(np.asarray(x)).ravel()
+    rows = []
+    for row in c:
+        y, ier = modules[1].splev(t, row, k, x, 0)
+        if ier:
+            raise ValueError(f"FITPACK could not evaluate the spline (ier {ier})")
+        rows.append(y)
+    return np.stack(rows)

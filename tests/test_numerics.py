@@ -1,0 +1,117 @@
+"""clsonar.numerics against scipy, which it stands in for on a run's path (issue 16)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy import optimize, special
+
+from clsonar.numerics import j1, minimize_bounded, parametric_spline, spline_values
+
+
+def _ulps(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance in units of the last place (0 where equal)."""
+    return np.abs(a - b) / np.spacing(np.maximum(np.abs(a), np.abs(b)))
+
+
+@pytest.mark.parametrize("lo, hi", [(0.0, 5.0), (0.0, 1e-3), (3.8, 3.85), (4.99, 5.01),
+                                    (5.0, 40.0), (40.0, 1e4), (-30.0, 30.0)])
+def test_j1_is_cephes(lo: float, hi: float) -> None:
+    """Both branches of Cephes' j1 (|x| ≤ 5 and beyond) as scipy has them: the same bits
+    here (scipy 1.17); within 2 units of the last place, so that a scipy whose j1 is
+    rounded differently does not fail a run's test."""
+    x = np.random.default_rng(7).uniform(lo, hi, 200_000)
+    ulps = _ulps(j1(x), special.j1(x))
+    assert np.max(ulps) <= 2.0
+    assert np.mean(ulps == 0) > 0.99
+
+
+def test_j1_special_values() -> None:
+    x = np.array([0.0, -0.0, 5.0, -5.0, 1e-320, 3.8317059702075125])
+    assert np.allclose(j1(x), special.j1(x), rtol=0, atol=1e-16)
+    assert j1(0.0) == 0.0 and j1(np.array([2.0, -2.0]))[1] == -j1(2.0)
+
+
+def _scipys(f, lo: float, hi: float) -> float:
+    return float(optimize.minimize_scalar(f, bounds=(lo, hi), method="bounded").x)
+
+
+@settings(max_examples=200, deadline=None)
+@given(centre=st.floats(-10, 10), width=st.floats(1e-4, 5), lo=st.floats(-10, 10),
+       span=st.floats(1e-3, 10), power=st.sampled_from([1.0, 2.0, 4.0]))
+def test_minimize_bounded_is_scipys_bounded_brent(centre: float, width: float, lo: float,
+                                                  span: float, power: float) -> None:
+    """The same evaluations, so the same answer, on smooth and kinked functions whose
+    minimum lies inside the bounds, at a bound or outside them."""
+    def f(x: float) -> float:
+        return float(abs(x - centre) ** power / width + math.sin(3.0 * x) * 0.1 * width)
+
+    assert minimize_bounded(f, lo, lo + span) == _scipys(f, lo, lo + span)
+
+
+def test_minimize_bounded_on_the_plane_test() -> None:
+    """The spread of a plane's loci over normal directions (mapping.pillars._a_plane's
+    objective: a maximum of absolute values, kinked), as scipy finds it."""
+    rng = np.random.default_rng(3)
+    centres = rng.uniform(-1, 1, (12, 2))
+    a = 2.0 - centres @ np.array([math.cos(0.7), math.sin(0.7)]) + rng.normal(0, 1e-4, 12)
+
+    def spread(t: float) -> float:
+        r = a + centres @ np.array([math.cos(t), math.sin(t)])
+        return float(np.max(np.abs(r - r.mean())))
+
+    assert minimize_bounded(spread, 0.68, 0.72) == _scipys(spread, 0.68, 0.72)
+    assert abs(minimize_bounded(spread, 0.68, 0.72) - 0.7) < 1e-3
+
+
+def _scipys_spline(points: np.ndarray, u: np.ndarray, s: float, closed: bool,
+                   x: np.ndarray) -> np.ndarray:
+    from scipy import interpolate
+
+    tck, _ = interpolate.splprep(points, u=u, s=s, k=3, per=int(closed))
+    return np.stack(interpolate.splev(x, tck))
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**31), m=st.integers(4, 120), noise=st.floats(0.0, 0.01),
+       closed=st.booleans(), s_scale=st.floats(0.0, 2.0))
+def test_the_spline_is_scipys_fitpack(seed: int, m: int, noise: float, closed: bool,
+                                      s_scale: float) -> None:
+    """A noisy arc or closed loop, any smoothing: knots, coefficients and values to the bit
+    (the same FITPACK called with the same arguments)."""
+    rng = np.random.default_rng(seed)
+    angle = np.linspace(0.0, 2 * np.pi if closed else rng.uniform(0.3, 4.0), m)
+    p = np.stack([np.cos(angle), 0.7 * np.sin(angle)], axis=1) + rng.normal(0, noise, (m, 2))
+    if closed:
+        p[-1] = p[0]
+    steps = np.hypot(*np.diff(p, axis=0).T)
+    if np.any(steps == 0):
+        return
+    u = np.r_[0.0, np.cumsum(steps)]
+    x = np.linspace(-0.1, u[-1] + 0.1, 57)
+    s = m * (s_scale * max(noise, 1e-4)) ** 2
+    try:
+        ours = spline_values(x, parametric_spline(p.T, u, s, closed))
+    except (ValueError, TypeError) as error:
+        with pytest.raises(type(error)):
+            _scipys_spline(p.T, u, s, closed, x)
+        return
+    assert np.array_equal(ours, _scipys_spline(p.T, u, s, closed, x))
+
+
+
+def test_the_spline_without_the_extension_files_is_scipys_public_one(monkeypatch) -> None:
+    """Where scipy's FITPACK files are not where clsonar looks (another scipy's layout),
+    the public splprep/splev give the same spline."""
+    import clsonar.numerics as numerics
+
+    t = np.linspace(0.0, 1.5, 30)
+    p = np.stack([t, np.sin(t)])
+    x = np.linspace(0.0, 1.5, 11)
+    direct = spline_values(x, parametric_spline(p, t, 1e-4, False))
+    monkeypatch.setattr(numerics, "_fitpack", lambda: None)
+    assert np.array_equal(spline_values(x, parametric_spline(p, t, 1e-4, False)), direct)
