@@ -567,5 +567,4 @@ def find_families(w: Window, resolution: float) -> tuple[list[Family], np.ndarra
 
 
 __all__ = ["BASE_TOLERANCE_M", "KINDS", "MIN_FAMILY", "Family", "Window", "a_corners_echoes",
-           "find_families",
-           "predict", "shadowed", "widened", "window_tolerance"]
+           "find_families", "predict", "shadowed", "widened", "window_tolerance"]
