@@ -464,12 +464,23 @@ class SurfaceSets:
             walls[b, :n], rings[b, :m] = True, True
         return cls(a, ab, ab2, walls, circles, rings)
 
+    @cached_property
+    def kinds(self) -> tuple[bool, bool, bool, bool]:
+        """``(any wall, some scene's walls padded, any circle, some scene's padded)``."""
+        return (bool(self.walls.any()), not bool(self.walls.all()), bool(self.rings.any()),
+                not bool(self.rings.all()))
+
     def take(self, rows: np.ndarray) -> SurfaceSets:
         """The scenes ``rows`` (ascending) of these."""
         if len(rows) == len(self.walls):
             return self
         return SurfaceSets(self.a[rows], self.ab[rows], self.ab2[rows], self.walls[rows],
                            self.circles[rows], self.rings[rows])
+
+
+#: numpy's clip ufunc itself: ``np.clip``'s Python layers cost the wall-following trace,
+#: which calls it twice per sub-step, more than the clipping (the same values).
+_clip = getattr(getattr(np, "_core", None), "umath", np).clip
 
 
 def nearest_points(surfaces: SurfaceSets, points: np.ndarray
@@ -481,31 +492,32 @@ def nearest_points(surfaces: SurfaceSets, points: np.ndarray
     there is some)."""
     shape = points.shape[:2]
     flat = np.arange(shape[0] * shape[1])
-    best = np.full(shape, np.inf)
-    near = np.full(points.shape, np.nan)
-    if surfaces.walls.any():
-        ragged = not surfaces.walls.all()  # some scene has fewer segments than the padding
+    any_wall, ragged, any_circle, ragged_circles = surfaces.kinds
+    if any_wall:  # ragged: some scene has fewer segments than the padding
         a, ab, ab2 = surfaces.a[:, None], surfaces.ab[:, None], surfaces.ab2[:, None]
         px, py = points[..., 0:1], points[..., 1:2]
-        t = np.clip(((px - a[..., 0]) * ab[..., 0] + (py - a[..., 1]) * ab[..., 1]) / ab2,
-                    0.0, 1.0)
+        t = _clip(((px - a[..., 0]) * ab[..., 0] + (py - a[..., 1]) * ab[..., 1]) / ab2,
+                  0.0, 1.0)
         qx, qy = a[..., 0] + t * ab[..., 0], a[..., 1] + t * ab[..., 1]
         d = np.hypot(px - qx, py - qy)
         if ragged:
             d = np.where(surfaces.walls[:, None], d, np.inf)
         o = d.shape[-1]
-        j = np.argmin(d, axis=-1).ravel()
+        j = d.argmin(axis=-1).ravel()
         best = d.reshape(-1, o)[flat, j].reshape(shape)
-        near = np.stack([qx.reshape(-1, o)[flat, j], qy.reshape(-1, o)[flat, j]],
-                        axis=-1).reshape(points.shape)
+        near = np.empty(points.shape)
+        near[..., 0] = qx.reshape(-1, o)[flat, j].reshape(shape)
+        near[..., 1] = qy.reshape(-1, o)[flat, j].reshape(shape)
         if ragged:  # a scene without walls: no point
             near = np.where(np.isfinite(best)[..., None], near, np.nan)
-    if surfaces.rings.any():
+    else:
+        best, near = np.full(shape, np.inf), np.full(points.shape, np.nan)
+    if any_circle:
         c, r = surfaces.circles[:, None, :, :2], surfaces.circles[:, None, :, 2]
         v = points[:, :, None] - c
         dist_c = np.hypot(v[..., 0], v[..., 1])
         d = np.abs(dist_c - r)
-        if not surfaces.rings.all():
+        if ragged_circles:
             d = np.where(surfaces.rings[:, None], d, np.inf)
         k = d.shape[-1]
         j = np.argmin(d, axis=-1).ravel()

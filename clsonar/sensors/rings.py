@@ -259,8 +259,9 @@ def _substeps(going: _Going, traces: list[_Trace]
     to_wall = going.wall - point
     phi0 = np.array([math.atan2(y, x) for x, y in to_wall.tolist()])
     angles = phi0[:, None] + going.sweep
-    ring_pts = point[:, None] + h[:, None, None] * np.stack([np.cos(angles), np.sin(angles)],
-                                                          axis=-1)
+    unit = np.empty((*angles.shape, 2))
+    unit[..., 0], unit[..., 1] = np.cos(angles), np.sin(angles)
+    ring_pts = point[:, None] + h[:, None, None] * unit
     g = nearest_points(going.surfaces, ring_pts)[0] - c[:, None]
     ahead = g >= 0.0
     k = np.argmax(ahead, axis=1)
