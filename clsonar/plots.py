@@ -37,16 +37,24 @@ def draw_truth(ax, scene: Scene, geom: Geometry) -> None:
         ax.plot(p[:, 0], p[:, 1], **TRUTH_STYLE)
 
 
-def figure(figsize: tuple[float, float], dpi: int) -> Figure:
-    """A new figure on its own Agg canvas, laid out with ``constrained`` (no pyplot)."""
-    fig = Figure(figsize=figsize, dpi=dpi, layout="constrained")
+def figure(figsize: tuple[float, float], dpi: int, layout: str | None = "constrained"
+           ) -> Figure:
+    """A new figure on its own Agg canvas, laid out with ``layout`` (no pyplot)."""
+    fig = Figure(figsize=figsize, dpi=dpi, layout=layout)
     FigureCanvasAgg(fig)
     return fig
 
 
+#: Where a run's scene and profile plots put their axes (figure fractions): fixed, as
+#: constrained layout lays a figure out by drawing it twice (0.07 s a plot).
+SCENE_AXES = {"left": 0.1, "right": 0.97, "bottom": 0.1, "top": 0.95}
+
+
 def _scene_figure(scene: Scene, title: str):
-    """A figure whose axes span the scene's extent in metres (equal aspect), titled."""
-    fig = figure((7.5, 7.0), 150)
+    """A figure whose axes span the scene's extent in metres (equal aspect), titled, with
+    room below for a legend."""
+    fig = figure((7.5, 7.0), 150, layout=None)
+    fig.subplots_adjust(**SCENE_AXES)
     ax = fig.add_subplot()
     xmin, ymin, xmax, ymax = scene.extent
     ax.set_xlim(xmin, xmax)
@@ -143,8 +151,8 @@ def _legend(ax) -> None:
     """A legend of the labelled artists, if any, below the axes (not over the map)."""
     handles, labels = ax.get_legend_handles_labels()
     if handles:
-        ax.figure.legend(handles, labels, loc="outside lower center", ncols=len(handles),
-                         fontsize=7, frameon=False)
+        ax.figure.legend(handles, labels, loc="lower center", ncols=len(handles),
+                         fontsize=7, frameon=False, bbox_to_anchor=(0.5, 0.0))
 
 
 def scene_png(scene: Scene, geom: Geometry, sensors: SensorArray,
