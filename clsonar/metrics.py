@@ -22,7 +22,7 @@
 from __future__ import annotations
 
 import math
-from typing import TypedDict
+from typing import NamedTuple, TypedDict
 
 import numpy as np
 
@@ -161,27 +161,80 @@ def strongest_echo(scene: Scene, sensors: SensorArray, echoes, points: np.ndarra
     best = np.zeros(len(points))
     if len(path) == 0 or len(points) == 0:
         return best
-    # each echo tests the points both of its sensors see (_sensor_views)
-    order = np.argsort(points[:, 0], kind="stable")
-    pts = points[order]
-    seen = _sensor_views(pts, sensors, tx, rx, path, cut_sin2)
-    best_sorted = np.zeros(len(pts))
-    for k, (a, b, length) in enumerate(zip(tx, rx, path, strict=True)):
-        if k % STEP_ECHOES == 0:
-            steps.step("echoes' loci", k, len(path))
-        (it, dt), (ir, dr) = seen[int(a)], seen[int(b)]
-        if len(it) == 0 or len(ir) == 0:
-            continue
-        at = np.minimum(np.searchsorted(ir, it), len(ir) - 1)  # both index lists are sorted
-        both = ir[at] == it
-        on = np.abs(dt[both] + dr[at[both]] - length) <= 2 * LOCUS_TOL_M
-        hit = it[both][on]
-        if edge[k]:
-            near = pts[hit] - vertex[k]
-            hit = hit[near[:, 0] ** 2 + near[:, 1] ** 2 <= (2 * LOCUS_TOL_M) ** 2]
-        best_sorted[hit] = np.maximum(best_sorted[hit], amp[k])
-    steps.step("echoes' loci", len(path), len(path))
-    best[order] = best_sorted
+    # each echo tests the points both of its sensors see (_views_by_tiles, _sensor_views)
+    if cut_sin2 <= _NARROW_BEAM_SIN2:
+        tiles = truth_tiles(points)
+        pts = points[tiles.order]
+        seen = _views_by_tiles(pts, tiles, sensors, tx, rx, path, cut_sin2)
+        order = tiles.order
+    else:
+        order = np.argsort(points[:, 0], kind="stable")
+        pts = points[order]
+        seen = _sensor_views(pts, sensors, tx, rx, path, cut_sin2)
+    best[order] = _loci_strongest(pts, seen, tx, rx, path, amp, edge, vertex)
+    return best
+
+
+#: Largest table (sensors × points) :func:`_loci_strongest` looks the points of a sensor
+#: up in (4 bytes each); beyond it, a binary search of the sorted keys.
+_LOOKUP_AT_MOST = 1 << 23
+
+
+def _loci_strongest(pts: np.ndarray, seen: dict[int, tuple[np.ndarray, np.ndarray]],
+                    tx: np.ndarray, rx: np.ndarray, path: np.ndarray, amp: np.ndarray,
+                    edge: np.ndarray, vertex: np.ndarray) -> np.ndarray:
+    """[M] the strongest of the echoes (``tx``, ``rx``, ``path``, ``amp``, ``edge``,
+    ``vertex`` [n] each) on whose locus each of ``pts`` lies (:func:`strongest_echo`), 0
+    where none, from the points each sensor sees (``seen``, :func:`_sensor_views`). All
+    echoes at once, :data:`STEP_ECHOES` pairs at a time: each echo's points of the sensor
+    that sees fewer are looked up among the other's (sorted keys sensor·M + point), with
+    the arithmetic of one echo at a time (|dt + dr − c·τ| ≤ 2·LOCUS_TOL_M, the sum taken
+    either way round is the same number)."""
+    used = np.array(sorted(seen), dtype=np.int64)
+    index = np.concatenate([seen[int(s)][0] for s in used]).astype(np.int64)
+    dist = np.concatenate([seen[int(s)][1] for s in used])
+    count = np.array([len(seen[int(s)][0]) for s in used], dtype=np.int64)
+    start = np.cumsum(count) - count
+    keys = np.repeat(np.arange(len(used)), count) * len(pts) + index
+    best = np.zeros(len(pts))
+    if len(keys) == 0:
+        return best
+    lookup = None  # where each key is, -1 where none, when that table is small enough
+    if len(used) * len(pts) <= _LOOKUP_AT_MOST:
+        lookup = np.full(len(used) * len(pts), -1, dtype=np.int32)
+        lookup[keys] = np.arange(len(keys))
+    slot_t, slot_r = np.searchsorted(used, tx), np.searchsorted(used, rx)
+    swap = count[slot_r] < count[slot_t]
+    small, other = np.where(swap, slot_r, slot_t), np.where(swap, slot_t, slot_r)
+    load = np.cumsum(count[small])
+    first = 0
+    while first < len(tx):
+        steps.step("echoes' loci", first, len(tx))
+        last = max(first + 1, int(np.searchsorted(load, load[first] - count[small[first]]
+                                                  + STEP_ECHOES * 64, side="right")))
+        echo = np.arange(first, min(last, len(tx)))
+        n = count[small[echo]]
+        offset = np.cumsum(n) - n
+        member = np.repeat(start[small[echo]] - offset, n) + np.arange(int(n.sum()))
+        echo = np.repeat(echo, n)
+        want = other[echo] * len(pts) + index[member]
+        if lookup is None:
+            at = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
+            both = keys[at] == want
+        else:
+            at = lookup[want]
+            both = at >= 0
+        echo, member, at = echo[both], member[both], at[both]
+        on = np.abs(dist[member] + dist[at] - path[echo]) <= 2 * LOCUS_TOL_M
+        echo, hit = echo[on], index[member[on]]
+        near = np.flatnonzero(edge[echo])
+        if len(near):
+            d = pts[hit[near]] - vertex[echo[near]]
+            far = near[d[:, 0] ** 2 + d[:, 1] ** 2 > (2 * LOCUS_TOL_M) ** 2]
+            echo, hit = np.delete(echo, far), np.delete(hit, far)
+        np.maximum.at(best, hit, amp[echo])
+        first = int(last)
+    steps.step("echoes' loci", len(tx), len(tx))
     return best
 
 
@@ -189,8 +242,8 @@ def strongest_echo(scene: Scene, sensors: SensorArray, echoes, points: np.ndarra
 STEP_ECHOES = 4096
 
 
-#: Widest beam (sin² of its half-angle) :func:`_near_beam` narrows a sensor's points for;
-#: beyond it (45°) the whole x-slice goes to the beam test.
+#: Widest beam (sin² of its half-angle) :func:`_views_by_tiles` narrows the points for;
+#: beyond it (45°) a sensor's whole x-slice goes to the beam test (:func:`_sensor_views`).
 _NARROW_BEAM_SIN2 = 0.5
 
 
@@ -198,16 +251,19 @@ def _sensor_views(pts: np.ndarray, sensors: SensorArray, tx: np.ndarray, rx: np.
                   path: np.ndarray, cut_sin2: float) -> dict[int, tuple[np.ndarray, np.ndarray]]:
     """Per sensor that heard an echo, ``(indices, distances)`` of the x-sorted ``pts``
     inside its beam and within its longest path (a point of the locus of (T, R, τ) is at
-    most c·τ from T and from R: a slice of the points sorted by x), indices ascending."""
+    most c·τ from T and from R: a slice of the points sorted by x), indices ascending;
+    sensor by sensor, for a beam wider than :data:`_NARROW_BEAM_SIN2`
+    (:func:`_views_by_tiles` for the others)."""
     reach = np.zeros(len(sensors.positions))
     np.maximum.at(reach, tx, path)
     np.maximum.at(reach, rx, path)
     seen: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    axes = sensors.axes
+    axes, x = sensors.axes, pts[:, 0]
     for s in np.unique(np.concatenate([tx, rx])):
         steps.poll()
-        origin, axis = sensors.positions[s], axes[s]
-        index = _near_beam(pts, origin, axis, float(reach[s]), cut_sin2)
+        origin, axis, far = sensors.positions[s], axes[s], float(reach[s])
+        lo, hi = np.searchsorted(x, [origin[0] - far, origin[0] + far], side="left")
+        index = lo + np.arange(hi - lo)
         d = pts[index] - origin
         dist = np.hypot(d[:, 0], d[:, 1])
         cross = axis[0] * d[:, 1] - axis[1] * d[:, 0]
@@ -216,46 +272,143 @@ def _sensor_views(pts: np.ndarray, sensors: SensorArray, tx: np.ndarray, rx: np.
     return seen
 
 
-def _near_beam(pts: np.ndarray, origin: np.ndarray, axis: np.ndarray, reach: float,
-               cut_sin2: float) -> np.ndarray:
-    """The indices (ascending) of the x-sorted ``pts`` that :func:`insonified` tests
-    against the beam of the sensor at ``origin`` (unit ``axis``) whose longest echo path is
-    ``reach``: its slice ``|x − origin_x| ≤ reach``, for a narrow beam only the points of
-    the box of its beam out to ``reach`` + 2·:data:`LOCUS_TOL_M` (no point farther lies on
-    a locus of this sensor; :func:`_beam_box`) and in a cone a little wider than the beam
-    (:func:`_in_cone`, no square root). The beam test that decides is the same."""
-    x = pts[:, 0]
-    lo, hi = np.searchsorted(x, [origin[0] - reach, origin[0] + reach], side="left")
-    if cut_sin2 > _NARROW_BEAM_SIN2:
-        return lo + np.arange(hi - lo)
-    xmin, ymin, xmax, ymax = _beam_box(origin, axis, reach + 2 * LOCUS_TOL_M + 1e-6, cut_sin2)
-    lo = max(lo, int(np.searchsorted(x, xmin, side="left")))
-    hi = max(lo, min(hi, int(np.searchsorted(x, xmax, side="right"))))
-    y = pts[lo:hi, 1]
-    index = lo + np.flatnonzero((y >= ymin) & (y <= ymax))
-    return index[_in_cone(pts[index] - origin, axis, cut_sin2)]
+#: Side of the square tiles :func:`truth_tiles` gathers the true surface's points in, metres.
+TRUTH_TILE_M = 0.125
+
+#: (Sensor, tile) pairs :func:`_views_by_tiles` tests at once.
+_TILE_PAIRS_AT_ONCE = 1 << 20
 
 
-def _beam_box(origin: np.ndarray, axis: np.ndarray, radius: float, cut_sin2: float
-              ) -> tuple[float, float, float, float]:
-    """``(xmin, ymin, xmax, ymax)`` holding every point within ``radius`` of ``origin``
-    inside the beam of ``axis`` (half-angle θ, sin²θ = ``cut_sin2`` ≤ 1/2): the box of the
-    triangle ``origin``, ``origin + radius·(axis ± tanθ·normal)``, widened for rounding."""
-    spread = math.sqrt(cut_sin2 / (1.0 - cut_sin2)) * np.array([-axis[1], axis[0]])
-    corners = origin + radius * np.array([[0.0, 0.0], axis + spread, axis - spread])
-    slack = 1e-9 * (radius + np.abs(origin).max() + 1.0)
-    (xmin, ymin), (xmax, ymax) = corners.min(axis=0) - slack, corners.max(axis=0) + slack
-    return float(xmin), float(ymin), float(xmax), float(ymax)
+class TruthTiles(NamedTuple):
+    """Points gathered in square tiles (:func:`truth_tiles`): ``order`` [M] lists them tile
+    by tile, tile k holding ``order[starts[k]:ends[k]]`` (ascending positions of the points
+    taken in that order), inside the box ``low[k]`` .. ``high[k]`` [T, 2] and within
+    ``radius[k]`` of ``centre[k]`` [T, 2]."""
+
+    order: np.ndarray
+    starts: np.ndarray
+    ends: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    centre: np.ndarray
+    radius: np.ndarray
 
 
-def _in_cone(d: np.ndarray, axis: np.ndarray, cut_sin2: float) -> np.ndarray:
-    """[n] bool, a superset of the offsets ``d`` [n, 2] within the beam of ``axis``: sin²θ ≤
-    s ⇔ across² ≤ s/(1 − s)·along² in front, with room for rounding. For s ≤ 1/2 a point
-    off by 90° or more fails the beam test whatever the rounding of its sign."""
-    along = axis[0] * d[:, 0] + axis[1] * d[:, 1]
-    across = axis[0] * d[:, 1] - axis[1] * d[:, 0]
+def truth_tiles(points: np.ndarray, side: float | None = None) -> TruthTiles:
+    """The ``points`` [M, 2] (M ≥ 1) in square tiles of ``side`` (default
+    :data:`TRUTH_TILE_M`), each with its points' box, the box's centre and a radius a
+    little over the farthest point's distance from it (rounding)."""
+    side = TRUTH_TILE_M if side is None else side
+    key = np.floor((points - points.min(axis=0)) / side)
+    order = np.lexsort((key[:, 1], key[:, 0]))
+    key = key[order]
+    starts = np.flatnonzero(np.r_[True, (key[1:, 0] != key[:-1, 0])
+                                  | (key[1:, 1] != key[:-1, 1])])
+    ends = np.r_[starts[1:], len(order)]
+    held = points[order]
+    low, high = np.minimum.reduceat(held, starts), np.maximum.reduceat(held, starts)
+    centre = 0.5 * (low + high)
+    gap = held - np.repeat(centre, ends - starts, axis=0)
+    radius = np.maximum.reduceat(np.hypot(gap[:, 0], gap[:, 1]), starts) * (1 + 1e-9) + 1e-12
+    return TruthTiles(order, starts, ends, low, high, centre, radius)
+
+
+def _views_by_tiles(pts: np.ndarray, tiles: TruthTiles, sensors: SensorArray, tx: np.ndarray,
+                    rx: np.ndarray, path: np.ndarray, cut_sin2: float
+                    ) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """:func:`_sensor_views` of a narrow beam (sin² of its half-angle at most
+    :data:`_NARROW_BEAM_SIN2`) for every sensor at once, ``pts`` being the points in the
+    order of their ``tiles``. A point goes to the beam test only if it lies in the
+    sensor's x-slice, in the box of its beam out to its reach + 2·:data:`LOCUS_TOL_M` (no
+    point farther lies on a locus of this sensor; :func:`_beam_boxes`) and in a cone a
+    little wider than the beam (:func:`_beam_tests`), and only the tiles whose box meets
+    slice and box and whose disc may reach into the beam (its half-angle widened by
+    asin(ρ/R)) are expanded. The points and distances of the sensor-by-sensor loop this
+    replaced, to the bit (tests/test_speed_metrics.py): its beam test's ``d @ axis`` may
+    round otherwise than ``axis·d`` written out, but only where the point is off the axis
+    by 90° within 1e-15 rad, which a beam of at most 45° leaves out either way."""
+    reach = np.zeros(len(sensors.positions))
+    np.maximum.at(reach, tx, path)
+    np.maximum.at(reach, rx, path)
+    used = np.unique(np.concatenate([tx, rx]))
+    origin, axis, far = sensors.positions[used], sensors.axes[used], reach[used]
+    bounds = _beam_boxes(origin, axis, far + 2 * LOCUS_TOL_M + 1e-6, cut_sin2)
+    slice_lo, slice_hi = origin[:, 0] - far, origin[:, 0] + far
+    half = math.asin(math.sqrt(cut_sin2))
+    xs, ys = np.ascontiguousarray(pts[:, 0]), np.ascontiguousarray(pts[:, 1])
+    step = max(1, _TILE_PAIRS_AT_ONCE // len(tiles.starts))
+    owners, indices, dists = [], [], []
+    for a in range(0, len(used), step):
+        steps.poll()
+        b = min(a + step, len(used))
+        v = tiles.centre[None, :, :] - origin[a:b, None, :]
+        r = np.hypot(v[..., 0], v[..., 1])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            spread = np.arcsin(np.minimum(tiles.radius / r, 1.0))
+        cone = np.cos(np.minimum(half + spread + 1e-6, math.pi))
+        toward = (v[..., 0] * axis[a:b, 0, None] + v[..., 1] * axis[a:b, 1, None]
+                  >= r * cone - 1e-9 * (r + 1.0))
+        box = ((tiles.high[:, 0] >= np.maximum(slice_lo[a:b], bounds[0][a:b])[:, None])
+               & (tiles.low[:, 0] <= np.minimum(slice_hi[a:b], bounds[2][a:b])[:, None])
+               & (tiles.high[:, 1] >= bounds[1][a:b, None])
+               & (tiles.low[:, 1] <= bounds[3][a:b, None]))
+        owner, tile = np.nonzero(box & (toward | (r <= tiles.radius)))
+        owner += a
+        count = (tiles.ends - tiles.starts)[tile]
+        first = np.cumsum(count) - count
+        index = np.repeat(tiles.starts[tile] - first, count) + np.arange(int(count.sum()))
+        owner = np.repeat(owner, count)
+        seen, dist = _beam_tests(xs[index], ys[index], owner, origin, axis, slice_lo,
+                                 slice_hi, bounds, cut_sin2)
+        owners.append(owner[seen])
+        indices.append(index[seen])
+        dists.append(dist)
+    owner, index, dist = np.concatenate(owners), np.concatenate(indices), np.concatenate(dists)
+    cut = np.searchsorted(owner, np.arange(len(used) + 1))
+    return {int(s): (index[cut[k]:cut[k + 1]], dist[cut[k]:cut[k + 1]])
+            for k, s in enumerate(used)}
+
+
+def _beam_tests(x: np.ndarray, y: np.ndarray, owner: np.ndarray, origin: np.ndarray,
+                axis: np.ndarray, slice_lo: np.ndarray, slice_hi: np.ndarray,
+                bounds: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                cut_sin2: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(seen, distances)``: which points (``x``, ``y``) [k] pass, for the sensor
+    ``owner`` [k] of each, the tests of :func:`_views_by_tiles`: its x-slice as
+    ``searchsorted`` cut it (``slice_lo`` ≤ x < ``slice_hi``), its beam's box ``bounds``,
+    a cone a little wider than the beam (sin²θ ≤ s ⇔ across² ≤ s/(1 − s)·along² in front,
+    with room for rounding, no square root) and the beam test, and the distances of those
+    that do. (Columns gathered one by one: a row gather of [S, 2] costs 30 times more.)"""
+    keep = ((x >= slice_lo[owner]) & (x < slice_hi[owner]) & (x >= bounds[0][owner])
+            & (x <= bounds[2][owner]) & (y >= bounds[1][owner]) & (y <= bounds[3][owner]))
+    at = np.flatnonzero(keep)
+    owner = owner[at]
+    d0 = x[at] - np.ascontiguousarray(origin[:, 0])[owner]
+    d1 = y[at] - np.ascontiguousarray(origin[:, 1])[owner]
+    u0, u1 = np.ascontiguousarray(axis[:, 0])[owner], np.ascontiguousarray(axis[:, 1])[owner]
+    along = u0 * d0 + u1 * d1
+    across = u0 * d1 - u1 * d0
     k = cut_sin2 / (1.0 - cut_sin2) * (1.0 + 1e-6)
-    return (along > -1e-9) & (across * across <= k * along * along + 1e-12)
+    dist = np.hypot(d0, d1)
+    beam = ((along > -1e-9) & (across * across <= k * along * along + 1e-12)
+            & (along > 0) & (across * across <= cut_sin2 * dist * dist))
+    seen = np.zeros(len(x), dtype=bool)
+    seen[at[beam]] = True
+    return seen, dist[beam]
+
+
+def _beam_boxes(origin: np.ndarray, axis: np.ndarray, radius: np.ndarray, cut_sin2: float
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(xmin, ymin, xmax, ymax)``, [S] each: boxes holding every point within ``radius``
+    [S] of ``origin`` [S, 2] inside the beam of ``axis`` [S, 2] (half-angle θ, sin²θ =
+    ``cut_sin2`` ≤ 1/2): the box of the triangle ``origin``, ``origin + radius·(axis ±
+    tanθ·normal)``, widened for rounding."""
+    spread = math.sqrt(cut_sin2 / (1.0 - cut_sin2)) * np.stack([-axis[:, 1], axis[:, 0]], -1)
+    corners = origin[:, None, :] + radius[:, None, None] * np.stack(
+        [np.zeros_like(axis), axis + spread, axis - spread], axis=1)
+    slack = 1e-9 * (radius + np.abs(origin).max(axis=1) + 1.0)
+    low, high = corners.min(axis=1) - slack[:, None], corners.max(axis=1) + slack[:, None]
+    return low[:, 0], low[:, 1], high[:, 0], high[:, 1]
 
 
 def single_wall(scene: Scene) -> tuple[np.ndarray, np.ndarray, Sinusoid | None] | None:
