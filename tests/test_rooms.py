@@ -735,8 +735,13 @@ def test_two_echoes_are_a_planes_only_where_they_match_it_better_than_a_corners(
     units to spare): a box's face (1.36 and 1.56 units, its plane's 1.68, a corner at the
     loci's crossing 0.08 and 3.7) is a plane; a room corner heard twice from 9 m (4.08,
     3.70: within the plane's 4.42 ± its edge's share, but 4.03 and 3.64 as the corner) is
-    not, nor one at half the plane's (2.35, 2.11 against 4.5). The loci's crossing is the
-    one nearer the point given."""
+    not, nor one at half the plane's (2.35, 2.11 against 4.5). A plane's echo with its
+    edge's diffracted echo arriving within the pulse is louder than the Fresnel peak (1.17
+    of it) up to one and a half times it (PLANE_AND_EDGE): the zoo's seed 0 room-12, a
+    box's face heard at 1.72 and 1.48 units against its plane's 1.37 (the face's edge
+    0.25 m from the reflection point echoing 0.31 units a centimetre of range later) is
+    a plane, and seed 8 room-05's box face (σ = 0.6) at 1.29 and 1.07 against 0.77.
+    The loci's crossing is the one nearer the point given."""
     from clsonar.mapping.pillars import a_plane_not_a_corner, loci_crossing
 
     def test(heard, plane, corner, spare):
@@ -746,7 +751,10 @@ def test_two_echoes_are_a_planes_only_where_they_match_it_better_than_a_corners(
     assert not test([4.08, 3.70], [4.42, 4.42], [4.03, 3.64], 0.26)
     assert not test([2.35, 2.11], [4.50, 4.50], [2.41, 2.14], 0.26)
     assert not test([1.36, 1.56], [4.50, 4.50], [9.0, 9.0], 0.26)  # under half the plane's
-    assert not test([5.60, 4.50], [4.50, 4.50], [9.0, 9.0], 0.26)  # over its Fresnel peak
+    assert test([1.72, 1.48], [1.37, 1.37], [0.01, 3.97], 0.0)  # its edge's echo with it
+    assert test([1.29, 1.07], [0.77, 0.77], [0.08, 2.11], 0.26)
+    assert not test([1.72, 1.48], [1.10, 1.10], [0.01, 3.97], 0.0)  # 1.56 times
+    assert not test([7.10, 4.50], [4.50, 4.50], [9.0, 9.0], 0.26)  # over plane and edge
     T, rho = np.array([[0.0, 0.0], [6.0, 0.0]]), np.array([5.0, 5.0])
     np.testing.assert_allclose(loci_crossing(T, rho, xy(3.0, 5.0)), [3.0, 4.0], atol=1e-12)
     np.testing.assert_allclose(loci_crossing(T, rho, xy(2.0, -3.0)), [3.0, -4.0], atol=1e-12)

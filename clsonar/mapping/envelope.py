@@ -243,9 +243,10 @@ def _chains(scan: ElementScan, two_poses: bool = False) -> list[Chain]:
     or more points from central differences (a run's one-sided ends alone do not tell a
     plane from a corner seen from afar), each with the smallest radius its links show and
     the loci it holds; a midway point as its later locus'. ``two_poses``: instead, the
-    runs of two points or more with fewer from central differences (two consecutive
-    poses' one-sided points and the midway one, where each lies in the beams), which the
-    envelope alone cannot tell from a point reflector's (:func:`two_pose_links`)."""
+    runs of two points or more with fewer from central differences (two or three
+    consecutive poses' one-sided points, the midway ones and at most one central one,
+    where each lies in the beams), which the envelope alone cannot tell from a point
+    reflector's (:func:`two_pose_links`)."""
     chains: list[Chain] = []
     run: list[tuple[EnvelopePoint, bool, int]] = []
     loci: set[int] = set()
@@ -294,9 +295,11 @@ def envelope_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: 
 def two_pose_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: float,
                    plane: Callable[[list[int], np.ndarray], bool],
                    scans: list[ElementScan] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`envelope_links` of the runs of two consecutive poses of one element (two
-    loci: the face of a box a ring passes, heard by one element from two poses only)
-    where ``plane(loci, normal)`` says the two loci are a plane's (with
+    """:func:`envelope_links` of the runs of one element's consecutive poses with fewer
+    than two points from central differences (the face of a box a ring passes,
+    heard by one element from two or three poses only: the zoo's seed 6 room-12, a box's
+    face heard from three poses 2.3 m away, was drawn only around the middle pose's
+    point) where ``plane(loci, normal)`` says the loci are a plane's (with
     unit ``normal`` from the surface towards the transducers' side, their common
     tangent's): two circles always have a common tangent, so the envelope alone cannot
     tell a plane from a point reflector heard twice (a concave corner's retro-reflection,
@@ -305,7 +308,7 @@ def two_pose_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: 
     for scan in element_scans(scene, sensors, loci) if scans is None else scans:
         for run, radius, ids in _chains(scan, two_poses=True):
             first = run[0]  # every point of the run has the common tangent's normal
-            if len(ids) == 2 and plane(sorted(ids), (first[1] - first[3]) / first[2]):
+            if len(ids) >= 2 and plane(sorted(ids), (first[1] - first[3]) / first[2]):
                 chains.append((run, radius, ids))
     return _stretches(chains, step, bias)
 

@@ -53,9 +53,9 @@ SEEN_THROUGH_SHARE = 1.0 / 3.0
 HEARD_NOISE_SCALES = 3.0
 
 #: The echoes that place a pillar are at most this many times as loud as the circle's
-#: echo (their median, noise to spare): a wall's echoes, a mirror's, are 2.5–6 times a
-#: 0.2 m pillar's at 1–6 m, and a ring moving straight at a wall hears its foot as every
-#: locus' tangent point, which a circle can mimic.
+#: echo (their median and MIN_PILLAR_LOCI of them, noise to spare): a wall's echoes, a
+#: mirror's, are 2.5–6 times a 0.2 m pillar's at 1–6 m, and a ring moving straight at a
+#: wall hears its foot as every locus' tangent point, which a circle can mimic.
 CIRCLE_ECHO_FACTOR = 2.0
 
 #: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
@@ -339,19 +339,20 @@ def _pillars(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndar
     spare = HEARD_NOISE_SCALES * envelope_noise(scene)
 
     def seen_through(centre: np.ndarray, radius: float, reach: float) -> bool:
-        """Whether the scan rules the circle out: the loci that touch it are louder than it
-        can echo (:data:`CIRCLE_ECHO_FACTOR`: a wall's echoes, from poses moving towards
-        it), or an element within ``reach`` of the circle had its first T = R echo from
-        beyond the circle's point nearest it, near its beam's axis
-        (:data:`SEEN_THROUGH_SHARE`), where the circle's echo (:func:`circle_echo`) would
-        have been as strong as the weakest echo of the loci that touch it, noise to spare:
-        the element would have heard the circle first. Nearer the beam's edge, from
-        farther than the loci that touch it, or weaker, a pillar's echo may be missed."""
+        """Whether the scan rules the circle out: the loci that touch it are louder than it can echo
+        (:data:`CIRCLE_ECHO_FACTOR`: a wall's echoes, from poses moving towards it), fewer than
+        MIN_PILLAR_LOCI of them are each no louder (a box's corner), or an element within
+        ``reach`` of the circle had its first T = R echo from beyond the circle's point nearest
+        it, near its beam's axis (:data:`SEEN_THROUGH_SHARE`), where the circle's echo
+        (:func:`circle_echo`) would have been as strong as the weakest echo of the loci that touch
+        it, noise to spare: the element would have heard the circle first. Nearer the beam's edge,
+        from farther than the loci that touch it, or weaker, a pillar's echo may be missed."""
         touching = np.abs(np.hypot(*(T - centre).T) - s.a[loci] - radius) <= tol
         own = circle_echo(scene, T[touching], s.axes[s.loci.tx[loci[touching]]], centre,
                           radius)
         heard = s.loci.amplitude[loci[touching]]
-        if touching.any() and np.median((heard - spare) / own) > CIRCLE_ECHO_FACTOR:
+        if (np.count_nonzero(heard - spare <= CIRCLE_ECHO_FACTOR * own) < MIN_PILLAR_LOCI
+                or np.median((heard - spare) / own) > CIRCLE_ECHO_FACTOR):
             return True
         d = s.T[first] - centre
         near = np.hypot(*d.T) - radius
@@ -423,10 +424,10 @@ def _facing_too_weak(scene: Scene, s: SampledLoci, loci: np.ndarray,
 
 
 def _plane_echoes(scene: Scene, s: SampledLoci, loci: list[int], normal: np.ndarray) -> bool:
-    """Whether the two T = R ``loci`` are a plane's with unit ``normal`` (towards the
-    transducers; :func:`~.pillars.a_plane_not_a_corner`): heard as loud as its echo at
+    """Whether the T = R ``loci`` (two or more) are a plane's with unit ``normal`` (towards
+    the transducers; :func:`~.pillars.a_plane_not_a_corner`): heard as loud as its echo at
     each reflection point T − ρ·n would be (a mirror's A0·ρ times the two-way beam there
-    and the absorption over 2ρ), rather than as a concave corner's at their crossing (two
+    and the absorption over 2ρ), not as a concave corner's at the first two's crossing (two
     reflections: the reflection coefficient squared, as in :func:`_facing_too_weak`),
     three envelope noise scales to spare. False where the amplitude cannot tell
     (threshold detection, a uniform beam)."""
@@ -447,9 +448,9 @@ def _plane_echoes(scene: Scene, s: SampledLoci, loci: list[int], normal: np.ndar
 def _two_pose_faces(scene: Scene, sensors: SensorArray, s: SampledLoci, points: np.ndarray,
                     scans: list, isolated: np.ndarray, bias: float
                     ) -> tuple[np.ndarray, np.ndarray]:
-    """The stretches between the two loci of one element heard from two consecutive poses
-    only (:func:`~.envelope.two_pose_links`: the face of a box a ring passes obliquely)
-    where both are isolated, neither a point reflector's nor a pillar's (``points``: the
+    """The stretches between the loci of one element heard from two (or three) consecutive
+    poses only (:func:`~.envelope.two_pose_links`: a box's face a ring passes obliquely)
+    where all are isolated, none a point reflector's nor a pillar's (``points``: the
     loci those explain), and their echoes are the plane's of their common tangent
     (:func:`_plane_echoes`): two circles always have one, and a concave corner heard
     twice has both loci through its vertex, heard at angles either side of the tangent's
