@@ -467,8 +467,8 @@ class SurfaceSets:
     @cached_property
     def kinds(self) -> tuple[bool, bool, bool, bool]:
         """``(any wall, some scene's walls padded, any circle, some scene's padded)``."""
-        return (bool(self.walls.any()), not bool(self.walls.all()), bool(self.rings.any()),
-                not bool(self.rings.all()))
+        return (bool(self.walls.any()), not self.walls.all(), bool(self.rings.any()),
+                not self.rings.all())
 
     def take(self, rows: np.ndarray) -> SurfaceSets:
         """The scenes ``rows`` (ascending) of these."""
@@ -478,8 +478,7 @@ class SurfaceSets:
                            self.circles[rows], self.rings[rows])
 
 
-#: numpy's clip ufunc itself: ``np.clip``'s Python layers cost the wall-following trace,
-#: which calls it twice per sub-step, more than the clipping (the same values).
+#: numpy's clip ufunc itself: ``np.clip``'s Python layers cost the trace more than clipping
 _clip = getattr(getattr(np, "_core", None), "umath", np).clip
 
 
@@ -487,9 +486,8 @@ def nearest_points(surfaces: SurfaceSets, points: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
     """``(distance [B, M], surface point [B, M, 2])``: for each scene b of ``surfaces``,
     the distance from each of its ``points[b]`` [M, 2] to its nearest surface and that
-    point (written with few array operations, one set per sub-step of the wall-following
-    traces: x and y apart, the segments' frames precomputed, padding masked only where
-    there is some)."""
+    point (few array operations, one set per sub-step of the wall-following traces: x and
+    y apart, the segments' frames precomputed, padding masked only where there is some)."""
     shape = points.shape[:2]
     flat = np.arange(shape[0] * shape[1])
     any_wall, ragged, any_circle, ragged_circles = surfaces.kinds
@@ -500,14 +498,12 @@ def nearest_points(surfaces: SurfaceSets, points: np.ndarray
                   0.0, 1.0)
         qx, qy = a[..., 0] + t * ab[..., 0], a[..., 1] + t * ab[..., 1]
         d = np.hypot(px - qx, py - qy)
-        if ragged:
-            d = np.where(surfaces.walls[:, None], d, np.inf)
+        d = np.where(surfaces.walls[:, None], d, np.inf) if ragged else d
         o = d.shape[-1]
         j = d.argmin(axis=-1).ravel()
         best = d.reshape(-1, o)[flat, j].reshape(shape)
-        near = np.empty(points.shape)
-        near[..., 0] = qx.reshape(-1, o)[flat, j].reshape(shape)
-        near[..., 1] = qy.reshape(-1, o)[flat, j].reshape(shape)
+        near = np.empty(points.shape)  # x and y written in place: no stacking
+        near[..., 0], near[..., 1] = (v.reshape(-1, o)[flat, j].reshape(shape) for v in (qx, qy))
         if ragged:  # a scene without walls: no point
             near = np.where(np.isfinite(best)[..., None], near, np.nan)
     else:
