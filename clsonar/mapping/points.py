@@ -46,3 +46,25 @@ def point_map(scene: Scene, points: np.ndarray,
     np.add.at(counts, (iy[ok], ix[ok]), 1.0)
     np.add.at(sums, (iy[ok], ix[ok]), points[ok])
     return counts, sums
+
+
+def densified(run: np.ndarray, spacing: float, max_gap: float) -> np.ndarray:
+    """The consecutive samples ``run`` [n, 2] of one arc with points added on the chord
+    between each two farther apart than ``spacing`` but no farther than ``max_gap`` (the
+    samples' own spacing; a wider gap is a hole in the run, left open), evenly, so that
+    no two are farther apart than ``spacing``: a locus sampled every 0.25° at 6 m is
+    2.6 cm between samples, and its cells, four or five apart on a 5 mm grid, do not link
+    into a curve (:func:`~clsonar.post.curves.trace_curves` drops them as specks). The
+    chord stays within (0.25°·ρ)²/(8ρ) of the arc, 14 µm at 6 m."""
+    run = np.asarray(run, dtype=np.float64).reshape(-1, 2)
+    if len(run) < 2:
+        return run
+    gaps = np.hypot(*np.diff(run, axis=0).T)
+    parts = np.where((gaps > spacing) & (gaps <= max_gap), np.ceil(gaps / spacing), 1.0)
+    n = parts.astype(np.int64)
+    if np.all(n == 1):
+        return run
+    t = np.concatenate([np.arange(k) / k for k in n])
+    start = np.repeat(np.arange(len(n)), n)
+    out = run[start] + t[:, None] * (run[start + 1] - run[start])
+    return np.concatenate([out, run[-1:]])

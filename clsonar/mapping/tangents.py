@@ -33,6 +33,7 @@ from .pillars import (
     pillar_arcs,
     point_reflectors,
 )
+from .points import densified
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
@@ -283,8 +284,7 @@ def _points(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndarr
                 & in_beams(v[None], R, r_axes, s.cut_sin2)
                 & (np.hypot(*(middles - v).T) <= reach))
 
-    points = point_reflectors(T, R, s.a[loci], middles, _range_tolerance(scene, s, loci),
-                              admits)
+    points = point_reflectors(T, R, s.a[loci], middles, _range_tolerance(scene, s, loci), admits)
     return {slots[n]: v for n, v in points.items()}
 
 
@@ -392,8 +392,7 @@ def _just_after_first(s: SampledLoci, isolated: np.ndarray, stubs: list[int]) ->
     return [k for k, late in zip(stubs, after, strict=True) if late]
 
 
-def _facing_too_weak(scene: Scene, s: SampledLoci, loci: np.ndarray,
-                     bias: float) -> np.ndarray:
+def _facing_too_weak(scene: Scene, s: SampledLoci, loci: np.ndarray, bias: float) -> np.ndarray:
     """[n] Whether the echo of each T = R locus of ``loci`` is too weak for the middle of
     its in-beam arc: that stub is within ``bias`` of the surface only where a surface
     faces the element's axis within θ, ρ·(1 − cos θ) = bias, and what faces it so near
@@ -439,8 +438,7 @@ def _plane_echoes(scene: Scene, s: SampledLoci, loci: list[int], normal: np.ndar
     q = T - rho[:, None] * normal
     corner = np.tile(loci_crossing(T, rho, q.mean(axis=0)), (len(idx), 1))
     mirror = mirror_echo(scene) * absorption_factor(2.0 * rho, scene.echo.absorption_db_per_m)
-    return a_plane_not_a_corner(
-        s.loci.amplitude[idx], mirror * two_way(q, T, axes, T, axes, ka),
+    return a_plane_not_a_corner(s.loci.amplitude[idx], mirror * two_way(q, T, axes, T, axes, ka),
         mirror * scene.echo.reflection_coefficient * two_way(corner, T, axes, T, axes, ka),
         HEARD_NOISE_SCALES * envelope_noise(scene))
 
@@ -498,9 +496,12 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
         arcs[k] = drawn
     vertices += list({v.tobytes(): v for v in corners.values()}.values())
     left = [k for k in stubs if k not in pillars and k not in corners]
+    vouched = scene.detection.mode == "envelope" and scene.transducer.beam(scene.medium.c)[1]
     for k, weak in zip(left, _facing_too_weak(scene, s, isolated[left], bias), strict=True):
         if weak:
             arcs[k] = np.zeros((0, 2))
+        elif vouched and s.loci.tx[isolated[k]] == s.loci.rx[isolated[k]]:  # a facing surface
+            arcs[k] = densified(arcs[k], LINK_STEP_M, 3 * np.pi * s.a[isolated[k]] / LOCUS_SAMPLES)
     points, ends = _two_pose_faces(scene, sensors, s, isolated[[*pillars, *corners]], scans,
                                    isolated, min(bias, ENVELOPE_ARC_BIAS_M))
     found.append(points)
@@ -510,8 +511,7 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
         source.append(np.full(len(arc), locus))
 
 
-def tangent_points(scene: Scene, sensors: SensorArray, loci,
-                   max_bias_m: float = TANGENT_BIAS_M,
+def tangent_points(scene: Scene, sensors: SensorArray, loci, max_bias_m: float = TANGENT_BIAS_M,
                    isolated_bias_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """``(points [m, 2], source [m])`` of :func:`tangent_map`."""
     points, source, _ = tangent_map(scene, sensors, loci, max_bias_m, isolated_bias_m)
