@@ -10,6 +10,7 @@ matplotlib (the ``clsonar[plots]`` extra): the tools draw their figures with
 from __future__ import annotations
 
 import io
+from typing import Literal
 
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -37,7 +38,8 @@ def draw_truth(ax, scene: Scene, geom: Geometry) -> None:
         ax.plot(p[:, 0], p[:, 1], **TRUTH_STYLE)
 
 
-def figure(figsize: tuple[float, float], dpi: int, layout: str | None = "constrained"
+def figure(figsize: tuple[float, float], dpi: int,
+           layout: Literal["constrained", "compressed", "tight"] | None = "constrained"
            ) -> Figure:
     """A new figure on its own Agg canvas, laid out with ``layout`` (no pyplot)."""
     fig = Figure(figsize=figsize, dpi=dpi, layout=layout)
