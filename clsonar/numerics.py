@@ -25,6 +25,7 @@ tests/test_numerics.py holds them all to scipy's answers.
 from __future__ import annotations
 
 import importlib.machinery
+import importlib.metadata
 import importlib.util
 import math
 import os
@@ -189,14 +190,26 @@ def _extension(package: str, name: str) -> ModuleType | None:
     return None
 
 
+#: The scipy releases whose private FITPACK wrappers :func:`parametric_spline` and
+#: :func:`spline_values` call as ``splprep``/``splev`` do (checked to the bit by
+#: tests/test_numerics.py); any other release gets the public functions.
+FITPACK_SCIPY = ("1.15.", "1.16.", "1.17.")
+
+
 @cache
 def _fitpack() -> tuple[Any, Any] | None:
     """scipy's FITPACK wrappers ``(_fitpack, _dfitpack)``, the modules its ``splprep`` and
-    ``splev`` call, or None where they cannot be loaded so."""
-    if sys.modules.get("scipy.interpolate") is not None:  # paid for: take the package's own
-        from scipy.interpolate import _dfitpack, _fitpack
+    ``splev`` call, or None where they cannot be loaded so, or scipy is not a release of
+    :data:`FITPACK_SCIPY`."""
+    try:
+        if not importlib.metadata.version("scipy").startswith(FITPACK_SCIPY):
+            return None
+        if sys.modules.get("scipy.interpolate") is not None:  # paid for: the package's own
+            from scipy.interpolate import _dfitpack, _fitpack
 
-        return _fitpack, _dfitpack
+            return _fitpack, _dfitpack
+    except ImportError:
+        return None
     try:
         c, f2py = (_extension("scipy.interpolate", "_fitpack"),
                    _extension("scipy.interpolate", "_dfitpack"))

@@ -115,3 +115,16 @@ def test_the_spline_without_the_extension_files_is_scipys_public_one(monkeypatch
     direct = spline_values(x, parametric_spline(p, t, 1e-4, False))
     monkeypatch.setattr(numerics, "_fitpack", lambda: None)
     assert np.array_equal(spline_values(x, parametric_spline(p, t, 1e-4, False)), direct)
+
+
+def test_another_scipy_release_gets_the_public_functions(monkeypatch) -> None:
+    """The private wrappers are called only for the releases whose splprep/splev call them
+    so (FITPACK_SCIPY); any other release's private layout is not trusted."""
+    import importlib.metadata
+
+    import clsonar.numerics as numerics
+
+    monkeypatch.setattr(importlib.metadata, "version", lambda name: "1.99.0")
+    assert numerics._fitpack.__wrapped__() is None
+    monkeypatch.setattr(importlib.metadata, "version", lambda name: "1.17.9")
+    assert numerics._fitpack.__wrapped__() is not None
