@@ -149,12 +149,21 @@ def draw_poses(ax, scene: Scene, poses: np.ndarray, *, light: bool = False) -> N
             alpha=0.4 if light else 1.0, **style)
 
 
+#: Room under the axes for the tick labels and the x label, and the least room under the
+#: legend's top for one row of it, as shares of the figure.
+LABELS_BELOW = 0.062
+LEGEND_ROW = 0.035
+
+
 def _legend(ax) -> None:
-    """A legend of the labelled artists, if any, below the axes (not over the map)."""
+    """A legend of the labelled artists, if any, below the axes and their x label (not over
+    the map): under the box the equal aspect leaves them, found without drawing."""
     handles, labels = ax.get_legend_handles_labels()
     if handles:
-        ax.figure.legend(handles, labels, loc="lower center", ncols=len(handles),
-                         fontsize=7, frameon=False, bbox_to_anchor=(0.5, 0.0))
+        ax.apply_aspect()
+        top = max(ax.get_position().y0 - LABELS_BELOW, LEGEND_ROW)
+        ax.figure.legend(handles, labels, loc="upper center", ncols=len(handles),
+                         fontsize=7, frameon=False, bbox_to_anchor=(0.5, top))
 
 
 def scene_png(scene: Scene, geom: Geometry, sensors: SensorArray,
