@@ -25,7 +25,6 @@ tests/test_numerics.py holds them all to scipy's answers.
 from __future__ import annotations
 
 import importlib.machinery
-import importlib.metadata
 import importlib.util
 import math
 import os
@@ -201,6 +200,8 @@ def _fitpack() -> tuple[Any, Any] | None:
     """scipy's FITPACK wrappers ``(_fitpack, _dfitpack)``, the modules its ``splprep`` and
     ``splev`` call, or None where they cannot be loaded so, or scipy is not a release of
     :data:`FITPACK_SCIPY`."""
+    import importlib.metadata  # here, when a spline is first fitted: 15 ms at start-up
+
     try:
         if not importlib.metadata.version("scipy").startswith(FITPACK_SCIPY):
             return None

@@ -193,6 +193,7 @@ def corners_own(families: list[Family]) -> list[Family]:
 #: (:func:`a_vertexs_distorted_echoes`).
 ELSEWHERE_M = 0.1
 
+
 def a_vertexs_distorted_echoes(f: Family, vertex: Family, resolution: float) -> bool:
     """Whether every echo of ``f`` (a curve, point or corner family) lies within
     ``resolution`` (the pulse's, c·σ) of the path the located ``vertex`` (a corner or
@@ -233,14 +234,12 @@ def near_vertex(w: Window, vertex: Family, rows: np.ndarray, resolution: float
 def _seen(w: Window, kind: str, params: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """The detections ``rows``' amplitudes over their two-way beams towards the vertex of
     ``params`` (for a corner, along the double bounce's legs)."""
-    T, R, axT, axR = w.T[rows], w.R[rows], w.axT[rows], w.axR[rows]
+    T, R = w.T[rows], w.R[rows]
     if kind == "corner":
         at_t, at_r = corner_images(params, T, R)
     else:
         at_t = at_r = np.broadcast_to(params[:2], T.shape)
-    # b(θ_T)·b(θ_R), each leg towards its own point: √(b_T² · b_R²)
-    gain = np.sqrt(np.abs(two_way(at_t, T, axT, T, axT, w.ka) * two_way(at_r, R, axR, R, axR,
-                                                                           w.ka)))
+    gain = two_way(at_t, T, w.axT[rows], R, w.axR[rows], w.ka, at_r)
     return w.amplitude[rows] / np.maximum(gain, 1e-3)
 
 

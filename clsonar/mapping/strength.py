@@ -45,12 +45,13 @@ def mirror_strong(amplitude: np.ndarray, q: np.ndarray, T: np.ndarray, axT: np.n
 
 
 def two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray, axR: np.ndarray,
-            ka: float) -> np.ndarray:
-    """The two-way beam b(θ_T)·b(θ_R) of the pairs (T, R) with unit axes towards ``q``:
-    the piston's patterns, without the hard cut."""
+            ka: float, q_r: np.ndarray | None = None) -> np.ndarray:
+    """The two-way beam b(θ_T)·b(θ_R) of the pairs (T, R) with unit axes towards ``q``
+    (R's towards ``q_r`` where given: a corner's double bounce leaves T and reaches R along
+    different legs): the piston's patterns, without the hard cut."""
     out = np.ones(len(q))
-    for X, axis in ((T, axT), (R, axR)):
-        d = q - X
+    for X, axis, towards in ((T, axT, q), (R, axR, q if q_r is None else q_r)):
+        d = towards - X
         dist = np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)
         out = out * piston_pattern(ka * np.abs(axis[:, 0] * d[:, 1] - axis[:, 1] * d[:, 0])
                                    / dist)
