@@ -296,19 +296,19 @@ def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
                         for line in cost.lines(cost.estimate(scene, args.preset))))
         return 0
     outputs.check_out(args.out)  # and so does an --out that cannot be written
-    line = ProgressLine(not args.quiet)
-    try:
-        with steps.watching(line.step):
-            result = pipeline.run(scene, device=args.device, preset=args.preset,
-                                  progress=line.stage, skips=skips)
-    finally:
-        line.done()
-    paths = outputs.write_outputs(
-        result, args.out, png=args.png,
-        extra={"cost": cost.record(cost.of_run(result), cost.peak_bytes())})
+    with outputs.plot_worker(args.png) or contextlib.nullcontext() as worker:  # no OpenCL yet
+        line = ProgressLine(not args.quiet)
+        try:
+            with steps.watching(line.step):
+                result = pipeline.run(scene, device=args.device, preset=args.preset,
+                                      progress=line.stage, skips=skips,
+                                      cache=outputs.early_plots(worker, scene, args.preset))
+        finally:
+            line.done()
+        paths = outputs.write_outputs(result, args.out, png=args.png, worker=worker, extra={
+            "cost": cost.record(cost.of_run(result), cost.peak_bytes())})
     if args.png == "all" and not outputs.plots_available():
-        print("clsonar: warning: matplotlib is not installed: scene.png and profile.png "
-              f"not written ({outputs.PLOTS_INSTALL})", file=sys.stderr)
+        print(f"clsonar: warning: {outputs.PLOTS_MISSING}", file=sys.stderr)
     for warning in result.warnings:  # report.json's "warnings", also with --quiet
         print(f"clsonar: warning: {args.scene}: {warning}", file=sys.stderr)
     if not args.quiet:

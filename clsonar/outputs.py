@@ -23,13 +23,18 @@ import json
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from . import drawing
+from .drawing import Job, PlotWorker, draw
 from .errors import ClsonarError
 from .files import write_folder
-from .pipeline import RunResult
+from .pipeline import RunResult, StageCache, apply_preset
+
+if TYPE_CHECKING:  # the pipeline's own imports of them
+    from .pipeline import EchoTable, Geometry, Scene, SensorArray
 
 #: The data files of a run, and every picture it may draw (:func:`stage_pngs`).
 DATA_NAMES = ("report.json", "stages.npz", "profile.csv", "echoes.csv")
@@ -40,6 +45,9 @@ OUTPUT_NAMES = frozenset(DATA_NAMES + PNG_NAMES)
 
 #: How to install what the pictures need.
 PLOTS_INSTALL = "pip install 'clsonar[plots]'"
+#: ``clsonar run``'s warning where scene.png and profile.png cannot be drawn.
+PLOTS_MISSING = ("matplotlib is not installed: scene.png and profile.png not written "
+                 f"({PLOTS_INSTALL})")
 
 
 def plots_available() -> bool:
@@ -108,33 +116,87 @@ def data_files(result: RunResult, extra: Mapping[str, object] | None = None
     }
 
 
+def profile_title(result: RunResult) -> str:
+    """profile.png's title: the scene and the run's error (:func:`error_summary`)."""
+    return f"{result.scene.name}: profile, {error_summary(result.metrics)}"
+
+
+def scene_job(scene: Scene, geometry: Geometry, sensors: SensorArray,
+              echoes: EchoTable) -> Job:
+    """scene.png as a :data:`~clsonar.drawing.Job`: ``scene`` as asked for (it draws its
+    name, extent and kind of placement, which no setting the pipeline chooses changes)."""
+    return ("scene_png", (scene, geometry, sensors, echoes.point))
+
+
+def plot_jobs(result: RunResult) -> dict[str, Job]:
+    """scene.png and profile.png of ``result`` as :data:`~clsonar.drawing.Job` s (a
+    :mod:`clsonar.plots` function and its arguments), drawn in process or by a worker."""
+    s, g = result.scene, result.geometry
+    return {"scene.png": scene_job(result.asked or s, g, result.sensors, result.echoes),
+            "profile.png": ("profile_png", (s, g, result.thin, profile_title(result),
+                                            result.profile, result.sensors))}
+
+
 def profile_png(result: RunResult) -> bytes:
     """``profile.png``: the thinned map with the profile, its corners and edges, titled
     with the run's error (:func:`error_summary`)."""
-    from . import plots
-
-    s = result.scene
-    return plots.profile_png(s, result.geometry, result.thin,
-                             f"{s.name}: profile, {error_summary(result.metrics)}",
-                             result.profile, result.sensors)
+    return draw({"profile.png": plot_jobs(result)["profile.png"]})["profile.png"]
 
 
-def stage_pngs(result: RunResult, png: str = "all") -> dict[str, bytes]:
-    """The PNGs of ``result`` that ``png`` (:data:`~clsonar.files.PNG_CHOICES`) asks
-    for, by file name; scene.png and profile.png only where matplotlib is installed."""
+def plot_worker(png: str) -> PlotWorker | None:
+    """A worker drawing scene.png and profile.png on another core (:mod:`clsonar.drawing`)
+    where ``png`` asks for them and one can help; start it before the run's OpenCL
+    context exists, close it on every exit path (a context manager)."""
+    return drawing.start() if png == "all" else None
+
+
+class EarlyPlots(StageCache):
+    """A stage cache that keeps nothing (every stage is computed, the same results) and
+    sends scene.png to ``worker`` as soon as the pipeline puts the echoes it draws: the
+    worker draws it while the later stages run. ``scene``: the scene as asked for (preset
+    applied), which the pipeline's ``RunResult.asked`` equals."""
+
+    def __init__(self, worker: PlotWorker, scene: Scene) -> None:
+        super().__init__()
+        self.worker, self.scene = worker, scene
+        self._placed: tuple[Geometry, SensorArray] | None = None
+
+    def get(self, stage: str, key: str) -> object | None:
+        return None
+
+    def put(self, stage: str, key: str, value: object) -> None:
+        found: Any = value[0] if isinstance(value, tuple) and value else None
+        if stage == "sensors" and isinstance(found, tuple) and len(found) == 2:
+            self._placed = found
+        elif stage == "echoes" and hasattr(found, "point") and self._placed:
+            self.worker.submit({"scene.png": scene_job(self.scene, *self._placed, found)})
+
+
+def early_plots(worker: PlotWorker | None, scene: Scene, preset: str | None = None
+                ) -> EarlyPlots | None:
+    """The ``cache`` of a run of ``scene`` with ``preset`` whose ``worker`` draws
+    scene.png as soon as it can (:class:`EarlyPlots`; None without a worker)."""
+    return None if worker is None else EarlyPlots(worker, apply_preset(scene, preset))
+
+
+def map_pngs(result: RunResult, png: str = "all") -> dict[str, bytes]:
+    """raw.png, filtered.png and thin.png of ``result`` unless ``png`` is ``none``."""
     from . import pictures
 
     if png == "none":
         return {}
     s, g = result.scene, result.geometry
-    out = {"raw.png": pictures.map_picture(s, g, result.raw),
-           "filtered.png": pictures.map_picture(s, g, result.filtered),
-           "thin.png": pictures.map_picture(s, g, result.thin, binary=True)}
-    if png == "all" and plots_available():
-        from . import plots
+    return {"raw.png": pictures.map_picture(s, g, result.raw),
+            "filtered.png": pictures.map_picture(s, g, result.filtered),
+            "thin.png": pictures.map_picture(s, g, result.thin, binary=True)}
 
-        out["scene.png"] = plots.scene_png(s, g, result.sensors, result.echoes.point)
-        out["profile.png"] = profile_png(result)
+
+def stage_pngs(result: RunResult, png: str = "all") -> dict[str, bytes]:
+    """The PNGs of ``result`` that ``png`` (:data:`~clsonar.files.PNG_CHOICES`) asks
+    for, by file name; scene.png and profile.png only where matplotlib is installed."""
+    out = map_pngs(result, png)
+    if png == "all" and plots_available():
+        out.update(draw(plot_jobs(result)))
     return out
 
 
@@ -154,10 +216,13 @@ def check_out(out: str | os.PathLike[str]) -> Path:
 
 
 def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
-                  png: str = "all", extra: Mapping[str, object] | None = None) -> list[Path]:
+                  png: str = "all", extra: Mapping[str, object] | None = None,
+                  worker: PlotWorker | None = None) -> list[Path]:
     """Write every output of ``result`` into folder ``out``, with the PNGs ``png`` asks
     for (:func:`stage_pngs`) and ``extra`` keys in report.json; returns the paths
-    written.
+    written. A ``worker`` (:func:`plot_worker`) draws scene.png and profile.png while
+    this process builds the other files (a map above :data:`~clsonar.drawing.MAX_CELLS`
+    is drawn here); where it fails they are drawn here, the same bytes.
 
     The folder is written whole or not at all (:func:`clsonar.files.write_folder`): a new
     one, or one holding only an earlier run's outputs, is replaced in one step; in a folder
@@ -166,7 +231,15 @@ def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
     half-written is left.
     """
     path = check_out(out)
+    jobs = plot_jobs(result) if png == "all" and plots_available() else {}
+    if worker is not None:
+        worker.submit({name: job for name, job in jobs.items()
+                       if drawing.cells({name: job}) <= drawing.MAX_CELLS})
     files = data_files(result, extra)
-    files.update(stage_pngs(result, png))
+    files.update(map_pngs(result, png))
+    if jobs:
+        drawn = (worker.collect() if worker is not None else None) or {}
+        drawn.update(draw({name: job for name, job in jobs.items() if name not in drawn}))
+        files.update({name: drawn[name] for name in jobs})
     write_folder(path, files, OUTPUT_NAMES)
     return [path / name for name in files]

@@ -12,8 +12,8 @@ from clsonar.tools import imports
 ROOT = Path(__file__).resolve().parents[1]
 
 #: Above the pipeline: what may use it, never the other way round.
-SHELLS = ("clsonar.gui", "clsonar.cli", "clsonar.tools", "clsonar.outputs", "clsonar.plots",
-          "clsonar.__main__")
+SHELLS = ("clsonar.gui", "clsonar.cli", "clsonar.tools", "clsonar.outputs", "clsonar.drawing",
+          "clsonar.plots", "clsonar.__main__")
 
 MAX_MODULE_LINES = 600
 MAX_FUNCTION_LINES = 60

@@ -7,8 +7,11 @@ steps of ``clsonar run`` (load, pipeline, outputs; :mod:`clsonar.cli`) in ``N`` 
 processes, each timing its own phases, and prints each phase's shortest time, its share of
 their sum, and the shortest whole process. A phase is the wall time from the end of the one
 before; "interpreter start-up, ``import clsonar``" is what the process took before its first
-phase began (the parent's wall time less the phases). Compare tables taken in one session:
-the machine's load moves every number.
+phase began (the parent's wall time less the phases). With ``--png all`` scene.png and
+profile.png are drawn as the command draws them, by a worker process on the other core
+(:mod:`clsonar.drawing`), whose own seconds are listed after the table: they overlap its
+phases; ``--no-worker`` draws them in the process, each a phase. Compare tables taken in
+one session: the machine's load moves every number.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import time
 _START = time.perf_counter()
 
 import argparse  # noqa: E402  (the clock above starts first)
+import contextlib  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import subprocess  # noqa: E402
@@ -42,58 +46,91 @@ class _Clock:
         self.since = now
 
 
-def measure(scene_path: str, png: str, out: str) -> dict[str, float]:
+def measure(scene_path: str, png: str, out: str, worker: bool = True
+            ) -> dict[str, float]:
     """The phases of one ``clsonar run scene_path --out out --png png``, in this process
-    (which must not have imported the pipeline, the outputs or pyopencl yet)."""
+    (which must not have imported the pipeline, the outputs or pyopencl yet).
+
+    With ``--png all`` the plots are drawn as the command draws them, by a worker process
+    on the other core (:mod:`clsonar.drawing`; ``worker=False`` or none available: here,
+    as before issue 16's worker): its fork is a phase, and so is the wait for its PNGs
+    once every other file is built; its own seconds (importing matplotlib, drawing each
+    plot, while the phases run) are returned too, named ``worker: ...``, not phases."""
     clock = _Clock()
     from .. import cli  # noqa: F401  (what the command line imports to start)
 
     clock.mark("command line imports")
-    from .. import outputs, pipeline
+    from .. import outputs, pipeline  # noqa: F401  (imported by the command line's run)
     from ..files import write_folder
     from ..scene import load_scene
 
     clock.mark("pipeline imports (scipy)")
+    scene = load_scene(scene_path)
+    plotter = outputs.plot_worker(png) if worker else None
+    if plotter is not None:
+        clock.mark("scene file read, plots' worker forked")
+    with plotter or contextlib.nullcontext():
+        files = _run_and_write(scene, png, out, plotter, clock)
+    write_folder(outputs.check_out(out), files, outputs.OUTPUT_NAMES)
+    clock.mark("writing the files")
+    return {**clock.phases,
+            **{f"worker: {k}": v for k, v in (plotter.seconds if plotter else {}).items()}}
+
+
+def _run_and_write(scene, png: str, out: str, plotter, clock: _Clock) -> dict[str, bytes]:
+    """The pipeline and every file of :func:`measure`, each step a phase."""
+    from .. import outputs, pipeline
     from ..opencl import get_context
 
     context = get_context()
     clock.mark("pyopencl, device")
-    result = pipeline.run(load_scene(scene_path), context=context)
+    result = pipeline.run(scene, context=context, cache=outputs.early_plots(plotter, scene))
     clock.since += sum(result.seconds.values())  # each stage is a phase of its own
     clock.phases.update({f"stage {k}": v for k, v in result.seconds.items()})
     clock.mark("pipeline, outside the stages")
+    jobs = outputs.plot_jobs(result) if png == "all" else {}
+    if plotter is not None:
+        plotter.submit(jobs)
     files = outputs.data_files(result)
     clock.mark("report.json, stages.npz, csv")
-    files.update(outputs.stage_pngs(result, "none" if png == "none" else "stages"))
+    files.update(outputs.map_pngs(result, png))
     clock.mark("raw, filtered, thin.png")
-    if png == "all":
-        from .. import plots
+    drawn = plotter.collect() if plotter is not None else None
+    if drawn is not None:
+        files.update(drawn)
+        clock.mark("scene.png, profile.png: waiting for the worker")
+    elif jobs:
+        from .. import plots  # noqa: F401  (its import is a phase of its own)
 
         clock.mark("matplotlib import")
-        files["scene.png"] = plots.scene_png(result.scene, result.geometry, result.sensors,
-                                             result.echoes.point)
-        clock.mark("scene.png")
-        files["profile.png"] = outputs.profile_png(result)
-        clock.mark("profile.png")
-    write_folder(outputs.check_out(out), files, outputs.OUTPUT_NAMES)
-    clock.mark("writing the files")
-    return clock.phases
+        for name, job in jobs.items():
+            files.update(outputs.draw({name: job}))
+            clock.mark(name)
+    return files
 
 
-def best_of(scene_path: str, png: str, repeat: int) -> tuple[dict[str, float], float]:
+#: The prefix of the worker's own seconds in :func:`measure`'s answer: not phases.
+WORKER = "worker: "
+
+
+def best_of(scene_path: str, png: str, repeat: int, worker: bool = True
+            ) -> tuple[dict[str, float], float]:
     """:func:`measure` in ``repeat`` fresh processes: each phase's shortest time, with
-    :data:`START_UP` first, and the shortest whole process (wall time)."""
+    :data:`START_UP` first, and the shortest whole process (wall time); the worker's
+    seconds (:data:`WORKER`) last."""
     best: dict[str, float] = {}
     whole = math.inf
     with tempfile.TemporaryDirectory(prefix="clsonar-phases-") as tmp:
         for k in range(max(1, repeat)):
             command = [sys.executable, "-m", "clsonar.tools.phases", scene_path, "--png", png,
-                       "--child", str(Path(tmp) / str(k))]
+                       "--child", str(Path(tmp) / str(k)), *([] if worker else ["--no-worker"])]
             start = time.perf_counter()
             done = subprocess.run(command, check=True, capture_output=True, text=True)
             wall = time.perf_counter() - start
-            phases = json.loads(done.stdout)
-            phases = {START_UP: wall - sum(phases.values()), **phases}
+            found = json.loads(done.stdout)
+            phases = {n: v for n, v in found.items() if not n.startswith(WORKER)}
+            phases = {START_UP: wall - sum(phases.values()), **phases,
+                      **{n: v for n, v in found.items() if n.startswith(WORKER)}}
             best = {name: min(best.get(name, math.inf), s) for name, s in phases.items()}
             whole = min(whole, wall)
     return best, whole
@@ -101,12 +138,15 @@ def best_of(scene_path: str, png: str, repeat: int) -> tuple[dict[str, float], f
 
 def table(phases: dict[str, float], whole: float) -> list[str]:
     """Markdown rows: each phase's seconds and share of their sum, the sum, the whole
-    process."""
-    total = sum(phases.values())
+    process; then the worker's seconds, which overlap the phases."""
+    own = {n: v for n, v in phases.items() if not n.startswith(WORKER)}
+    total = sum(own.values())
     rows = ["| phase | seconds | share |", "| --- | ---: | ---: |"]
-    rows += [f"| {name} | {s:.3f} | {100 * s / total:.0f} % |" for name, s in phases.items()]
-    return [*rows, f"| sum of the phases | {total:.3f} | |",
-            f"| **whole process** | **{whole:.3f}** | |"]
+    rows += [f"| {name} | {s:.3f} | {100 * s / total:.0f} % |" for name, s in own.items()]
+    rows += [f"| sum of the phases | {total:.3f} | |",
+             f"| **whole process** | **{whole:.3f}** | |"]
+    return rows + [f"| {name} (another core, during the phases) | {s:.3f} | |"
+                   for name, s in phases.items() if name.startswith(WORKER)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -115,12 +155,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("scene")
     parser.add_argument("--png", choices=("none", "stages", "all"), default="all")
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--no-worker", action="store_true",
+                        help="draw scene.png and profile.png in the process, as before the "
+                             "plots' worker")
     parser.add_argument("--child", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
-        print(json.dumps(measure(args.scene, args.png, args.child)))
+        print(json.dumps(measure(args.scene, args.png, args.child, not args.no_worker)))
         return 0
-    print("\n".join(table(*best_of(args.scene, args.png, args.repeat))))
+    print("\n".join(table(*best_of(args.scene, args.png, args.repeat, not args.no_worker))))
     return 0
 
 

@@ -1,0 +1,305 @@
+"""scene.png and profile.png drawn on another core while the pipeline runs (issue 16).
+
+matplotlib's import (about 0.25 s here) and the two plots (about 0.22 s) are the largest
+part of ``clsonar run --png all`` after the pipeline, which leaves the second core mostly
+idle. :func:`start` forks a worker process before the OpenCL context exists: it imports
+:mod:`clsonar.plots` while the pipeline runs, draws the plots it is sent
+(:meth:`PlotWorker.submit`) while the main process builds the data files and the map
+pictures, and sends back their PNG bytes (:meth:`PlotWorker.collect`), which the main
+process writes with every other file, as one folder.
+
+A plot is a :data:`Job`: the name of a :mod:`clsonar.plots` function and its arguments,
+drawn by :func:`draw` in either process, so the worker's bytes are the in-process ones
+(matplotlib's Agg output depends only on its inputs, which are pickled exactly).
+
+When no worker can help, none is started and the caller draws in process as before: where
+``fork`` is not the platform's safe start method (Windows; macOS, whose system libraries
+are not fork-safe; spawning a fresh interpreter would import numpy and clsonar again), on
+one core, without matplotlib, or once pyopencl is imported or a Python thread runs (an
+OpenCL context starts PoCL's threads: a fork after it could copy a held lock). A worker that
+fails, dies or is silent past its time limit is stopped, and ``collect`` answers None: the
+caller draws in process. The worker never outlives its command: it is killed by
+:meth:`PlotWorker.close` (every exit path, as a context manager), exits on its own when
+the main process's end of the pipe closes (even after ``kill -9``), and ignores Ctrl-C,
+which the main process handles.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import select
+import signal
+import struct
+import sys
+import time
+from collections.abc import Mapping
+from typing import Any
+
+#: One plot to draw: the name of a :mod:`clsonar.plots` function and its arguments.
+Job = tuple[str, tuple[Any, ...]]
+
+#: Seconds the worker is given to import matplotlib and draw, plus this many per million
+#: map cells of the largest picture (a floor's profile.png resamples its thin map).
+TIME_LIMIT_S = 60.0
+TIME_PER_MEGACELL_S = 1.0
+
+_HEADER = struct.Struct("<Q")
+
+
+def draw(jobs: Mapping[str, Job]) -> dict[str, bytes]:
+    """Each job's PNG bytes, drawn in this process, by file name."""
+    from . import plots
+
+    return {name: getattr(plots, function)(*args) for name, (function, args) in jobs.items()}
+
+
+#: The largest map a worker is sent (cells; a 50 m square at 1 cm): a larger one is drawn
+#: in process, not copied to a second process that would hold it (and the picture's
+#: working copies) beside the run's own maps.
+MAX_CELLS = 25_000_000
+
+
+def cells(jobs: Mapping[str, Job]) -> int:
+    """The cells (array elements) of every map among the jobs' arguments."""
+    import numpy as np
+
+    return sum(a.size for _, args in jobs.values() for a in args if isinstance(a, np.ndarray))
+
+
+def time_limit(jobs: Mapping[str, Job]) -> float:
+    """How long to wait for ``jobs`` (:data:`TIME_LIMIT_S`, more for larger maps)."""
+    return TIME_LIMIT_S + TIME_PER_MEGACELL_S * cells(jobs) / 1e6
+
+
+def fork_is_safe() -> bool:
+    """Whether this process may fork a worker now: a platform whose ``fork`` is safe, two
+    cores or more for it, no OpenCL context yet (pyopencl not even imported: PoCL starts
+    its threads with the first context) and no thread started by Python. numpy's BLAS
+    starts threads at import; OpenBLAS and MKL stop and restart them around a fork."""
+    if not hasattr(os, "fork") or sys.platform == "darwin" or "pyopencl" in sys.modules:
+        return False
+    cores = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+    if (len(cores) if cores is not None else os.cpu_count() or 1) < 2:
+        return False
+    threading = sys.modules.get("threading")
+    return threading is None or threading.active_count() == 1
+
+
+def start() -> PlotWorker | None:
+    """A worker process importing :mod:`clsonar.plots`, or None where none can help
+    (:func:`fork_is_safe`, matplotlib installed)."""
+    import importlib.util
+
+    if not fork_is_safe() or importlib.util.find_spec("matplotlib") is None:
+        return None
+    jobs_r, jobs_w = os.pipe()
+    done_r, done_w = os.pipe()
+    handler = signal.signal(signal.SIGINT, signal.SIG_IGN)  # the child ignores Ctrl-C
+    pid = -1
+    try:
+        pid = os.fork()
+        if pid == 0:  # pragma: no cover - the child (its coverage is not collected)
+            os.close(jobs_w)
+            os.close(done_r)
+            _serve(jobs_r, done_w)
+    except OSError:  # no fork: drawn in process
+        for fd in (jobs_r, jobs_w, done_r, done_w):
+            os.close(fd)
+        return None
+    finally:
+        if pid != 0:
+            signal.signal(signal.SIGINT, handler)
+    os.close(jobs_r)
+    os.close(done_w)
+    os.set_blocking(jobs_w, False)  # a send waits no longer than the time limit
+    return PlotWorker(pid, jobs_w, done_r)
+
+
+def _serve(jobs_fd: int, done_fd: int) -> None:  # pragma: no cover - runs in the child
+    """The worker: import the plots, say so (with the seconds it took); draw each batch of
+    jobs it is sent as it comes; on ``collect`` send every PNG drawn since the last one
+    (a send only when asked: the main process never waits on a full pipe while it sends).
+    Then exit, whatever happens (``os._exit``: none of the parent's clean-up runs twice)."""
+    code = 0
+    try:
+        start = time.perf_counter()
+        try:
+            from . import plots  # noqa: F401
+        except Exception as e:
+            _send(done_fd, ("error", f"{type(e).__name__}: {e}"))
+            return
+        _send(done_fd, ("ready", time.perf_counter() - start))
+        drawn: dict[str, bytes] = {}
+        seconds: dict[str, float] = {}
+        failed = ""
+        while (message := _receive(jobs_fd, None)) is not None:
+            what, jobs = message
+            if what == "collect":
+                _send(done_fd, ("error", failed) if failed else ("done", drawn, seconds))
+                drawn, seconds, failed = {}, {}, ""
+                continue
+            for name, job in jobs.items():
+                start = time.perf_counter()
+                try:
+                    drawn.update(draw({name: job}))
+                except Exception as e:
+                    failed = failed or f"{name}: {type(e).__name__}: {e}"
+                seconds[name] = time.perf_counter() - start
+    except BaseException:  # a closed pipe, anything: the main process draws
+        code = 1
+    finally:
+        os._exit(code)
+
+
+def _send(fd: int, message: object, deadline: float | None = None) -> bool:
+    """Send ``message`` on ``fd`` (non-blocking where ``deadline`` is given); False past
+    ``deadline``."""
+    data = pickle.dumps(message, protocol=pickle.HIGHEST_PROTOCOL)
+    view = memoryview(_HEADER.pack(len(data)) + data)
+    while view:
+        if deadline is not None:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([], [fd], [], left)[1]:
+                return False
+        try:
+            view = view[os.write(fd, view):]
+        except BlockingIOError:
+            pass
+    return True
+
+
+def _read(fd: int, size: int, deadline: float | None) -> bytes | None:
+    """``size`` bytes from ``fd``, or None at its end or past ``deadline``."""
+    parts: list[bytes] = []
+    while size:
+        if deadline is not None:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                return None
+        part = os.read(fd, min(size, 1 << 20))
+        if not part:
+            return None
+        parts.append(part)
+        size -= len(part)
+    return b"".join(parts)
+
+
+def _receive(fd: int, deadline: float | None) -> Any:
+    """The next message on ``fd``; None at its end or past ``deadline``."""
+    header = _read(fd, _HEADER.size, deadline)
+    if header is None:
+        return None
+    data = _read(fd, _HEADER.unpack(header)[0], deadline)
+    return None if data is None else pickle.loads(data)
+
+
+def _same(a: object, b: object) -> bool:
+    """Whether two jobs' arguments are the same: the same arrays, equal other values."""
+    if a is b:
+        return True
+    if type(a) is not type(b) or type(a).__module__ == "numpy":
+        return False
+    if isinstance(a, tuple) and isinstance(b, tuple):
+        return len(a) == len(b) and all(map(_same, a, b))
+    try:
+        return bool(a == b)
+    except ValueError:  # a value holding arrays
+        return False
+
+
+class PlotWorker:
+    """The main process's side of a worker (:func:`start`); a context manager that closes
+    it. ``seconds``: the worker's own, importing the plots and drawing each PNG."""
+
+    def __init__(self, pid: int, jobs_fd: int, done_fd: int) -> None:
+        self.pid = pid
+        self._jobs_fd: int | None = jobs_fd
+        self._done_fd: int | None = done_fd
+        self._ready = False
+        self._held: list[tuple[str, Mapping[str, Job] | None]] = []
+        self._sent: dict[str, Job] = {}
+        self._deadline = 0.0
+        self.seconds: dict[str, float] = {}
+
+    def __enter__(self) -> PlotWorker:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _check_ready(self, deadline: float | None) -> bool:
+        """Whether the worker has imported the plots (waiting until ``deadline``; None:
+        not at all); False for good once it failed."""
+        if not self._ready and self._done_fd is not None:
+            wait = 0.0 if deadline is None else max(0.0, deadline - time.monotonic())
+            if select.select([self._done_fd], [], [], wait)[0]:
+                message = _receive(self._done_fd, time.monotonic() + 5.0)
+                self._ready = isinstance(message, tuple) and message[0] == "ready"
+                if not self._ready:
+                    self.close()
+                    return False
+                self.seconds["matplotlib import"] = message[1]
+        return self._ready
+
+    def submit(self, jobs: Mapping[str, Job]) -> None:
+        """Have the worker draw ``jobs`` but those it was already sent with the same
+        arguments (:meth:`collect` answers them all): sent now if it is ready for them,
+        else by :meth:`collect` (a send to a busy worker would wait for it)."""
+        new = {name: job for name, job in jobs.items()
+               if name not in self._sent or not _same(job, self._sent[name])}
+        if new:
+            self._sent.update(new)
+            self._held.append(("draw", new))
+            self._deadline = max(self._deadline, time.monotonic() + time_limit(new))
+        if self._check_ready(None):
+            self._send_held()
+
+    def _send_held(self) -> None:
+        while self._held and self._jobs_fd is not None:
+            try:
+                sent = _send(self._jobs_fd, self._held[0], self._deadline)
+            except OSError:  # it died
+                sent = False
+            if not sent:
+                self.close()
+                return
+            self._held.pop(0)
+
+    def collect(self) -> dict[str, bytes] | None:
+        """The PNG bytes of every job submitted since the last ``collect``, by file name;
+        None (the worker stopped) where it failed, died or ran past its time limit."""
+        names, self._sent = list(self._sent), {}
+        self._held.append(("collect", None))
+        if self._check_ready(self._deadline):
+            self._send_held()
+        reply = None
+        if self._done_fd is not None and not self._held:
+            reply = _receive(self._done_fd, self._deadline)
+        if not (isinstance(reply, tuple) and reply[0] == "done"
+                and sorted(reply[1]) == sorted(names)):
+            self.close()
+            return None
+        self.seconds.update(reply[2])
+        return {name: reply[1][name] for name in names}
+
+    def close(self) -> None:
+        """Stop the worker (at once: it holds nothing that needs cleaning up) and wait
+        for its end; closing again does nothing."""
+        for fd in (self._jobs_fd, self._done_fd):
+            if fd is not None:
+                os.close(fd)
+        self._jobs_fd = self._done_fd = None
+        self._ready = False
+        self._held = []
+        if self.pid:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+                os.waitpid(self.pid, 0)
+            except (ProcessLookupError, ChildProcessError):
+                pass
+            self.pid = 0
+
+
+__all__ = ["MAX_CELLS", "Job", "PlotWorker", "cells", "draw", "fork_is_safe", "start",
+           "time_limit"]
