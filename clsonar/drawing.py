@@ -48,7 +48,10 @@ _HEADER = struct.Struct("<Q")
 
 
 def draw(jobs: Mapping[str, Job]) -> dict[str, bytes]:
-    """Each job's PNG bytes, drawn in this process, by file name."""
+    """Each job's PNG bytes, drawn in this process, by file name (matplotlib imported
+    only where there is a job)."""
+    if not jobs:
+        return {}
     from . import plots
 
     return {name: getattr(plots, function)(*args) for name, (function, args) in jobs.items()}

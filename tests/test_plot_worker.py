@@ -95,7 +95,7 @@ def test_a_run_with_a_worker_writes_the_in_process_files_and_leaves_no_process(t
     the API's in-process ones but report.json's seconds and memory, and no child left."""
     out = str(tmp_path)
     found = _python(CHILDREN + f"""
-import json
+import json, sys
 from clsonar import cli, drawing, outputs, pipeline
 from clsonar.scene import load_scene
 started, start = [], drawing.start
@@ -108,8 +108,10 @@ left = [children()]
 pipeline.run = run
 codes.append(cli.main(['run', {PLANE!r}, '--out', {out!r} + '/worker', '-q']))
 left.append(children())
+imported = "matplotlib" in sys.modules  # the worker drew: this process never needs it
 outputs.write_outputs(run(load_scene({PLANE!r})), {out!r} + '/here')
-print(json.dumps({{"codes": codes, "left": left, "started": [w is not None for w in started]}}))
+print(json.dumps({{"codes": codes, "left": left, "imported": imported,
+                  "started": [w is not None for w in started]}}))
 """)
     killed = _python(CHILDREN + f"""
 import json, os, signal
@@ -124,6 +126,7 @@ code = cli.main(['run', {PLANE!r}, '--out', {out!r} + '/killed', '-q'])
 print(json.dumps({{"codes": [code], "left": [children()]}}))
 """)
     assert found["started"] == [True, True]  # forked before each run's pipeline
+    assert not found["imported"]
     assert found["codes"] + killed["codes"] == [130, 0, 0]
     assert found["left"] + killed["left"] == [[], [], []]
     assert not (tmp_path / "stopped").exists()
