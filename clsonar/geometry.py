@@ -130,19 +130,15 @@ def build_geometry(scene: Scene) -> Geometry:
                if isinstance(s, Circle)]
     circle_surface = [i for i, s in enumerate(scene.surfaces) if isinstance(s, Circle)]
     return Geometry(
-        walls=walls,
-        wall_normal=np.asarray(parts.normals, dtype=np.float64).reshape(-1, 2),
+        walls=walls, wall_normal=np.asarray(parts.normals, dtype=np.float64).reshape(-1, 2),
         wall_two_sided=np.asarray(parts.two_sided, dtype=np.bool_),
         wall_surface=np.asarray(parts.owner, dtype=np.int64),
-        vertices=vertices,
-        vertex_walls=vertex_walls,
-        vertex_left=left,
-        vertex_right=right,
+        vertices=vertices, vertex_walls=vertex_walls,
+        vertex_left=left, vertex_right=right,
         diffractors=_diffractors(walls, vertices, vertex_walls, diff_idx),
         diffractor_vertex=diff_idx.astype(np.int64),
         corner_walls=vertex_walls[corner_idx].reshape(-1, 2),
-        corners=corners,
-        corner_vertex=corner_idx.astype(np.int64),
+        corners=corners, corner_vertex=corner_idx.astype(np.int64),
         circles=np.asarray(circles, dtype=np.float64).reshape(-1, 3),
         circle_surface=np.asarray(circle_surface, dtype=np.int64),
         **_sinusoid_arrays(scene, len(walls)),
@@ -279,10 +275,14 @@ def enclosing(surfaces: tuple[Surface, ...]) -> list[int | None]:
     outlines = {i: np.asarray(s.points, dtype=np.float64) for i, s in enumerate(surfaces)
                 if isinstance(s, Polyline) and s.closed}
     out: list[int | None] = [None] * len(surfaces)
+    box = {j: [*(p.min(0) - 1e-9 * (1 + abs(p).max())), *(p.max(0) + 1e-9 * (1 + abs(p).max()))]
+           for j, p in outlines.items()}  # widened far beyond rounding: holds all inside
     for i, pts in outlines.items():
         mean = pts.mean(axis=0, keepdims=True)
-        for j, outer in outlines.items():
-            if j != i and bool(inside_polygon(outer, mean)[0]) \
+        x, y = mean[0]
+        for j, outer in outlines.items():  # a mean outside an outline's box is not inside it
+            if j != i and box[j][0] <= x <= box[j][2] and box[j][1] <= y <= box[j][3] \
+                    and bool(inside_polygon(outer, mean)[0]) \
                     and not bool(on_outline(outer, mean)[0]) \
                     and bool(np.all(inside_polygon(outer, pts) | on_outline(outer, pts))):
                 out[i] = j

@@ -90,3 +90,52 @@ def test_placements_round_trip_and_bad_placements_name_their_key():
     one = dataclasses.replace(scene, sensors=dataclasses.replace(scene.sensors,
                                                                 placements=()))
     assert scene_to_dict(one)["sensors"]["placements"] == []
+
+
+def _enclosing_every_pair(surfaces):
+    """geometry.enclosing as it was, every outline tried for every one (the reference)."""
+    from clsonar.geometry import inside_polygon, on_outline
+    from clsonar.scene import Polyline
+
+    outlines = {i: np.asarray(s.points, dtype=np.float64) for i, s in enumerate(surfaces)
+                if isinstance(s, Polyline) and s.closed}
+    out = [None] * len(surfaces)
+    for i, pts in outlines.items():
+        mean = pts.mean(axis=0, keepdims=True)
+        for j, outer in outlines.items():
+            if j != i and bool(inside_polygon(outer, mean)[0]) \
+                    and not bool(on_outline(outer, mean)[0]) \
+                    and bool(np.all(inside_polygon(outer, pts) | on_outline(outer, pts))):
+                out[i] = j
+                break
+    return out
+
+
+def test_only_outlines_whose_box_holds_a_point_are_tried_with_the_same_answers():
+    """geometry.enclosing and the rooms' lookup (regions._boxes, _holding) try only the
+    outlines whose widened box holds the point: the same answers as trying every one, for
+    outlines nested, touching, sharing edges and a hair apart (random, seeded)."""
+    from clsonar.geometry import enclosing, inside_polygon
+    from clsonar.regions import _boxes, _holding
+    from clsonar.scene import Polyline
+
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        shapes = []
+        for _ in range(int(rng.integers(2, 9))):
+            c = rng.choice([0.0, 1.0, 2.0, 1e-12, 1.0 + 1e-15], size=2) + rng.uniform(0, 2, 2) \
+                * rng.integers(0, 2)
+            r = rng.choice([0.25, 0.5, 1.0, 2.0])
+            k = int(rng.integers(3, 7))
+            a = np.sort(rng.uniform(0, 2 * np.pi, k)) if rng.random() < 0.5 else \
+                np.linspace(0, 2 * np.pi, k, endpoint=False) + np.pi / 4
+            pts = c + r * np.column_stack([np.cos(a), np.sin(a)])
+            shapes.append(Polyline(tuple(map(tuple, pts.tolist())), closed=True))
+        assert enclosing(tuple(shapes)) == _enclosing_every_pair(tuple(shapes))
+        polys, boxes = _boxes(shapes)
+        for p in [v for s in shapes for v in s.points] + rng.uniform(-1, 4, (30, 2)).tolist():
+            held = set(_holding(boxes, p).tolist())
+            inside = {i for i, poly in enumerate(polys) if inside_polygon(poly, np.array([p]))[0]}
+            assert inside <= held
+    floor = floor_scene(size_m=20.0)
+    assert enclosing(floor.surfaces) == _enclosing_every_pair(floor.surfaces)
