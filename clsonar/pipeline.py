@@ -13,15 +13,17 @@ defaults of a scene file).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TypeVar, cast
 
 import numpy as np
 
 from . import checks, mapping, metrics, post, regions, sight, signals, steps
+from . import rooms as roomwork
 from .cache import StageCache as StageCache  # re-exported: pipeline.StageCache
 from .cache import stage_keys
 from .echoes import EchoTable, check_sequences, compute_echoes
@@ -32,6 +34,7 @@ from .opencl import device_name, get_context
 from .presets import PRESETS as PRESETS  # re-exported: pipeline.PRESETS
 from .presets import Preset as Preset
 from .presets import apply_preset
+from .rooms import MOSAIC_BYTES_PER_CELL as MOSAIC_BYTES_PER_CELL  # re-exported
 from .scene import (
     PostSettings,
     Scene,
@@ -229,45 +232,35 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
                      settings_why=why, asked=asked)
 
 
-#: Host memory the mosaic of a scene mapped room by room holds per cell: raw and filtered
-#: maps (float32), the occupied and thin maps.
-MOSAIC_BYTES_PER_CELL = 10
-
-
 def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
                progress: Progress | None, given: str) -> RunResult:
-    """Run each room of ``scene`` on its own (:mod:`clsonar.regions`) and put the results
+    """Run each room of ``scene`` on its own (:mod:`clsonar.regions`), in worker processes
+    when there are enough rooms (:func:`clsonar.rooms.worker_count`), and put the results
     together: the maps as a mosaic on the scene's grid, the rooms' curves, vertices,
     transducers, echoes and detections side by side, metrics pooled, seconds and counts
-    summed."""
+    summed — the same in workers as one after another."""
     mapping.check_map_memory(scene, scene.mapping.precision, None,
                              host_bytes_per_cell=MOSAIC_BYTES_PER_CELL)
-    shape = scene.grid_shape
-    maps = {"raw": np.zeros(shape, np.float32), "filtered": np.zeros(shape, np.float32),
-            "occupied": np.zeros(shape, bool), "thin": np.zeros(shape, bool)}
+    maps = roomwork.empty_mosaic(scene.grid_shape)
     parts: list[RunResult] = []
     seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
     counts: dict[str, int] = {}
-    inner = dataclasses.replace(skips, rooms=False)
-    start = time.perf_counter()
-    placed = _sensors_together([room.scene for room in rooms])
-    seconds["sensors"] += time.perf_counter() - start
-    for k, room in enumerate(rooms):
-        def tell(stage: str, i: int, n: int, k: int = k) -> None:
-            if progress is not None:
-                progress(stage, k * n + i, len(rooms) * n)
-
-        r = _run_whole(room.scene, ctx, inner, None, tell, given, placed[k])
-        steps.poll()
-        _add_to_mosaic(maps, r, room)
-        for stage, t in r.seconds.items():
-            seconds[stage] += t
-        for key, value in r.counts.items():
-            counts[key] = counts.get(key, 0) + value
-        parts.append(_without_maps(r))  # the mosaic holds the maps: 400 rooms' were 2.7 GB
+    with _room_workers(len(rooms), ctx) as pool:  # started while the rooms are traced
+        start = time.perf_counter()
+        placed = _sensors_together([room.scene for room in rooms], pool)
+        seconds["sensors"] += time.perf_counter() - start
+        jobs = [(room.scene, dataclasses.replace(skips, rooms=False), given, placed[k])
+                for k, room in enumerate(rooms)]
+        for k, r in enumerate(_rooms_mapped(jobs, ctx, pool, progress)):
+            roomwork.add_to_mosaic(maps, r, rooms[k].row0, rooms[k].col0)
+            for stage, t in r.seconds.items():
+                seconds[stage] += t
+            for key, value in r.counts.items():
+                counts[key] = counts.get(key, 0) + value
+            parts.append(roomwork.without_maps(r))  # 400 rooms' maps were 2.7 GB
     counts.update(map_cells=int(maps["raw"].size),
                   cells_voted=int(np.count_nonzero(maps["raw"])), rooms_mapped=len(rooms))
-    sensors, echoes, detections, profile = _side_by_side(parts)
+    sensors, echoes, detections, profile = roomwork.side_by_side(parts)
     used = dataclasses.replace(scene, mapping=parts[0].scene.mapping, post=parts[0].scene.post)
     return RunResult(scene=used, geometry=build_geometry(scene), sensors=sensors,
                      echoes=echoes, detections=detections, votes=None, raw=maps["raw"],
@@ -278,59 +271,53 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
                      warnings=checks.run_warnings(scene, counts, sensors.poses))
 
 
-def _without_maps(r: RunResult) -> RunResult:
-    """Room result ``r`` without its maps and votes, once they are in the mosaic: what
-    :func:`_side_by_side` and the pooled metrics read is kept."""
-    empty = np.zeros((0, 0))
-    return dataclasses.replace(r, votes=None, raw=empty, filtered=empty,
-                               occupied=empty.astype(bool), thin=empty.astype(bool),
-                               point_sums=None, point_window=None)
+_Job = tuple[Scene, Skips, str, tuple[Geometry, SensorArray]]
 
 
-def _add_to_mosaic(maps: dict[str, np.ndarray], r: RunResult, room: regions.Region) -> None:
-    """Add the maps of room result ``r`` into the scene's ``maps`` where the room's grid
-    sits (votes and filtered values added, occupied and thin cells or-ed)."""
-    ny, nx = r.raw.shape
-    window = (slice(room.row0, room.row0 + ny), slice(room.col0, room.col0 + nx))
-    maps["raw"][window] += r.raw
-    maps["filtered"][window] += r.filtered
-    maps["occupied"][window] |= r.occupied
-    maps["thin"][window] |= r.thin
+def _room_workers(rooms: int, ctx) -> contextlib.AbstractContextManager:
+    """The worker processes that map ``rooms`` rooms (:class:`clsonar.rooms.Workers`, each
+    with a context on ``ctx``'s device), or None (in a ``with``) to map them here: one
+    worker or none is wanted, the device cannot be named, or no process can start."""
+    n = roomwork.worker_count(rooms)
+    spec = roomwork.device_spec(ctx) if n > 1 else None
+    if spec is None:
+        return contextlib.nullcontext()
+    try:
+        return roomwork.Workers(n, get_context, spec)
+    except OSError:
+        return contextlib.nullcontext()
 
 
-def _side_by_side(parts: list[RunResult]
-                  ) -> tuple[SensorArray, EchoTable, Detections, post.Profile]:
-    """The rooms' transducers, echoes, detections and profiles one after another (indices
-    of transducers and groups moved on by the rooms before)."""
-    sensors = SensorArray(
-        positions=np.concatenate([p.sensors.positions for p in parts]),
-        headings_deg=np.concatenate([p.sensors.headings_deg for p in parts]),
-        groups=np.concatenate(_offset_groups([p.sensors.groups for p in parts])),
-        poses=np.concatenate([p.sensors.poses for p in parts]))
-    first = np.cumsum([0] + [len(p.sensors) for p in parts])
-    return (sensors, EchoTable(**_stack([p.echoes for p in parts], first, EchoTable)),
-            Detections(**_stack([p.detections for p in parts], first, Detections)),
-            post.Profile(tuple(c for p in parts for c in p.profile.curves),
-                         np.concatenate([p.profile.vertices for p in parts])))
+def _rooms_mapped(jobs: list[_Job], ctx, pool: roomwork.Workers | None,
+                  progress: Progress | None) -> Iterator[RunResult]:
+    """Each room's result with its maps (:func:`_map_room`), in the order of ``jobs``:
+    from the workers of ``pool``, telling ``progress`` and :func:`clsonar.steps.step` as
+    each room is done, or one after another here, telling ``progress`` each stage."""
+    n = len(STAGES)
+    if pool is not None:
+        for k, r in enumerate(pool.map(_map_room, jobs)):
+            if progress is not None:
+                progress(STAGES[-1], (k + 1) * n, len(jobs) * n)
+            steps.step("rooms", k + 1, len(jobs))
+            yield r
+        return
+    for k, job in enumerate(jobs):
+        def tell(stage: str, i: int, n: int, k: int = k) -> None:
+            if progress is not None:
+                progress(stage, k * n + i, len(jobs) * n)
+
+        r = _map_room(ctx, job, tell)
+        steps.poll()
+        yield r
 
 
-def _offset_groups(groups: list[np.ndarray]) -> list[np.ndarray]:
-    out, first = [], 0
-    for g in groups:
-        out.append(g + first)
-        first += int(g.max()) + 1 if len(g) else 0
-    return out
-
-
-def _stack(tables: list, first: np.ndarray, kind) -> dict[str, np.ndarray]:
-    """The columns of ``tables`` (echo tables or detections) one after another, their
-    ``tx``/``rx`` moved by each room's first transducer index ``first``."""
-    columns = {}
-    for f in dataclasses.fields(kind):
-        parts = [getattr(t, f.name) + (first[i] if f.name in ("tx", "rx") else 0)
-                 for i, t in enumerate(tables)]
-        columns[f.name] = np.concatenate(parts) if parts else np.zeros(0)
-    return columns
+def _map_room(ctx, job: _Job, progress: Progress | None = None) -> RunResult:
+    """One room of a floor, every stage (:func:`_run_whole`; ``job``: its scene, skips,
+    where its settings come from and its placed transducers), its maps kept, its votes
+    and point sums dropped (what a worker process sends back)."""
+    scene, skips, given, placed = job
+    r = _run_whole(scene, ctx, skips, None, progress, given, placed)
+    return dataclasses.replace(r, votes=None, point_sums=None, point_window=None)
 
 
 def _sensors(scene: Scene) -> tuple[Geometry, SensorArray]:
@@ -338,10 +325,21 @@ def _sensors(scene: Scene) -> tuple[Geometry, SensorArray]:
     return geom, place_sensors(scene, geom)
 
 
-def _sensors_together(scenes: list[Scene]) -> list[tuple[Geometry, SensorArray]]:
+def _sensors_together(scenes: list[Scene], pool: roomwork.Workers | None = None
+                      ) -> list[tuple[Geometry, SensorArray]]:
     """:func:`_sensors` of every scene (the rooms of a floor), their wall-following traces
-    run side by side (:func:`clsonar.sensors.place_sensors_together`); the first scene's
-    error, if any, raised before any room is mapped."""
+    run side by side (:func:`_placed_together`), in ``pool``'s workers a run of rooms
+    each; the first scene's error, if any, raised before any room is mapped."""
+    if pool is None:
+        return _placed_together(None, scenes)
+    return [p for part in pool.map(_placed_together, roomwork.split(scenes, len(pool)))
+            for p in part]
+
+
+def _placed_together(ctx, scenes: list[Scene]) -> list[tuple[Geometry, SensorArray]]:
+    """:func:`_sensors` of every scene, their wall-following traces run side by side
+    (:func:`clsonar.sensors.place_sensors_together`, the same to the bit as one by one);
+    the first scene's error, if any, raised (``ctx``: unused, as a worker's job)."""
     geoms = [build_geometry(scene) for scene in scenes]
     placed = place_sensors_together(scenes, geoms)
     for found in placed:

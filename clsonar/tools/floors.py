@@ -63,25 +63,40 @@ class FloorRow:
     accuracy_m: float | None
     completeness_2cm: float | None
     vertices_found: str | None
+    #: seconds of the whole :func:`clsonar.run` call (the stages' ``seconds`` are summed
+    #: over the rooms, several at a time in worker processes)
+    wall_s: float = 0.0
+    #: worker processes that mapped the rooms (:func:`clsonar.rooms.worker_count`), and the
+    #: largest one's peak memory (``peak_rss_mb`` is this process's own)
+    workers: int = 0
+    workers_peak_rss_mb: float = 0.0
 
 
 def run_floor(size_m: float, device: str | None = None) -> FloorRow:
     """Build and map a floor of ``size_m`` in this process; report its peak memory (the
-    whole process's high-water mark, interpreter and OpenCL runtime included)."""
+    whole process's high-water mark, interpreter and OpenCL runtime included) and the
+    largest worker process's (the rooms mapped side by side, :mod:`clsonar.rooms`)."""
     import resource
+    import time
 
     from ..outputs import metric
     from ..pipeline import MOSAIC_BYTES_PER_CELL, run
+    from ..rooms import worker_count
 
     scene = floor_scene(size_m)
+    start = time.perf_counter()
     r = run(scene, device=device)
+    wall = time.perf_counter() - start
     m = r.metrics
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0  # KiB on Linux
+    workers = worker_count(int(r.counts.get("rooms_mapped", 0)))
     return FloorRow(scene.name, int(r.raw.size), int(r.counts.get("rooms_mapped", 1)),
                     len(r.sensors), int(r.counts["pairs"]), dict(r.seconds),
                     float(sum(r.seconds.values())), peak,
                     r.raw.size * MOSAIC_BYTES_PER_CELL / 2**20, metric(m, "accuracy_m.rms"),
-                    metric(m, "completeness.2cm"), metric(m, "vertices_found"))
+                    metric(m, "completeness.2cm"), metric(m, "vertices_found"), wall,
+                    workers if workers > 1 else 0,
+                    resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0)
 
 
 def bench_floor(size_m: float, device: str | None = None, timeout_s: float = 3600) -> FloorRow:

@@ -1,0 +1,172 @@
+"""A floor's rooms mapped in worker processes (clsonar.rooms): the same maps, profile,
+metrics and counts as one after another; progress told room by room; a cancel stops the
+run and leaves no process behind; a worker's error comes back as the same one line."""
+
+import dataclasses
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from clsonar import rooms, steps
+from clsonar.errors import ClsonarError, DeviceError, SceneError
+from clsonar.opencl import get_context
+from clsonar.pipeline import STAGES, run
+from clsonar.scene import scene_from_dict
+from clsonar.tools.floors import floor_scene
+
+
+def _children() -> list[int]:
+    """The processes this one started and has not yet waited for."""
+    found = []
+    for task in Path(f"/proc/{os.getpid()}/task").iterdir():
+        found += [int(p) for p in (task / "children").read_text().split()]
+    return found
+
+
+def _same(a, b) -> None:
+    for name in ("raw", "filtered", "occupied", "thin"):
+        x, y = getattr(a, name), getattr(b, name)
+        assert x.dtype == y.dtype and np.array_equal(x, y), name
+    assert len(a.profile.curves) == len(b.profile.curves) > 0
+    for c, d in zip(a.profile.curves, b.profile.curves, strict=True):
+        assert np.array_equal(c, d)
+    assert np.array_equal(a.profile.vertices, b.profile.vertices)
+    assert a.metrics == b.metrics and a.counts == b.counts and a.warnings == b.warnings
+    for table in ("echoes", "detections"):
+        for f in dataclasses.fields(getattr(a, table)):
+            assert np.array_equal(getattr(getattr(a, table), f.name),
+                                  getattr(getattr(b, table), f.name)), (table, f.name)
+    assert np.array_equal(a.sensors.poses, b.sensors.poses)
+    assert a.seconds.keys() == b.seconds.keys()
+
+
+def _one_by_one(size_m: float):
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv(rooms.WORKERS_ENV, "0")
+        return run(floor_scene(size_m=size_m))
+
+
+@pytest.fixture(scope="module")
+def one_by_one():
+    """The 15 m floor's 9 rooms mapped one after another in this process."""
+    return _one_by_one(15.0)
+
+
+@pytest.fixture(scope="module")
+def small():
+    """The 10 m floor's 4 rooms, likewise."""
+    return _one_by_one(10.0)
+
+
+def test_workers_map_a_floor_to_the_same_bits_and_tell_each_room(one_by_one, monkeypatch):
+    monkeypatch.setenv(rooms.WORKERS_ENV, "2")
+    told, stepped = [], []
+    with steps.watching(lambda what, done, total: stepped.append((what, done, total))):
+        r = run(floor_scene(size_m=15.0), progress=lambda *a: told.append(a))
+    _same(one_by_one, r)
+    assert r.counts["rooms_mapped"] == 9 and r.metrics["rooms"] == 9
+    assert r.metrics["vertices_found"] == one_by_one.metrics["vertices_found"] == "36/36"
+    n = len(STAGES)
+    assert told[-9:] == [(STAGES[-1], k * n, 9 * n) for k in range(1, 10)]
+    assert [s for s in stepped if s[0] == "rooms"] == [("rooms", k, 9) for k in range(1, 10)]
+    assert _children() == []
+
+
+def test_without_processes_the_rooms_are_mapped_here_the_same(small, monkeypatch):
+    monkeypatch.setenv(rooms.WORKERS_ENV, "2")
+
+    def refused(*args, **kwargs):
+        raise OSError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(rooms.subprocess, "Popen", refused)
+    _same(small, run(floor_scene(size_m=10.0)))
+
+
+class Cancelled(Exception):
+    pass
+
+
+def test_a_cancel_stops_a_floor_in_workers_and_leaves_no_process(monkeypatch):
+    monkeypatch.setenv(rooms.WORKERS_ENV, "2")
+    seen = []
+
+    def listener(what: str, done: int, total: int) -> None:
+        seen.append(what)
+        if what == "rooms" and done >= 2:
+            raise Cancelled
+
+    with steps.watching(listener), pytest.raises(Cancelled):
+        run(floor_scene(size_m=10.0))
+    assert seen.count("rooms") == 2
+    assert _children() == []
+
+
+def test_a_workers_error_comes_back_as_the_same_one_line():
+    with pytest.raises(SceneError) as here:
+        scene_from_dict({}, "bad.json")
+    with rooms.Workers(2, dict) as pool, pytest.raises(SceneError) as there:
+        list(pool.map(scene_from_dict, ["bad.json"]))
+    assert str(there.value) == str(here.value) and "\n" not in str(there.value)
+    assert (there.value.key, there.value.source) == (here.value.key, here.value.source)
+    assert _children() == []
+    with pytest.raises(DeviceError, match="no OpenCL platform 99") as e:
+        with rooms.Workers(1, get_context, "99:0") as pool:
+            list(pool.map(len, ["abc"]))
+    assert "\n" not in str(e.value)
+    assert _children() == []
+
+
+def test_workers_hand_results_over_in_order():
+    with rooms.Workers(2, str, "-") as pool:
+        assert list(pool.map(str.join, [["a", "b"], ["c"], ["d", "e", "f"]] * 3)) == [
+            "a-b", "c", "d-e-f"] * 3
+    assert _children() == []
+
+
+def test_how_many_workers(monkeypatch):
+    monkeypatch.delenv(rooms.WORKERS_ENV, raising=False)
+    assert rooms.worker_count(rooms.MIN_ROOMS - 1) == 0
+    assert 1 <= rooms.worker_count(400) <= rooms.MAX_WORKERS
+    assert rooms.worker_count(2 * rooms.MIN_ROOMS) <= len(os.sched_getaffinity(0))
+    monkeypatch.setenv(rooms.WORKERS_ENV, "3")
+    assert (rooms.worker_count(2), rooms.worker_count(400)) == (2, 3)
+    monkeypatch.setenv(rooms.WORKERS_ENV, "many")
+    with pytest.raises(ClsonarError, match="CLSONAR_ROOM_WORKERS='many'"):
+        rooms.worker_count(400)
+
+
+def test_the_device_is_named_for_the_workers():
+    ctx = get_context()
+    assert get_context(rooms.device_spec(ctx)) is ctx
+
+
+class _Odd(Exception):
+    """An error whose pickle cannot make it again (its constructor needs two values)."""
+
+    def __init__(self, a: int, b: int) -> None:
+        super().__init__(f"odd {a} {b}")
+
+
+def test_an_error_that_cannot_be_pickled_comes_back_as_its_type_and_one_line():
+    try:
+        raise _Odd(1, 2)
+    except _Odd as error:
+        back = rooms._rebuilt(rooms._portable(error))
+    assert isinstance(back, RuntimeError) and str(back) == "_Odd: odd 1 2"
+    assert "raise _Odd(1, 2)" in str(back.__cause__)
+    scene_error = SceneError("must be > 0", "surfaces[2].radius", "room.json")
+    back = rooms._rebuilt(rooms._portable(scene_error))
+    assert type(back) is SceneError and str(back) == "room.json: surfaces[2].radius: must be > 0"
+
+
+def test_the_floor_tool_reports_its_workers_and_their_memory(small, monkeypatch):
+    from clsonar.tools.floors import run_floor
+
+    monkeypatch.setenv(rooms.WORKERS_ENV, "2")
+    row = run_floor(10.0)
+    assert (row.rooms, row.workers, row.vertices_found) == (4, 2, "16/16")
+    assert row.accuracy_m == small.metrics["accuracy_m"]["rms"]
+    assert 0 < row.workers_peak_rss_mb and 0 < row.wall_s
+    assert row.total_s == sum(row.seconds.values())
