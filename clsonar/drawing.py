@@ -3,10 +3,13 @@
 matplotlib's import (about 0.25 s here) and the two plots (about 0.22 s) are the largest
 part of ``clsonar run --png all`` after the pipeline, which leaves the second core mostly
 idle. :func:`start` forks a worker process before the OpenCL context exists: it imports
-:mod:`clsonar.plots` while the pipeline runs, draws the plots it is sent
-(:meth:`PlotWorker.submit`) while the main process builds the data files and the map
-pictures, and sends back their PNG bytes (:meth:`PlotWorker.collect`), which the main
-process writes with every other file, as one folder.
+:mod:`clsonar.plots` while the pipeline runs, draws the plots as it is sent them
+(:meth:`PlotWorker.submit`: scene.png once the pipeline has the echoes,
+:class:`clsonar.outputs.EarlyPlots`; profile.png while the main process builds the data
+files and the map pictures), and sends back their PNG bytes (:meth:`PlotWorker.collect`),
+which the main process writes with every other file, as one folder. It saves time only
+where a core is idle: on a machine already busy, Linux shares a command's CPU between its
+processes, and the worker's time is the run's (docs/speed.md, 2026-11-27).
 
 A plot is a :data:`Job`: the name of a :mod:`clsonar.plots` function and its arguments,
 drawn by :func:`draw` in either process, so the worker's bytes are the in-process ones
@@ -33,6 +36,7 @@ import signal
 import struct
 import sys
 import time
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
@@ -101,7 +105,10 @@ def start() -> PlotWorker | None:
     handler = signal.signal(signal.SIGINT, signal.SIG_IGN)  # the child ignores Ctrl-C
     pid = -1
     try:
-        pid = os.fork()
+        with warnings.catch_warnings():  # Python 3.12+ warns of any thread, BLAS's too
+            warnings.filterwarnings("ignore", "This process .* is multi-threaded",
+                                    DeprecationWarning)
+            pid = os.fork()
         if pid == 0:  # pragma: no cover - the child (its coverage is not collected)
             os.close(jobs_w)
             os.close(done_r)
