@@ -245,19 +245,19 @@ def _run_rooms(scene: Scene, rooms: list[regions.Region], ctx, skips: Skips,
     parts: list[RunResult] = []
     seconds: dict[str, float] = dict.fromkeys(STAGES, 0.0)
     counts: dict[str, int] = {}
-    with _room_workers(len(rooms), ctx) as pool:  # started while the rooms are traced
+    with _room_workers(len(rooms), ctx) as pool:  # traces and rooms in workers, or here
         start = time.perf_counter()
         placed = _sensors_together([room.scene for room in rooms], pool)
         seconds["sensors"] += time.perf_counter() - start
         jobs = [(room.scene, dataclasses.replace(skips, rooms=False), given, placed[k])
                 for k, room in enumerate(rooms)]
-        for k, r in enumerate(_rooms_mapped(jobs, ctx, pool, progress)):
-            roomwork.add_to_mosaic(maps, r, rooms[k].row0, rooms[k].col0)
+        for k, (r, found) in enumerate(_rooms_mapped(jobs, ctx, pool, progress)):
+            roomwork.add_to_mosaic(maps, found, rooms[k].row0, rooms[k].col0)
             for stage, t in r.seconds.items():
                 seconds[stage] += t
             for key, value in r.counts.items():
                 counts[key] = counts.get(key, 0) + value
-            parts.append(roomwork.without_maps(r))  # 400 rooms' maps were 2.7 GB
+            parts.append(r)  # its maps are in the mosaic: 400 rooms' were 2.7 GB
     counts.update(map_cells=int(maps["raw"].size),
                   cells_voted=int(np.count_nonzero(maps["raw"])), rooms_mapped=len(rooms))
     sensors, echoes, detections, profile = roomwork.side_by_side(parts)
@@ -289,35 +289,39 @@ def _room_workers(rooms: int, ctx) -> contextlib.AbstractContextManager:
 
 
 def _rooms_mapped(jobs: list[_Job], ctx, pool: roomwork.Workers | None,
-                  progress: Progress | None) -> Iterator[RunResult]:
-    """Each room's result with its maps (:func:`_map_room`), in the order of ``jobs``:
-    from the workers of ``pool``, telling ``progress`` and :func:`clsonar.steps.step` as
-    each room is done, or one after another here, telling ``progress`` each stage."""
+                  progress: Progress | None
+                  ) -> Iterator[tuple[RunResult, roomwork.Sparse]]:
+    """Each room's result without its maps, and its maps by their non-zero cells
+    (:func:`_map_room`), in the order of ``jobs``: from the workers of ``pool``, telling
+    ``progress`` and :func:`clsonar.steps.step` as each room is done, or one after another
+    here, telling ``progress`` each stage."""
     n = len(STAGES)
     if pool is not None:
-        for k, r in enumerate(pool.map(_map_room, jobs)):
+        for k, done in enumerate(pool.map(_map_room, jobs)):
             if progress is not None:
                 progress(STAGES[-1], (k + 1) * n, len(jobs) * n)
             steps.step("rooms", k + 1, len(jobs))
-            yield r
+            yield done
         return
     for k, job in enumerate(jobs):
         def tell(stage: str, i: int, n: int, k: int = k) -> None:
             if progress is not None:
                 progress(stage, k * n + i, len(jobs) * n)
 
-        r = _map_room(ctx, job, tell)
+        done = _map_room(ctx, job, tell)
         steps.poll()
-        yield r
+        yield done
 
 
-def _map_room(ctx, job: _Job, progress: Progress | None = None) -> RunResult:
+def _map_room(ctx, job: _Job, progress: Progress | None = None
+              ) -> tuple[RunResult, roomwork.Sparse]:
     """One room of a floor, every stage (:func:`_run_whole`; ``job``: its scene, skips,
-    where its settings come from and its placed transducers), its maps kept, its votes
-    and point sums dropped (what a worker process sends back)."""
+    where its settings come from and its placed transducers): the result without its
+    maps, votes and point sums, and its maps by their non-zero cells (what a worker
+    process sends back: :func:`clsonar.rooms.sparse_maps`)."""
     scene, skips, given, placed = job
     r = _run_whole(scene, ctx, skips, None, progress, given, placed)
-    return dataclasses.replace(r, votes=None, point_sums=None, point_window=None)
+    return roomwork.without_maps(r), roomwork.sparse_maps(r)
 
 
 def _sensors(scene: Scene) -> tuple[Geometry, SensorArray]:

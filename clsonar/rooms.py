@@ -5,7 +5,8 @@ A scene of separate closed rooms is mapped room by room (:mod:`clsonar.regions`)
 room's stages are host NumPy between OpenCL kernels, so one process keeps about one core
 busy. :class:`Workers` maps the rooms in ``n`` worker processes (:func:`worker_count`), each
 with its own OpenCL context on the parent's device (:func:`device_spec`; compiled programs
-come from the disk cache), while the parent keeps the mosaic (:func:`add_to_mosaic`) and
+come from the disk cache), while the parent keeps the mosaic (:func:`add_to_mosaic`: a
+room's maps come back by their non-zero cells, :func:`sparse_maps`) and
 puts the rooms' transducers, echoes, detections and profiles side by side
 (:func:`side_by_side`).
 
@@ -72,8 +73,10 @@ def worker_count(rooms: int) -> int:
     """How many worker processes map ``rooms`` rooms: :data:`WORKERS_ENV` when set, else
     one per core this process may run on, at most :data:`MAX_WORKERS`, one per
     :data:`WORKER_BYTES` of half the memory available, and none below :data:`MIN_ROOMS`
-    rooms. Below 2 the rooms are mapped in the calling process."""
+    rooms or off POSIX. Below 2 the rooms are mapped in the calling process."""
     asked = os.environ.get(WORKERS_ENV, "").strip()
+    if os.name != "posix":  # a worker's pipes are read as file descriptors
+        return 0
     if asked:
         try:
             return max(0, min(int(asked), rooms))
@@ -224,31 +227,32 @@ def split(items: Sequence[T], parts: int) -> list[Sequence[T]]:
 
 def serve() -> None:
     """A worker's loop: read ``(init, args)`` and keep ``init(*args)``, then answer each
-    ``(job, (item,))`` with ``job(state, item)`` until the parent closes the pipe; each
-    reply is ``(True, value)`` or ``(False, error)``."""
+    ``(job, (item,))`` with ``job(state, item)`` until the parent closes the pipe (or is
+    gone); each reply is ``(True, value)`` or ``(False, error)``."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C: the parent decides
     inbox = Connection(os.dup(0), writable=False)
     outbox = Connection(os.dup(1), readable=False)
     os.dup2(2, 1)  # what anything prints goes to stderr, not into the replies
-    reply: tuple[bool, object]
-    try:
-        init, args = inbox.recv()
-        state, reply = init(*args), (True, None)
-    except EOFError:
-        return
-    except BaseException as error:
-        state, reply = None, (False, _portable(error))
-    outbox.send(reply)
+    state: object = None
+    started = False
     while True:
         try:
-            job, args = inbox.recv()
-        except EOFError:
+            fn, args = inbox.recv()
+        except (EOFError, OSError):
             return
+        reply: tuple[bool, object]
         try:
-            reply = (True, job(state, *args))
+            if started:  # a job
+                reply = (True, fn(state, *args))
+            else:  # the first message: what every job gets (an OpenCL context)
+                state, reply = fn(*args), (True, None)
         except BaseException as error:
             reply = (False, _portable(error))
-        outbox.send(reply)
+        started = True
+        try:
+            outbox.send(reply)
+        except OSError:  # the parent is gone
+            return
 
 
 def _portable(error: BaseException) -> object:
@@ -293,16 +297,40 @@ def empty_mosaic(shape: tuple[int, int]) -> dict[str, np.ndarray]:
             "occupied": np.zeros(shape, bool), "thin": np.zeros(shape, bool)}
 
 
-def add_to_mosaic(maps: dict[str, np.ndarray], r: Any, row0: int, col0: int) -> None:
-    """Add the maps of room result ``r`` into the scene's ``maps`` where the room's grid
-    sits (from ``row0``, ``col0``): votes and filtered values added, occupied and thin
-    cells or-ed."""
-    ny, nx = r.raw.shape
-    window = (slice(row0, row0 + ny), slice(col0, col0 + nx))
-    maps["raw"][window] += r.raw
-    maps["filtered"][window] += r.filtered
-    maps["occupied"][window] |= r.occupied
-    maps["thin"][window] |= r.thin
+#: The maps of a room result, in the order :func:`sparse_maps` gives them.
+MAPS = ("raw", "filtered", "occupied", "thin")
+
+#: A room's maps as :func:`sparse_maps` gives them: the grid's shape, and for each map the
+#: flat indices of its non-zero cells and their values.
+Sparse = tuple[tuple[int, int], list[tuple[np.ndarray, np.ndarray]]]
+
+
+def sparse_maps(r: Any) -> Sparse:
+    """The maps of room result ``r`` (:data:`MAPS`) by their non-zero cells only (2–3 % of a
+    room's cells: what a worker sends back, a tenth of the dense maps' bytes)."""
+    parts = []
+    for name in MAPS:
+        a = getattr(r, name)
+        cells = np.flatnonzero(a)
+        parts.append((cells, a.reshape(-1)[cells]))
+    return r.raw.shape, parts
+
+
+def add_to_mosaic(maps: dict[str, np.ndarray], found: Sparse, row0: int, col0: int) -> None:
+    """Add a room's maps (:func:`sparse_maps`) into the scene's ``maps`` where the room's
+    grid sits (from ``row0``, ``col0``): votes and filtered values added, occupied and thin
+    cells or-ed, cell by cell as the dense maps would be (``m + v`` in the type NumPy
+    gives a map and a room's values, stored in the map's). Only the non-zero cells: adding
+    ±0 leaves every mosaic cell as it is (no cell is ever −0: it starts at +0, and +0 + −0
+    and x + (−x) are +0), and or-ing False leaves it as it is."""
+    (_, nx), parts = found
+    for name, (cells, values) in zip(MAPS, parts, strict=True):
+        rows, cols = np.divmod(cells, nx)
+        where = (rows + row0, cols + col0)
+        if values.dtype == np.bool_:
+            maps[name][where] |= values
+        else:
+            maps[name][where] += values
 
 
 def without_maps(r: Any) -> Any:
@@ -348,6 +376,6 @@ def _stack(tables: list, first: np.ndarray, kind) -> dict[str, np.ndarray]:
     return columns
 
 
-__all__ = ["MAX_WORKERS", "MIN_ROOMS", "MOSAIC_BYTES_PER_CELL", "WORKERS_ENV", "WORKER_BYTES",
-           "Workers", "add_to_mosaic", "device_spec", "empty_mosaic", "serve",
-           "side_by_side", "split", "without_maps", "worker_count"]
+__all__ = ["MAPS", "MAX_WORKERS", "MIN_ROOMS", "MOSAIC_BYTES_PER_CELL", "WORKERS_ENV",
+           "WORKER_BYTES", "Sparse", "Workers", "add_to_mosaic", "device_spec", "empty_mosaic",
+           "serve", "side_by_side", "sparse_maps", "split", "without_maps", "worker_count"]

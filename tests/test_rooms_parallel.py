@@ -170,3 +170,29 @@ def test_the_floor_tool_reports_its_workers_and_their_memory(small, monkeypatch)
     assert row.accuracy_m == small.metrics["accuracy_m"]["rms"]
     assert 0 < row.workers_peak_rss_mb and 0 < row.wall_s
     assert row.total_s == sum(row.seconds.values())
+
+
+def test_rooms_added_by_their_non_zero_cells_make_the_dense_sums_bit_for_bit():
+    """rooms.add_to_mosaic of sparse_maps against adding the dense maps: overlapping
+    rooms, float64 filtered values into the float32 mosaic, zeros of both signs."""
+    rng = np.random.default_rng(3)
+    dense, sparse = rooms.empty_mosaic((40, 50)), rooms.empty_mosaic((40, 50))
+    for row0, col0 in [(0, 0), (5, 7), (20, 30), (3, 2), (0, 0)]:
+        ny, nx = 20, 20
+        keep = rng.random((ny, nx)) < 0.3
+        filtered = np.where(keep, rng.normal(0, 1e3, (ny, nx)), rng.choice([0.0, -0.0], (ny, nx)))
+        room = type("Room", (), {
+            "raw": np.where(keep, rng.random((ny, nx)), 0).astype(np.float32),
+            "filtered": filtered, "occupied": keep & (rng.random((ny, nx)) < 0.5),
+            "thin": keep & (rng.random((ny, nx)) < 0.2)})
+        window = (slice(row0, row0 + ny), slice(col0, col0 + nx))
+        dense["raw"][window] += room.raw
+        dense["filtered"][window] += room.filtered
+        dense["occupied"][window] |= room.occupied
+        dense["thin"][window] |= room.thin
+        found = rooms.sparse_maps(room)
+        assert found[0] == (ny, nx) and len(found[1][1][0]) == np.count_nonzero(filtered)
+        rooms.add_to_mosaic(sparse, found, row0, col0)
+    for name in rooms.MAPS:
+        assert dense[name].dtype == sparse[name].dtype
+        assert dense[name].tobytes() == sparse[name].tobytes(), name
