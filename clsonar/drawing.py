@@ -7,24 +7,23 @@ idle. :func:`start` forks a worker process before the OpenCL context exists: it 
 (:meth:`PlotWorker.submit`: scene.png once the pipeline has the echoes,
 :class:`clsonar.outputs.EarlyPlots`; profile.png while the main process builds the data
 files and the map pictures), and sends back their PNG bytes (:meth:`PlotWorker.collect`),
-which the main process writes with every other file, as one folder. It saves time only
-where a core is idle: on a machine already busy, Linux shares a command's CPU between its
-processes, and the worker's time is the run's (docs/speed.md, 2026-11-27).
+which the main process writes with every other file, as one folder.
 
 A plot is a :data:`Job`: the name of a :mod:`clsonar.plots` function and its arguments,
 drawn by :func:`draw` in either process, so the worker's bytes are the in-process ones
 (matplotlib's Agg output depends only on its inputs, which are pickled exactly).
 
 When no worker can help, none is started and the caller draws in process as before: where
-``fork`` is not the platform's safe start method (Windows; macOS, whose system libraries
-are not fork-safe; spawning a fresh interpreter would import numpy and clsonar again), on
-one core, without matplotlib, or once pyopencl is imported or a Python thread runs (an
-OpenCL context starts PoCL's threads: a fork after it could copy a held lock). A worker that
-fails, dies or is silent past its time limit is stopped, and ``collect`` answers None: the
-caller draws in process. The worker never outlives its command: it is killed by
-:meth:`PlotWorker.close` (every exit path, as a context manager), exits on its own when
-the main process's end of the pipe closes (even after ``kill -9``), and ignores Ctrl-C,
-which the main process handles.
+no core is free at the start (:func:`core_free`: on a busy machine a worker takes its time
+from the run); where ``fork`` is not the platform's safe start method (Windows; macOS,
+whose system libraries are not fork-safe; spawning a fresh interpreter would import numpy
+and clsonar again); on one core; without matplotlib; once pyopencl is imported or a Python
+thread runs (an OpenCL context starts PoCL's threads: a fork after it could copy a held
+lock). A worker that fails, dies or is silent past its time limit is stopped, and
+``collect`` answers None: the caller draws in process. The worker never outlives its
+command: it is killed by :meth:`PlotWorker.close` (every exit path, as a context manager),
+exits on its own when the main process's end of the pipe closes (even after ``kill -9``),
+and ignores Ctrl-C, which the main process handles.
 """
 
 from __future__ import annotations
@@ -79,6 +78,13 @@ def time_limit(jobs: Mapping[str, Job]) -> float:
     return TIME_LIMIT_S + TIME_PER_MEGACELL_S * cells(jobs) / 1e6
 
 
+def _cores() -> int:
+    """The cores this process may run on."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0))
+    return os.cpu_count() or 1
+
+
 def fork_is_safe() -> bool:
     """Whether this process may fork a worker now: a platform whose ``fork`` is safe, two
     cores or more for it, no OpenCL context yet (pyopencl not even imported: PoCL starts
@@ -86,19 +92,38 @@ def fork_is_safe() -> bool:
     starts threads at import; OpenBLAS and MKL stop and restart them around a fork."""
     if not hasattr(os, "fork") or sys.platform == "darwin" or "pyopencl" in sys.modules:
         return False
-    cores = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
-    if (len(cores) if cores is not None else os.cpu_count() or 1) < 2:
+    if _cores() < 2:
         return False
     threading = sys.modules.get("threading")
     return threading is None or threading.active_count() == 1
 
 
-def start() -> PlotWorker | None:
+#: Where Linux says how many tasks are runnable now (``/proc/loadavg``'s fourth field).
+LOADAVG = "/proc/loadavg"
+
+
+def core_free() -> bool:
+    """Whether a core has nothing else to run at this moment: fewer runnable tasks on the
+    machine, this process included, than cores (:data:`LOADAVG`; True where it cannot be
+    read). On a busy machine Linux shares a command's CPU time between its processes: a
+    worker would take its time from the run instead of an idle core (docs/speed.md)."""
+    try:
+        with open(LOADAVG, encoding="ascii") as f:
+            running = int(f.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return True
+    return running < _cores()
+
+
+def start(*, if_busy: bool = False) -> PlotWorker | None:
     """A worker process importing :mod:`clsonar.plots`, or None where none can help
-    (:func:`fork_is_safe`, matplotlib installed)."""
+    (:func:`fork_is_safe`, a core free now unless ``if_busy``: :func:`core_free`,
+    matplotlib installed)."""
     import importlib.util
 
-    if not fork_is_safe() or importlib.util.find_spec("matplotlib") is None:
+    if not fork_is_safe() or not (if_busy or core_free()):
+        return None
+    if importlib.util.find_spec("matplotlib") is None:
         return None
     jobs_r, jobs_w = os.pipe()
     done_r, done_w = os.pipe()
@@ -311,5 +336,5 @@ class PlotWorker:
             self.pid = 0
 
 
-__all__ = ["MAX_CELLS", "Job", "PlotWorker", "cells", "draw", "fork_is_safe", "start",
-           "time_limit"]
+__all__ = ["LOADAVG", "MAX_CELLS", "Job", "PlotWorker", "cells", "core_free", "draw",
+           "fork_is_safe", "start", "time_limit"]

@@ -143,11 +143,12 @@ def profile_png(result: RunResult) -> bytes:
     return draw({"profile.png": plot_jobs(result)["profile.png"]})["profile.png"]
 
 
-def plot_worker(png: str) -> PlotWorker | None:
+def plot_worker(png: str, *, if_busy: bool = False) -> PlotWorker | None:
     """A worker drawing scene.png and profile.png on another core (:mod:`clsonar.drawing`)
-    where ``png`` asks for them and one can help; start it before the run's OpenCL
-    context exists, close it on every exit path (a context manager)."""
-    return drawing.start() if png == "all" else None
+    where ``png`` asks for them and one can help (a core free now, unless ``if_busy``);
+    start it before the run's OpenCL context exists, close it on every exit path (a
+    context manager)."""
+    return drawing.start(if_busy=if_busy) if png == "all" else None
 
 
 class EarlyPlots(StageCache):

@@ -58,11 +58,11 @@ def test_workers_draw_the_bytes_drawn_in_process_and_fall_back_when_they_fail():
 import json, signal, sys
 from clsonar import drawing, outputs, pipeline
 from clsonar.scene import load_scene
-workers = [drawing.start() for _ in range(4)]
+workers = [drawing.start(if_busy=True) for _ in range(4)]
 started = [w is not None for w in workers]
 forked = sorted(children()) == sorted(w.pid for w in workers)
 result = pipeline.run(load_scene({PLANE!r}))
-after_opencl = drawing.start() is None
+after_opencl = drawing.start(if_busy=True) is None
 jobs = outputs.plot_jobs(result)
 here = drawing.draw(jobs)
 good, killed, stopped, failing = workers
@@ -98,8 +98,9 @@ def test_a_run_with_a_worker_writes_the_in_process_files_and_leaves_no_process(t
 import json, sys
 from clsonar import cli, drawing, outputs, pipeline
 from clsonar.scene import load_scene
+drawing.core_free = lambda: True  # as on an idle machine
 started, start = [], drawing.start
-drawing.start = lambda: started.append(start()) or started[-1]
+drawing.start = lambda **k: started.append(start(**k)) or started[-1]
 def interrupted(*a, **k):
     raise KeyboardInterrupt
 pipeline.run, run = interrupted, pipeline.run
@@ -117,8 +118,8 @@ print(json.dumps({{"codes": codes, "left": left, "imported": imported,
 import json, os, signal
 from clsonar import cli, drawing
 start = drawing.start
-def killed():
-    worker = start()
+def killed(**k):
+    worker = start(if_busy=True)
     os.kill(worker.pid, signal.SIGKILL)
     return worker
 drawing.start = killed
@@ -147,7 +148,7 @@ print(json.dumps({{"codes": [code], "left": [children()]}}))
 def test_bad_input_starts_no_worker(tmp_path, capsys, monkeypatch):
     """A bad scene is one line and exit 2 before any worker starts; ``--png none`` and
     ``stages`` start none."""
-    monkeypatch.setattr(drawing, "start", lambda: pytest.fail("a worker was started"))
+    monkeypatch.setattr(drawing, "start", lambda **k: pytest.fail("a worker was started"))
     bad = tmp_path / "bad.json"
     bad.write_text('{"clsonar": 1, "extent": [0, 0, 1')
     assert main(["run", str(bad), "--out", str(tmp_path / "out")]) == 2
@@ -238,3 +239,56 @@ def test_the_phases_table_lists_the_worker_apart():
                         "| sum of the phases | 1.000 | |", "| **whole process** | **1.500** | |",
                         "| worker: matplotlib import (another core, during the phases) "
                         "| 0.500 | |"]
+
+
+def test_a_fork_that_fails_leaves_the_plots_to_this_process(monkeypatch):
+    """``os.fork`` failing (too many processes): no worker, the pipes closed, Ctrl-C
+    handled here again."""
+    import signal
+
+    opened = []
+    pipe = os.pipe
+
+    def recorded_pipe():
+        opened.extend(pipe())
+        return opened[-2:]
+
+    def no_fork():
+        raise BlockingIOError(11, "Resource temporarily unavailable")
+
+    monkeypatch.setattr(drawing, "fork_is_safe", lambda: True)
+    monkeypatch.setattr(os, "pipe", recorded_pipe)
+    monkeypatch.setattr(os, "fork", no_fork)
+    handler = signal.getsignal(signal.SIGINT)
+    assert drawing.start(if_busy=True) is None
+    assert signal.getsignal(signal.SIGINT) is handler
+    assert len(opened) == 4
+    for fd in opened:
+        with pytest.raises(OSError):
+            os.fstat(fd)
+
+
+@pytest.mark.parametrize("loadavg, free", [("0.52 0.40 0.31 1/119 4242\n", True),
+                                           ("6.09 5.52 5.35 7/119 4242\n", False),
+                                           ("2.00 2.00 2.00 2/119 4242\n", False),
+                                           (None, True), ("not a loadavg", True)])
+def test_a_worker_starts_only_where_a_core_is_free(tmp_path, monkeypatch, loadavg, free):
+    """On a busy machine (as many runnable tasks as cores, this one included) a worker
+    would take its time from the run: none is started, unless asked (``if_busy``), and the
+    plots are drawn in process."""
+    path = tmp_path / "loadavg"
+    if loadavg is not None:
+        path.write_text(loadavg)
+    monkeypatch.setattr(drawing, "LOADAVG", str(path))
+    monkeypatch.setattr(drawing, "_cores", lambda: 2)
+    assert drawing.core_free() is free
+    monkeypatch.setattr(drawing, "fork_is_safe", lambda: True)
+    forked = []
+
+    def fork():
+        forked.append(1)
+        raise OSError("not here")
+
+    monkeypatch.setattr(os, "fork", fork)
+    assert drawing.start() is None and len(forked) == (1 if free else 0)
+    assert drawing.start(if_busy=True) is None and len(forked) == (2 if free else 1)

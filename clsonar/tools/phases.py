@@ -8,10 +8,11 @@ processes, each timing its own phases, and prints each phase's shortest time, it
 their sum, and the shortest whole process. A phase is the wall time from the end of the one
 before; "interpreter start-up, ``import clsonar``" is what the process took before its first
 phase began (the parent's wall time less the phases). With ``--png all`` scene.png and
-profile.png are drawn as the command draws them, by a worker process on the other core
-(:mod:`clsonar.drawing`), whose own seconds are listed after the table: they overlap its
-phases; ``--no-worker`` draws them in the process, each a phase. Compare tables taken in
-one session: the machine's load moves every number.
+profile.png are drawn as the command draws them where a core is free, by a worker process
+on the other core (:mod:`clsonar.drawing`; here even on a busy machine), whose own
+seconds are listed after the table: they overlap its phases; ``--no-worker`` draws them
+in the process, each a phase. Compare tables taken in one session: the machine's load
+moves every number.
 """
 
 from __future__ import annotations
@@ -51,9 +52,10 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
     """The phases of one ``clsonar run scene_path --out out --png png``, in this process
     (which must not have imported the pipeline, the outputs or pyopencl yet).
 
-    With ``--png all`` the plots are drawn as the command draws them, by a worker process
-    on the other core (:mod:`clsonar.drawing`; ``worker=False`` or none available: here,
-    as before issue 16's worker): its fork is a phase, and so is the wait for its PNGs
+    With ``--png all`` the plots are drawn as the command draws them on an idle machine,
+    by a worker process on the other core (:mod:`clsonar.drawing`, started even where the
+    machine is busy; ``worker=False`` or none available: here, as before issue 16's
+    worker): its fork is a phase, and so is the wait for its PNGs
     once every other file is built; its own seconds (importing matplotlib, drawing each
     plot, while the phases run) are returned too, named ``worker: ...``, not phases."""
     clock = _Clock()
@@ -66,7 +68,7 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
 
     clock.mark("pipeline imports (scipy)")
     scene = load_scene(scene_path)
-    plotter = outputs.plot_worker(png) if worker else None
+    plotter = outputs.plot_worker(png, if_busy=True) if worker else None
     if plotter is not None:
         clock.mark("scene file read, plots' worker forked")
     with plotter or contextlib.nullcontext():
