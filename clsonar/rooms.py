@@ -123,8 +123,8 @@ _BOOT = ("import sys; sys.path.insert(0, sys.argv[1]); "
 
 class Workers:
     """``n`` worker processes, each holding ``init(*args)`` (an OpenCL context) for the
-    jobs :meth:`map` gives it. Closed by :meth:`close` (or leaving a ``with`` block):
-    after an error or a cancel every worker is killed."""
+    jobs :meth:`map` gives it. Closed by :meth:`close` (or leaving a ``with`` block,
+    whether by the end, an error or a cancel): every worker is killed."""
 
     def __init__(self, n: int, init: Callable[..., Any], *args: object) -> None:
         root = str(Path(__file__).resolve().parents[1])
@@ -143,7 +143,7 @@ class Workers:
                 proc.stdout.close()
                 self.conns[-1][0].send((init, args))  # the worker's reply: ready or why not
         except BaseException:
-            self.close(kill=True)
+            self.close()
             raise
 
     def __len__(self) -> int:
@@ -153,7 +153,7 @@ class Workers:
         return self
 
     def __exit__(self, kind, error, tb) -> None:
-        self.close(kill=kind is not None)
+        self.close()
 
     def map(self, job: Callable[..., Any], items: Sequence[object],
             ahead: int = 2) -> Iterator[Any]:
@@ -199,19 +199,16 @@ class Workers:
             raise ClsonarError(f"a worker process mapping rooms stopped (exit status {code}); "
                                f"set {WORKERS_ENV}=0 to map them in one process") from None
 
-    def close(self, kill: bool = False) -> None:
-        """End every worker: told to stop (killed with ``kill``), then waited for."""
-        for (outbox, inbox), proc in zip(self.conns, self.procs, strict=False):
+    def close(self) -> None:
+        """End every worker: killed (an idle one holds nothing to keep, and one stopped in
+        the middle of a room, by a cancel or an error, must not go on), then waited for."""
+        for outbox, inbox in self.conns:
             outbox.close()
             inbox.close()
-            if kill:
-                proc.kill()
         for proc in self.procs:
-            try:
-                proc.wait(timeout=None if kill else 10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
+            proc.kill()
+        for proc in self.procs:
+            proc.wait()
         self.procs, self.conns = [], []
 
 

@@ -161,11 +161,13 @@ def test_an_error_that_cannot_be_pickled_comes_back_as_its_type_and_one_line():
     assert type(back) is SceneError and str(back) == "room.json: surfaces[2].radius: must be > 0"
 
 
-def test_the_floor_tool_reports_its_workers_and_their_memory(small, monkeypatch):
-    from clsonar.tools.floors import run_floor
+def test_the_floor_tool_reports_its_workers_and_their_memory(small, one_by_one, monkeypatch):
+    from clsonar.tools.floors import result_digest, run_floor
 
     monkeypatch.setenv(rooms.WORKERS_ENV, "2")
-    row = run_floor(10.0)
+    row = run_floor(10.0, digest=True)
+    assert row.digest == result_digest(small) and len(row.digest) == 64
+    assert result_digest(one_by_one) != row.digest
     assert (row.rooms, row.workers, row.vertices_found) == (4, 2, "16/16")
     assert row.accuracy_m == small.metrics["accuracy_m"]["rms"]
     assert 0 < row.workers_peak_rss_mb and 0 < row.wall_s
@@ -196,3 +198,13 @@ def test_rooms_added_by_their_non_zero_cells_make_the_dense_sums_bit_for_bit():
     for name in rooms.MAPS:
         assert dense[name].dtype == sparse[name].dtype
         assert dense[name].tobytes() == sparse[name].tobytes(), name
+
+
+def test_a_worker_that_dies_is_one_line_naming_the_way_round():
+    import signal
+
+    with pytest.raises(ClsonarError) as e, rooms.Workers(1, os.getpid) as pool:
+        list(pool.map(os.kill, [signal.SIGKILL]))  # the worker kills itself
+    assert str(e.value) == ("a worker process mapping rooms stopped (exit status -9); set "
+                            "CLSONAR_ROOM_WORKERS=0 to map them in one process")
+    assert _children() == []

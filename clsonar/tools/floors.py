@@ -70,12 +70,38 @@ class FloorRow:
     #: largest one's peak memory (``peak_rss_mb`` is this process's own)
     workers: int = 0
     workers_peak_rss_mb: float = 0.0
+    #: :func:`result_digest` of the run (``--digest``; empty when not asked for)
+    digest: str = ""
 
 
-def run_floor(size_m: float, device: str | None = None) -> FloorRow:
+def result_digest(r) -> str:
+    """A sha256 of everything a run's result says but its seconds: the four maps, the
+    profile's curves and vertices, the transducers, every column of the echoes and the
+    detections, the metrics, counts and warnings (to show two runs the same to the bit)."""
+    import hashlib
+    import json
+
+    import numpy as np
+
+    h = hashlib.sha256()
+    arrays = [r.raw, r.filtered, r.occupied, r.thin, *r.profile.curves, r.profile.vertices,
+              r.sensors.positions, r.sensors.headings_deg, r.sensors.groups, r.sensors.poses]
+    arrays += [getattr(t, f.name) for t in (r.echoes, r.detections)
+               for f in dataclasses.fields(t)]
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.reshape(-1).view(np.uint8))
+    h.update(json.dumps([r.metrics, r.counts, list(r.warnings)], sort_keys=True,
+                        default=str).encode())
+    return h.hexdigest()
+
+
+def run_floor(size_m: float, device: str | None = None, digest: bool = False) -> FloorRow:
     """Build and map a floor of ``size_m`` in this process; report its peak memory (the
     whole process's high-water mark, interpreter and OpenCL runtime included) and the
-    largest worker process's (the rooms mapped side by side, :mod:`clsonar.rooms`)."""
+    largest worker process's (the rooms mapped side by side, :mod:`clsonar.rooms`), and
+    with ``digest`` the :func:`result_digest` of the run."""
     import resource
     import time
 
@@ -96,7 +122,8 @@ def run_floor(size_m: float, device: str | None = None) -> FloorRow:
                     r.raw.size * MOSAIC_BYTES_PER_CELL / 2**20, metric(m, "accuracy_m.rms"),
                     metric(m, "completeness.2cm"), metric(m, "vertices_found"), wall,
                     workers if workers > 1 else 0,
-                    resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0)
+                    resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024.0,
+                    result_digest(r) if digest else "")
 
 
 def bench_floor(size_m: float, device: str | None = None, timeout_s: float = 3600) -> FloorRow:
@@ -113,16 +140,18 @@ def bench_floor(size_m: float, device: str | None = None, timeout_s: float = 360
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m clsonar.tools.floors SIZE_M [--device D]``: map a floor, print its
-    :class:`FloorRow` as one JSON line."""
+    """``python -m clsonar.tools.floors SIZE_M [--device D] [--digest]``: map a floor,
+    print its :class:`FloorRow` as one JSON line."""
     import argparse
     import json
 
     parser = argparse.ArgumentParser(prog="python -m clsonar.tools.floors")
     parser.add_argument("size_m", type=float)
     parser.add_argument("--device")
+    parser.add_argument("--digest", action="store_true",
+                        help="also a sha256 of the maps, profile, tables, metrics and counts")
     args = parser.parse_args(argv)
-    print(json.dumps(dataclasses.asdict(run_floor(args.size_m, args.device))))
+    print(json.dumps(dataclasses.asdict(run_floor(args.size_m, args.device, args.digest))))
     return 0
 
 
@@ -130,4 +159,4 @@ if __name__ == "__main__":
     raise SystemExit(main())
 
 
-__all__ = ["FloorRow", "bench_floor", "floor_scene", "run_floor"]
+__all__ = ["FloorRow", "bench_floor", "floor_scene", "result_digest", "run_floor"]
