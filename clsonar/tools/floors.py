@@ -91,7 +91,7 @@ def result_digest(r) -> str:
     for a in arrays:
         a = np.ascontiguousarray(a)
         h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(a.reshape(-1).view(np.uint8))
+        h.update(memoryview(a.reshape(-1).view(np.uint8)))
     h.update(json.dumps([r.metrics, r.counts, list(r.warnings)], sort_keys=True,
                         default=str).encode())
     return h.hexdigest()
