@@ -11,7 +11,8 @@ into one sub-scene per room — its outline, the surfaces inside it, its transdu
 extent of the room's bounding box plus :data:`MARGIN_M`, on the floor's own cell grid — and
 the pipeline runs each one on its own (:func:`clsonar.pipeline.run`): the pairs across
 rooms, the walls of other rooms and the cells outside every room are never looked at, and
-host memory holds one room's stages at a time plus the floor's mosaic. :func:`combine_metrics`
+host memory holds one room's stages at a time in each worker process (:mod:`clsonar.rooms`,
+one per core) plus the floor's mosaic. :func:`combine_metrics`
 pools the rooms' metrics.
 """
 
