@@ -12,7 +12,9 @@ or not at all, and two runs writing the same DIR leave one run's outputs, never 
 The map stages' PNGs are drawn straight from the arrays (:mod:`clsonar.pictures`); the
 scene and profile plots need matplotlib (``clsonar[plots]``): :mod:`clsonar.plots` is
 imported only when they are drawn, so every other output is written without it
-(:func:`plots_available`).
+(:func:`plots_available`). ``clsonar run`` has them drawn by a worker process on a free
+core while the pipeline runs (:func:`plot_worker`, :mod:`clsonar.drawing`): the same
+bytes.
 """
 
 from __future__ import annotations
