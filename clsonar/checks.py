@@ -6,7 +6,7 @@ TEXT`` (exit status 0). Three are given:
 
 - the scene has a closed polyline inside another one and the file leaves its ``solid``
   unset: it is read as a solid obstacle (a box, a pillar) that reflects on its outside
-  (:func:`clsonar.geometry.solid_surfaces`), which the user may not have meant;
+  (:func:`clsonar.outlines.solid_surfaces`), which the user may not have meant;
 - a ``wall-following`` ring in a room never comes near the room's walls: its start was
   nearest an obstacle, which it circles instead (:func:`placement_warnings`);
 - the map is empty although echoes were detected: the surfaces heard lie outside the map's
@@ -20,7 +20,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .geometry import enclosing, in_the_open, inside_polygon, segment_distance, sensor_anchors
+from .geometry import segment_distance
+from .outlines import enclosing, in_the_open, inside_polygon, sensor_anchors
 from .scene import Polyline, Scene, WallFollowing
 
 

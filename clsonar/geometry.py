@@ -3,18 +3,20 @@
 From a :class:`~clsonar.scene.Scene`'s surfaces this builds flat arrays (float64):
 
 - **walls**: every segment of every polyline, with the unit normal of its *front* (free)
-  side. A closed polyline is a room: only its interior side reflects — or a solid obstacle
-  (a box, a pillar; :func:`solid_surfaces`): only its outside reflects. An open polyline is
-  a thin wall: both sides reflect (``two_sided``).
+  side. A closed polyline is a room: only its interior side reflects — or a solid
+  obstacle (a box, a pillar; :func:`~clsonar.outlines.solid_surfaces`): only its outside
+  reflects. An open polyline is a thin wall: both sides reflect (``two_sided``).
 - **vertices**: every polyline vertex, classified as seen from the left and from the right
   of the polyline's direction: ``corner`` (concave: the two walls enclose the observer,
   interior angle < 180°), ``edge`` (convex, > 180°), ``flat`` (collinear to 1e-9) or
-  ``end`` (free end of an open polyline: the wall is taken to continue beyond the map, so
-  no diffraction there); the outside of a room and the inside of a solid obstacle are
-  ``solid``.
+  ``end`` (free end of an open polyline); the outside of a room and the inside of a solid
+  obstacle are ``solid``.
 - **diffractors**: the vertices that a free side sees as a convex ``edge``; a point sees
   one when it is not strictly inside the *solid cone*, the convex angle between the two
-  walls at the vertex.
+  walls at the vertex. Also the free ends inside the map (:func:`free_ends`): a thin
+  wall's real end, a knife edge (its solid cone of angle 0, seen from everywhere); an end
+  on or beyond the map's border is taken to continue beyond the map and diffracts
+  nothing.
 - **corner pairs**: pairs of walls meeting at a vertex that a free side sees as a concave
   corner (multi-bounce between them is labelled ``corner``).
 - **corners**: those concave vertices with the unit normals of their two walls towards the
@@ -37,7 +39,8 @@ from functools import cached_property
 
 import numpy as np
 
-from .scene import Circle, Polyline, Scene, Sinusoid, Surface, WallFollowing
+from .outlines import sensor_anchors, solid_surfaces
+from .scene import Circle, Polyline, Scene, Sinusoid
 
 #: Vertex kind codes (see the module docstring).
 FLAT, CORNER, EDGE, END, SOLID = range(5)
@@ -125,7 +128,8 @@ def build_geometry(scene: Scene) -> Geometry:
     right = np.asarray(parts.vright, dtype=np.int8)
     corner_idx = np.flatnonzero((left == CORNER) | (right == CORNER))
     corners = _corners(walls, vertices, vertex_walls, left, corner_idx)
-    diff_idx = np.flatnonzero((left == EDGE) | (right == EDGE))
+    diff_idx = np.union1d(np.flatnonzero((left == EDGE) | (right == EDGE)),
+                          free_ends(scene.extent, walls, vertices, vertex_walls))
     circles = [(s.center[0], s.center[1], s.radius) for s in scene.surfaces
                if isinstance(s, Circle)]
     circle_surface = [i for i, s in enumerate(scene.surfaces) if isinstance(s, Circle)]
@@ -181,9 +185,34 @@ def _diffractors(walls: np.ndarray, vertices: np.ndarray, vertex_walls: np.ndarr
         a, b = vertex_walls[v]
         p = vertices[v]
         diffractors[row, :2] = p
-        diffractors[row, 2:4] = _unit(walls[a, :2] - p)
-        diffractors[row, 4:6] = _unit(walls[b, 2:] - p)
+        # a free end's one wall is both faces of its knife edge
+        diffractors[row, 2:4] = _unit(walls[a, :2] - p) if a >= 0 else _unit(walls[b, 2:] - p)
+        diffractors[row, 4:6] = _unit(walls[b, 2:] - p) if b >= 0 else diffractors[row, 2:4]
     return diffractors
+
+
+#: A free end this close to another wall (metres) is a junction, not an edge.
+JUNCTION_M = 1e-3
+
+
+def free_ends(extent: tuple[float, ...], walls: np.ndarray, vertices: np.ndarray,
+              vertex_walls: np.ndarray) -> np.ndarray:
+    """The free ends of open polylines that end inside the map: strictly inside
+    ``extent`` and farther than :data:`JUNCTION_M` from every other wall. Such an end is a
+    thin wall's real end, a knife edge (wedge index n = 2, :func:`~clsonar.physics.
+    wedge_angles`) that diffracts; an end on or beyond the map's border is taken to
+    continue beyond the map, and one on another wall (a partition's foot, a box drawn as
+    an open polyline back to its start) is a junction."""
+    ends = np.flatnonzero(np.any(vertex_walls < 0, axis=1))
+    x0, y0, x1, y1 = extent
+    p = vertices[ends]
+    ends = ends[(p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 1] > y0) & (p[:, 1] < y1)]
+    a, d = walls[:, :2], walls[:, 2:] - walls[:, :2]
+    q = vertices[ends][:, None]
+    t = np.clip(np.sum((q - a) * d, -1) / np.maximum(np.sum(d * d, -1), 1e-300), 0.0, 1.0)
+    apart = np.hypot(*(q - a - t[..., None] * d).transpose(2, 0, 1))
+    apart[np.arange(len(ends)), vertex_walls[ends].max(axis=1)] = np.inf  # its own wall
+    return ends[np.min(apart, axis=1, initial=np.inf) > JUNCTION_M]
 
 
 def _sinusoid_arrays(scene: Scene, n_walls: int) -> dict[str, np.ndarray]:
@@ -268,85 +297,6 @@ def _vertex_kinds(before: np.ndarray, at: np.ndarray, after: np.ndarray) -> tupl
     return (EDGE, CORNER) if turn < 0 else (EDGE, EDGE)
 
 
-def enclosing(surfaces: tuple[Surface, ...]) -> list[int | None]:
-    """For each surface, the index of a closed polyline that encloses it when it is itself a
-    closed polyline (every vertex inside or on that outline, the mean of its vertices
-    strictly inside), else None."""
-    outlines = {i: np.asarray(s.points, dtype=np.float64) for i, s in enumerate(surfaces)
-                if isinstance(s, Polyline) and s.closed}
-    out: list[int | None] = [None] * len(surfaces)
-    box = {j: [*(p.min(0) - 1e-9 * (1 + abs(p).max())), *(p.max(0) + 1e-9 * (1 + abs(p).max()))]
-           for j, p in outlines.items()}  # widened far beyond rounding: holds all inside
-    for i, pts in outlines.items():
-        mean = pts.mean(axis=0, keepdims=True)
-        x, y = mean[0]
-        for j, outer in outlines.items():  # a mean outside an outline's box is not inside it
-            if j != i and box[j][0] <= x <= box[j][2] and box[j][1] <= y <= box[j][3] \
-                    and bool(inside_polygon(outer, mean)[0]) \
-                    and not bool(on_outline(outer, mean)[0]) \
-                    and bool(np.all(inside_polygon(outer, pts) | on_outline(outer, pts))):
-                out[i] = j
-                break
-    return out
-
-
-def sensor_anchors(scene: Scene) -> np.ndarray | None:
-    """[k, 2] where ``scene``'s transducers are known to stand before they are placed: the
-    explicit transducers and each ``random-lines`` start or ``circular`` centre; None where
-    a placement's may be anywhere (``random-lines`` without a start) or scans a room's
-    walls (``per-wall``, ``wall-following``: a start outside every room is a mistake the
-    placement names)."""
-    points = [t.position for t in scene.sensors.transducers]
-    for p in (scene.sensors.placement, *scene.sensors.placements):
-        if p is None:
-            continue
-        anchor = getattr(p, "start", None) or getattr(p, "center", None)
-        if anchor is None or isinstance(p, WallFollowing):
-            return None
-        points.append(anchor)
-    return np.asarray(points, dtype=np.float64).reshape(-1, 2)
-
-
-def in_the_open(surfaces: tuple[Surface, ...], anchors: np.ndarray | None) -> bool:
-    """Whether transducers at ``anchors`` (:func:`sensor_anchors`) all stand outside every
-    closed polyline not marked solid: an open scene, whose closed polylines are objects
-    (boxes, pillars) since a room around none of them would echo to no one."""
-    if anchors is None or len(anchors) == 0:
-        return False
-    for s in surfaces:
-        if isinstance(s, Polyline) and s.closed and s.solid is not True:
-            poly = np.asarray(s.points, dtype=np.float64)
-            if np.any(inside_polygon(poly, anchors) | on_outline(poly, anchors)):
-                return False
-    return True
-
-
-def solid_surfaces(surfaces: tuple[Surface, ...], anchors: np.ndarray | None = None
-                   ) -> tuple[bool, ...]:
-    """Which surfaces are closed polylines read as solid obstacles (free space outside,
-    walls reflecting outwards): those whose ``solid`` says so, and, where ``solid`` is null
-    (automatic), those enclosed by another closed polyline (:func:`enclosing`) — a box or a
-    pillar drawn inside a room — and every one in an open scene (:func:`in_the_open`,
-    transducers at ``anchors``)."""
-    inside = enclosing(surfaces)
-    open_scene = in_the_open(surfaces, anchors)
-    return tuple(isinstance(s, Polyline) and s.closed
-                 and (s.solid if s.solid is not None
-                      else (inside[i] is not None or open_scene))
-                 for i, s in enumerate(surfaces))
-
-
-def on_outline(poly: np.ndarray, p: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """[M] bool: ``p`` [M, 2] within ``tol`` (relative to the outline's largest coordinate,
-    at least 1 m) of the closed outline ``poly`` [K, 2]."""
-    tol *= max(1.0, float(np.abs(poly).max()))
-    a = poly[None, :, :]
-    ab = np.roll(poly, -1, axis=0)[None, :, :] - a
-    t = np.clip(np.sum((p[:, None] - a) * ab, -1) / np.sum(ab * ab, -1), 0.0, 1.0)
-    gap = p[:, None] - (a + t[..., None] * ab)
-    return np.any(np.hypot(gap[..., 0], gap[..., 1]) <= tol, axis=1)
-
-
 def _signed_area(pts: np.ndarray) -> float:
     x, y = pts[:, 0], pts[:, 1]
     return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
@@ -403,17 +353,6 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def norm(a: np.ndarray) -> np.ndarray:
     """Lengths of 2-D vectors ``a`` [..., 2]."""
     return np.sqrt(dot(a, a))
-
-
-def inside_polygon(poly: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Even-odd rule: [M] bool, ``p`` [M, 2] strictly inside the closed polygon [K, 2]."""
-    a = poly[None, :, :]
-    b = np.roll(poly, -1, axis=0)[None, :, :]
-    x, y = p[:, None, 0], p[:, None, 1]
-    straddle = (a[..., 1] > y) != (b[..., 1] > y)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        xc = a[..., 0] + (y - a[..., 1]) * (b[..., 0] - a[..., 0]) / (b[..., 1] - a[..., 1])
-    return (np.count_nonzero(straddle & (x < xc), axis=1) % 2) == 1
 
 
 #: Point-to-segment distances :func:`nearest_surface_point` computes at once (each of its

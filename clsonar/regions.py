@@ -5,7 +5,7 @@ Sound does not pass a wall: a transducer inside a closed polyline (a room, thesi
 hears only that room's walls and what stands inside it, and no pair of transducers in two
 different rooms has an echo. When every placement and explicit transducer of a scene lies
 in one of several closed rooms (none inside another; a closed polyline read as a solid
-obstacle, :func:`clsonar.geometry.solid_surfaces`, is not a room but a surface of the room
+obstacle, :func:`clsonar.outlines.solid_surfaces`, is not a room but a surface of the room
 around it), :func:`split_rooms` cuts the scene
 into one sub-scene per room — its outline, the surfaces inside it, its transducers, and an
 extent of the room's bounding box plus :data:`MARGIN_M`, on the floor's own cell grid — and
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .geometry import inside_polygon, sensor_anchors, solid_surfaces
+from .outlines import inside_polygon, sensor_anchors, solid_surfaces
 from .scene import (
     Circle,
     Circular,

@@ -28,7 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from .geometry import Geometry, build_geometry, inside_polygon, nearest_surface_point
+from .geometry import Geometry, build_geometry, nearest_surface_point
+from .outlines import inside_polygon
 from .scene import Polyline, Scene, WallFollowing
 from .sensors import SensorArray, square_to_walls
 

@@ -266,7 +266,7 @@ BOX_TRANSDUCERS = [
 
 @pytest.mark.parametrize("box", [BOX, BOX[::-1]], ids=["ccw", "cw"])
 def test_a_box_inside_a_room_reflects_on_its_outside(box):
-    """A closed polyline inside the room is a solid box (geometry.solid_surfaces): its
+    """A closed polyline inside the room is a solid box (outlines.solid_surfaces): its
     faces echo towards the outside, its vertices diffract as edges, it hides the wall
     behind it; kernels equal the float64 reference. As a room ("solid": false) its outside
     is silent."""
@@ -455,6 +455,31 @@ def test_convex_edge_returns_a_diffraction_echo_from_its_vertex(implementation, 
     assert table.phase[i] == pytest.approx(phase, abs=1e-5)
     assert edge_model == "estimate" or table.phase[i] == pytest.approx(-math.pi / 4, abs=0.02)
     assert np.all(table.phase[table.kind_names() != "edge"] == 0.0)
+
+
+@pytest.mark.parametrize("implementation", ["reference", "float64", "float32"])
+def test_a_thin_wall_s_free_end_inside_the_map_diffracts_as_a_half_plane(implementation):
+    """A wall from beyond the map's border to (3, 2) inside it: its end is a knife edge
+    (geometry.free_ends: n = 2, both faces along the wall); a transducer past the end, up
+    and to the right, hears its diffraction alone (its foot on the wall's line is past the
+    end: no specular echo), with the uniform theory's gain, in every implementation."""
+    end = (3.0, 2.0)
+    wall = Polyline(((-5.0, 2.0), end))
+    at = (4.2, 3.0)
+    heading = math.degrees(math.atan2(end[1] - at[1], end[0] - at[0]))
+    scene = make_scene([wall], [(*at, heading, 0)], extent=(0.0, 0.0, 5.0, 4.0))
+    table = (reference_echoes(scene) if implementation == "reference"
+             else kernel(scene, implementation))
+    assert table.kind_names().tolist() == ["edge"]
+    np.testing.assert_allclose(table.point[0], end, rtol=0, atol=1e-6)
+    d = math.dist(at, end)
+    t = scene.transducer
+    k = physics.wavenumber(t.frequency_hz, scene.medium.c)
+    # φ from the wall's upper face (along −x) through the free region: 180° − 39.8°
+    phi = math.pi - math.atan2(at[1] - end[1], at[0] - end[0])
+    gain = physics.edge_gain(d, d, phi, phi, 2.0, k, 1.0)
+    assert table.amplitude[0] == pytest.approx(t.amplitude * gain, rel=1e-4)
+    assert table.tof_s[0] == pytest.approx(2 * d / scene.medium.c, rel=1e-6)
 
 
 # --------------------------------------------------------------------------- sinusoids

@@ -114,6 +114,38 @@ def test_a_wall_ends_halfway_between_its_last_echo_and_the_first_silent_pair():
     assert abs(end - top) < 0.005 and end > 3.0 + 0.01
 
 
+@pytest.mark.parametrize("top,array", [(2.9, (2.9, 16, 0.05)), (3.0, (2.9, 10, 0.1)),
+                                       (2.95, (2.9, 20, 0.03))])
+def test_a_wall_ending_inside_the_map_is_drawn_to_its_end(top, array):
+    """A thin wall's end inside the map is a knife edge (geometry.free_ends) that
+    diffracts: the pairs whose reflection points would lie past it hear half a mirror's
+    echo on its reflection boundary and less beyond, so the wall is drawn to its end
+    within 2 mm. Without that diffraction (an end that gave no echo) these walls were drawn
+    0.4-2.4 cm past their ends, to halfway to the first silent pair."""
+    pts = _wall_run(top, [array])
+    assert abs(float(pts[:, 1].max()) - top) < 0.002
+    assert np.abs(pts[:, 0] - 8.0).max() < 1e-3
+
+
+def test_a_face_ends_where_its_echo_falls_to_half_a_rigid_mirror_s():
+    """The edge's diffraction carries no reflection coefficient ρ (docs/physics.md), so on
+    the reflection boundary it is half a rigid mirror's echo, 0.5/ρ of the walls' mirror
+    echo that the pairs' echoes are measured against (patches.edge_share): the zoo's seed
+    2 corner-06, a thin wall's free end at 8 m, was drawn 6 cm past its end with 0.5."""
+    from clsonar.mapping.patches import _end, edge_share
+    from clsonar.scene import EchoModel
+
+    assert edge_share(Scene("s", (0, 0, 1, 1), echo=EchoModel(reflection_coefficient=0.9))) \
+        == pytest.approx(0.5 / 0.9)
+    assert edge_share(Scene("s", (0, 0, 1, 1), echo=EchoModel(reflection_coefficient=0.4))) \
+        == 1.0
+    along = np.array([-0.05, 0.0, 0.035, 0.071, 0.106])
+    ratio = np.array([1.0, 0.68, 0.55, 0.51, 0.48])  # that wall's: its end at 0.033
+    loud = np.array([True, True, False, False, False])
+    assert _end(along, ratio, loud, True, True, 0.5 / 0.9) == pytest.approx(0.0334, abs=5e-4)
+    assert _end(along, ratio, loud, True, True) == pytest.approx(0.0827, abs=5e-4)
+
+
 def test_a_face_ends_where_its_echo_falls_to_half_a_mirror_s():
     """patches._end: past a face's last echo the pairs' echoes at its path, over a
     mirror's, fall to a half on its edge (the uniform theory): the face ends where they

@@ -54,7 +54,8 @@ BOX = ((2.0, 2.0), (4.0, 2.0), (4.0, 3.0), (2.0, 3.0))
 def test_a_closed_polyline_inside_a_room_is_a_solid_box(box):
     """Nested outlines are obstacles: their walls face outwards, their vertices are edges
     seen from outside (diffractors) and true vertices; ``solid`` overrides either way."""
-    from clsonar.geometry import solid_surfaces, true_vertices
+    from clsonar.geometry import true_vertices
+    from clsonar.outlines import solid_surfaces
 
     room = Polyline(((0, 0), (6, 0), (6, 5), (0, 5)), closed=True)
     g = _geom(room, Polyline(box, closed=True))
@@ -85,7 +86,9 @@ def test_open_polyline_vertices_from_both_sides():
     assert g.wall_two_sided.all()
     assert g.vertex_left.tolist() == [END, CORNER, END]
     assert g.vertex_right.tolist() == [END, EDGE, END]
-    assert len(g.diffractors) == 1  # seen as an edge from behind
+    # seen as an edge from behind, and the free end (5, 0) inside the map a knife edge;
+    # (5, 10) is on the map's border
+    assert [tuple(v) for v in g.diffractors[:, :2]] == [(5.0, 0.0), (10.0, 5.0)]
     met = meet_at_corner(g, np.array([0, 1, 0]), np.array([1, 0, 0]))
     assert met.tolist() == [True, True, False]
 
@@ -93,7 +96,9 @@ def test_open_polyline_vertices_from_both_sides():
 def test_collinear_vertex_is_flat():
     g = _geom(Polyline(((0, 0), (1, 0), (2, 0))))
     assert g.vertex_left[1] == FLAT and g.vertex_right[1] == FLAT
-    assert len(g.diffractors) == 0 and len(g.corner_walls) == 0
+    # the flat joint diffracts nothing (the two free ends inside the map do)
+    assert [tuple(v) for v in g.diffractors[:, :2]] == [(0.0, 0.0), (2.0, 0.0)]
+    assert len(g.corner_walls) == 0
 
 
 def test_sinusoid_sampling_density_and_analytic_curve():
@@ -138,3 +143,32 @@ def test_corner_normals_point_into_the_concave_side():
         assert np.dot(inside, g.corners[0, 2:4]) > 0 and np.dot(inside, g.corners[0, 4:6]) > 0
     room = _geom(Polyline(L_ROOM, closed=True))
     assert len(room.corners) == 5
+
+
+def test_a_free_end_inside_the_map_is_a_knife_edge_and_one_beyond_it_continues():
+    """Issue 18: a thin wall ending inside the map ends there and diffracts as a half-plane
+    (both faces of its solid cone along the wall: n = 2); an end on or beyond the map's
+    border is taken to continue, and an end on another wall is a junction."""
+    from clsonar import physics
+    from clsonar.geometry import free_ends
+
+    g = _geom(Polyline(((-20, 0), (2, 0)), closed=False))  # ends at x = -20 (off the map), 2
+    assert g.diffractors.shape == (1, 6)
+    assert g.diffractors[0].tolist() == [2.0, 0.0, -1.0, 0.0, -1.0, 0.0]
+    assert g.vertex_left[g.diffractor_vertex[0]] == END  # still a free end to the mapping
+    phi, n = physics.wedge_angles(np.array([2.0, 1.0]), g.diffractors[0, :2],
+                                  g.diffractors[0, 2:4], g.diffractors[0, 4:6])
+    assert float(n) == 2.0 and float(phi) == pytest.approx(math.pi / 2)
+    # an end on the border, and the foot of a partition on a room's wall: no edges
+    on_border = _geom(Polyline(((-10, 0), (2, 0)), closed=False))
+    assert [tuple(v) for v in on_border.diffractors[:, :2]] == [(2.0, 0.0)]
+    room = Polyline(((-5, -5), (5, -5), (5, 5), (-5, 5)), closed=True)
+    partition = Polyline(((0, -5), (0, 1)), closed=False)
+    g = _geom(room, partition)
+    assert [tuple(v) for v in g.diffractors[:, :2]] == [(0.0, 1.0)]
+    # a box drawn as an open polyline back to its start: its two ends meet, a junction
+    # (its three other corners diffract as convex edges, as before)
+    box = Polyline(((1, 1), (2, 1), (2, 2), (1, 2), (1, 1)), closed=False)
+    g = _geom(box)
+    ends = free_ends((-10, -10, 10, 10), g.walls, g.vertices, g.vertex_walls)
+    assert len(ends) == 0 and len(g.diffractors) == 3

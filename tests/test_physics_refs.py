@@ -13,8 +13,8 @@ from clsonar.tools import physics_check as pc
 RANGES = (0.3, 2.0, 10.0)
 
 
-@pytest.mark.parametrize("kind", ["plane", "corner", "edge", "boundary", "cylinder",
-                                  "sinusoid"])
+@pytest.mark.parametrize("kind", ["plane", "corner", "edge", "knife", "boundary",
+                                  "cylinder", "sinusoid"])
 def test_echo_amplitudes_are_within_1_db_of_the_exact_references(kind):
     rows = list(pc.KINDS[kind](ranges=RANGES + ((1.0, 1.5) if kind == "sinusoid" else ())))
     held = [r for r in rows if not r.note]

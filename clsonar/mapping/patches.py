@@ -211,7 +211,7 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard
             q, along = _tangent(p, end, T[side], R[side], u[side])
         else:
             along = (u[side] - end) * sign * scale  # arc length
-        stop = _end(along, ratio[side], loud[side], gauged, p.straight)
+        stop = _end(along, ratio[side], loud[side], gauged, p.straight, edge_share(scene))
         if stop == 0 or math.isinf(stop):
             ends.append(end + sign * stop)
         elif line:
@@ -250,8 +250,16 @@ def _tangent(p: Patch, end: float, T: np.ndarray, R: np.ndarray, u: np.ndarray
     return q, np.where(inside, np.minimum(along, 0.0), along)
 
 
+def edge_share(scene: Scene) -> float:
+    """A face's echo with its reflection point on its edge, over the mirror's echo of the
+    scene's walls (:func:`mirror_echo`, ρ·A0): half a rigid mirror's
+    (:data:`~.strength.EDGE_SHARE`; the diffraction carries no ρ, docs/physics.md), so
+    EDGE_SHARE/ρ of a wall's, at most 1."""
+    return min(EDGE_SHARE / scene.echo.reflection_coefficient, 1.0)
+
+
 def _end(along: np.ndarray, ratio: np.ndarray, loud: np.ndarray, gauged: bool,
-         halfway: bool) -> float:
+         halfway: bool, share_at_edge: float = EDGE_SHARE) -> float:
     """How far beyond its last reflection point (``along`` 0; the pairs ``along`` their
     reflection points' distances away from it, the patch's own at 0 or less) a surface
     ends, from whether the pairs heard it as strongly as its echo is (``loud``) and their
@@ -274,11 +282,11 @@ def _end(along: np.ndarray, ratio: np.ndarray, loud: np.ndarray, gauged: bool,
         return 0.0
     prev = int(silent[0]) - 1  # the last heard: one of the patch's own at the latest
     for k in range(int(silent[0]), len(along)):
-        if ratio[k] < EDGE_SHARE:
+        if ratio[k] < share_at_edge:
             if ratio[k] <= 0 and not halfway:
                 return max(float(along[prev]), 0.0)
             drop = float(ratio[prev] - ratio[k])
-            share = (float(ratio[prev]) - EDGE_SHARE) / drop if drop > 0 else 0.5
+            share = (float(ratio[prev]) - share_at_edge) / drop if drop > 0 else 0.5
             return max(float(along[prev] + min(max(share, 0.0), 1.0)
                              * (along[k] - along[prev])), 0.0)
         prev = k
@@ -291,7 +299,7 @@ def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.
     (q, T, axT, R, axR): the strongest echo within :data:`HEARD_TOL_M` of the path over a
     mirror's there (0: none; :func:`_echo_share`), and whether it is as strong as the
     surface's echo (:func:`_least_echo`)."""
-    amplitude, near = _loudest(heard, pairs, path)
+    amplitude, near = loudest(heard, pairs, path)
     share = _echo_share(p, beams)
     mirror = mirror_echo(scene) * (1.0 if share is None else share) * two_way(*beams, ka)
     ratio = np.where(near, amplitude / np.maximum(mirror, 1e-300), 0.0)
@@ -358,13 +366,13 @@ def _listeners(p: Patch, sensors: SensorArray) -> Iterator[tuple[bool, np.ndarra
     curved wall's local shape, which another array's pairs, seeing the wall elsewhere,
     would not hear)."""
     group = sensors.groups[int(p.tx[0])]
-    for pairs in _group_pairs(sensors, group):
+    for pairs in group_pairs(sensors, group):
         yield True, pairs
     if not p.straight:
         return
     for other in np.unique(sensors.groups):
         if other != group:
-            for pairs in _group_pairs(sensors, other):
+            for pairs in group_pairs(sensors, other):
                 yield False, pairs
 
 
@@ -372,7 +380,7 @@ def _listeners(p: Patch, sensors: SensorArray) -> Iterator[tuple[bool, np.ndarra
 SILENCE_PAIRS = 1 << 18
 
 
-def _group_pairs(sensors: SensorArray, group: int) -> Iterator[np.ndarray]:
+def group_pairs(sensors: SensorArray, group: int) -> Iterator[np.ndarray]:
     """[p, 2] the pairs (T ≤ R) of ``group``, about :data:`SILENCE_PAIRS` at a time."""
     members = np.flatnonzero(sensors.groups == group)
     n = len(members)
@@ -415,7 +423,7 @@ def amplitude_noise(scene: Scene) -> float:
 
 @dataclass(frozen=True)
 class Heard:
-    """The detections by pair (either direction), sorted once for :func:`_loudest`:
+    """The detections by pair (either direction), sorted once for :func:`loudest`:
     ``key`` = min(T, R)·base + max(T, R), their path c·τ and amplitude."""
 
     base: int
@@ -432,7 +440,7 @@ def heard_index(loci: Loci, sensors: SensorArray, c: float) -> Heard:
     return Heard(base, key[order], c * loci.tof_s[order], loci.amplitude[order])
 
 
-def _loudest(heard: Heard, pairs: np.ndarray, path: np.ndarray
+def loudest(heard: Heard, pairs: np.ndarray, path: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray]:
     """``(amplitude, near)``: the strongest of each pair's detections (either direction;
     ``pairs`` T ≤ R) within :data:`HEARD_TOL_M` of ``path``, and whether it has one."""

@@ -38,7 +38,7 @@ class Polyline:
     """Flat walls through ``points``; ``closed`` makes it a room whose interior is free space,
     or, with ``solid``, an obstacle (a box, a pillar) whose outside is free space. ``solid``
     None is automatic: a closed polyline inside another closed one is solid
-    (:func:`clsonar.geometry.solid_surfaces`)."""
+    (:func:`clsonar.outlines.solid_surfaces`)."""
 
     points: tuple[Point, ...]
     closed: bool = False

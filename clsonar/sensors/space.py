@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from ..errors import SceneError
-from ..geometry import Geometry, inside_polygon, ray_distance
+from ..geometry import Geometry, ray_distance
+from ..outlines import inside_polygon
 from ..scene import Polyline, Scene
 
 #: What a placement returns: ``(positions [n, 2], headings_deg [n], groups [n] int64 from 0,

@@ -10,6 +10,8 @@ amplitude of the echo of that kind compared with the reference of
 - ``corner``: the image method's double bounce of a rigid right-angled corner, which is the
   exact solution of a 90° wedge (its diffraction terms cancel, ν = 2);
 - ``edge``: the Biot–Tolstoy–Medwin solution of a rigid 90° box corner, for the pulse;
+- ``knife``: the same solution for a thin wall's free end inside the map (a half-plane,
+  n = 2: geometry.free_ends);
 - ``boundary``: the same box corner seen within 3° of a face's reflection boundary, where
   the face's specular echo and the edge's diffraction arrive together and interfere:
   clsonar's received signal (both echoes, each with its carrier phase, detected) against
@@ -176,6 +178,25 @@ def edge_rows(ranges=RANGES, angles=EDGE_ANGLES, edge_model: str = "utd") -> Ite
             yield Row("edge", f"φ {phi:g}°", d, got, want)
 
 
+#: Angles of the knife-edge rows: 90° and 270° are the reflection boundaries of the wall's
+#: two sides; at 180° (end-on) a half-plane's monostatic diffraction vanishes.
+KNIFE_ANGLES = (5.0, 45.0, 85.0, 89.0, 91.0, 95.0, 135.0, 225.0, 265.0, 269.0, 271.0, 355.0)
+
+
+def knife_rows(ranges=RANGES, angles=KNIFE_ANGLES) -> Iterator[Row]:
+    """A thin wall's free end inside the map (the wall along −x from the origin, both of
+    its sides reflecting: a rigid half-plane, n = 2) seen monostatically at angle φ from
+    its upper side through the free region."""
+    wall = [{"type": "polyline", "points": [[-10.0, 0.0], [0.0, 0.0]]}]
+    for d in ranges:
+        for phi in angles:
+            t = _polar(d, 180.0 - phi)
+            scene = _scene(wall, [(t, np.zeros(2))])
+            got = model_gain(scene, "edge")
+            want = ref.btm_edge_gain(t, t, np.zeros(2), _FACE_A, _FACE_A, **_wave(scene))
+            yield Row("knife", f"φ {phi:g}°", d, got, want)
+
+
 #: Angles of the boundary rows: within 3° of face a's reflection boundary (90°), where the
 #: face's specular echo arrives within about a pulse of the edge's at every range.
 BOUNDARY_ANGLES = (87.0, 89.0, 89.7, 90.3, 91.0, 93.0)
@@ -240,7 +261,7 @@ def _caustic_note(name: str, d: float) -> str:
 
 
 KINDS: dict[str, Callable[..., Iterator[Row]]] = {
-    "plane": plane_rows, "corner": corner_rows, "edge": edge_rows,
+    "plane": plane_rows, "corner": corner_rows, "edge": edge_rows, "knife": knife_rows,
     "boundary": boundary_rows, "cylinder": cylinder_rows, "sinusoid": sinusoid_rows,
 }
 

@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from ...geometry import inside_polygon, segment_distance
+from ...geometry import segment_distance
+from ...outlines import inside_polygon
 from .draft import Draft
 from .shapes import inset, l_shape, rect, ring_transducers, t_shape, u_shape
 from .shapes import walk as walk_loop
