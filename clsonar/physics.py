@@ -210,7 +210,8 @@ def wedge_angles(x: np.ndarray, v: np.ndarray, va: np.ndarray, vb: np.ndarray
 
 
 def edge_diffraction(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarray,
-                     n: np.ndarray, k: float, coefficient: float) -> np.ndarray:
+                     n: np.ndarray, k: float, coefficient: float, rho: float = 1.0
+                     ) -> np.ndarray:
     """Complex echo diffracted by a rigid convex edge relative to a flat mirror at the same
     path length: the uniform theory of diffraction (Kouyoumjian & Pathak, Proc. IEEE
     62(11), 1974, eqs. 25–27 and 32; time dependence e^{+iωt}) for a spherical wave, edge
@@ -232,15 +233,18 @@ def edge_diffraction(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: n
     the cotangents). On a face's reflection boundary the singular term's q is ±n, f = g =
     1/2 and G = ∓1/2, real: −1/2 on the lit side, where the face's specular echo (+1) adds
     to it to half a mirror's, +1/2 on the shadow side, where it is the whole echo; so the
-    sign of G flips across the boundary and the total is continuous. ``coefficient``
-    (scene key ``echo.edge_coefficient``, default 1) scales it; the 2-D scene's edges are
-    infinitely long.
+    sign of G flips across the boundary and the total is continuous. Faces that reflect
+    ``rho`` of the sound (``echo.reflection_coefficient``) weight the two reflection-boundary
+    terms (β = φ_R + φ_T) by it (Luebbers, IEEE Trans. AP-32(1), 1984), so the total stays
+    continuous: ρ/2 on the boundary from either side, where the face's specular echo is ρ.
+    ``coefficient`` (scene key ``echo.edge_coefficient``, default 1) scales it; the 2-D
+    scene's edges are infinitely long.
     """
     d1 = np.asarray(d1, dtype=np.float64)
     d2 = np.asarray(d2, dtype=np.float64)
     kl = k * d1 * d2 / (d1 + d2)
     total = np.zeros(np.broadcast(d1, d2, phi_t, phi_r, n).shape, dtype=np.complex128)
-    for sign_b in (-1.0, 1.0):
+    for sign_b, weight in ((-1.0, 1.0), (1.0, rho)):
         beta = phi_r + sign_b * phi_t
         for x in (math.pi + beta, math.pi - beta):
             eps = x - 2.0 * math.pi * n * np.floor(x / (2.0 * math.pi * n) + 0.5)
@@ -249,26 +253,26 @@ def edge_diffraction(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: n
             tiny = np.abs(sn) < 1e-12
             q = np.where(tiny, n, np.cos(eps / (2.0 * n)) * half / np.where(tiny, 1.0, sn))
             f, g = fresnel_auxiliary(2.0 * half * np.sqrt(kl / math.pi))
-            total = total + q * (f + 1j * g)
+            total = total + weight * q * (f + 1j * g)
     return -coefficient * np.exp(-0.25j * math.pi) * total / (n * math.sqrt(2.0))
 
 
 def edge_gain(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarray,
-              n: np.ndarray, k: float, coefficient: float) -> np.ndarray:
+              n: np.ndarray, k: float, coefficient: float, rho: float = 1.0) -> np.ndarray:
     """Echo amplitude diffracted by a rigid convex edge relative to a flat mirror at the
     same path length, ``|G|`` of :func:`edge_diffraction` (Kouyoumjian & Pathak 1974):
     Keller's GTD far from the boundaries, 1/2 on them. Its phase is :func:`edge_phase`."""
-    return np.abs(edge_diffraction(d1, d2, phi_t, phi_r, n, k, coefficient))
+    return np.abs(edge_diffraction(d1, d2, phi_t, phi_r, n, k, coefficient, rho))
 
 
 def edge_phase(d1: np.ndarray, d2: np.ndarray, phi_t: np.ndarray, phi_r: np.ndarray,
-               n: np.ndarray, k: float) -> np.ndarray:
+               n: np.ndarray, k: float, rho: float = 1.0) -> np.ndarray:
     """The diffracted echo's carrier phase against a mirror's at the same path, radians in
     (−π, π]: ``arg G`` of :func:`edge_diffraction` (time dependence e^{+iωt}), so that the
     echo is ``|G|·env(u)·sin(ωu + arg G)`` where a mirror's is ``env(u)·sin(ωu)``
     (:func:`pulse`; the narrow-band pulse's analytic signal times G). −π/4 or 3π/4 far from
     the boundaries, 0 or π on a reflection boundary (π on its lit side)."""
-    return np.angle(edge_diffraction(d1, d2, phi_t, phi_r, n, k, 1.0))
+    return np.angle(edge_diffraction(d1, d2, phi_t, phi_r, n, k, 1.0, rho))
 
 
 def absorption_factor(path_m: np.ndarray, absorption_db_per_m: float) -> np.ndarray:

@@ -219,7 +219,7 @@ inline real2 edge_term(real x, real n, real kl) {
     return (real2)(q * f, q * g);
 }
 
-// G = D/sqrt(L) of a hard wedge (physics.edge_diffraction, time dependence e^{+iωt}) as
+// G = D/sqrt(L) of a wedge (physics.edge_diffraction, time dependence e^{+iωt}) as
 // (Re G, Im G): −e^{−iπ/4}·(Σ of the four terms)/(n·sqrt 2), times edge_coefficient; with
 // echo.edge_model "estimate", (coefficient·sqrt((d1+d2)/(d1·d2))/(2·sqrt(2πk)), 0).
 inline real2 edge_diffraction(real2 T, real2 R_, real2 V, real2 va, real2 vb, real d1,
@@ -232,8 +232,10 @@ inline real2 edge_diffraction(real2 T, real2 R_, real2 V, real2 va, real2 vb, re
     real n = (R(2.0) * M_PI_R - atan2(fabs(cab), dot2(va, vb))) / M_PI_R;
     real pt = wedge_angle(T, V, va, s), pr = wedge_angle(R_, V, va, s);
     real kl = k[K_WAVENUMBER] * d1 * d2 / (d1 + d2);
+    // the reflection-boundary terms (φ_R + φ_T) weighted by the faces' ρ (Luebbers 1984)
     real2 sum = edge_term(M_PI_R + (pr - pt), n, kl) + edge_term(M_PI_R - (pr - pt), n, kl)
-              + edge_term(M_PI_R + (pr + pt), n, kl) + edge_term(M_PI_R - (pr + pt), n, kl);
+              + k[K_RHO] * (edge_term(M_PI_R + (pr + pt), n, kl)
+                            + edge_term(M_PI_R - (pr + pt), n, kl));
     // −e^{−iπ/4}·(x + iy) = (−(x + y) + i·(x − y))/sqrt 2
     real scale = k[K_EDGE] / (R(2.0) * n);
     return (real2)(-(sum.x + sum.y) * scale, (sum.x - sum.y) * scale);

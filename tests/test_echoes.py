@@ -447,11 +447,12 @@ def test_convex_edge_returns_a_diffraction_echo_from_its_vertex(implementation, 
     # 90° + (180° − 141.8°) from the lower face, measured through the free region
     phi = math.radians(90.0 + 180.0 - math.degrees(math.atan2(1.1, -1.4)))
     k = physics.wavenumber(t.frequency_hz, scene.medium.c)
-    gain = (physics.edge_gain(d, d, phi, phi, 1.5, k, 1.0) if edge_model == "utd"
+    rho = scene.echo.reflection_coefficient  # weights the reflection-boundary terms
+    gain = (physics.edge_gain(d, d, phi, phi, 1.5, k, 1.0, rho) if edge_model == "utd"
             else physics.edge_gain_estimate(d, d, k, 1.0))
     assert table.amplitude[i] == pytest.approx(t.amplitude * b * b * gain, rel=1e-5)
     # the uniform theory's phase far from the boundaries: Keller's −π/4 (the estimate: none)
-    phase = physics.edge_phase(d, d, phi, phi, 1.5, k) if edge_model == "utd" else 0.0
+    phase = physics.edge_phase(d, d, phi, phi, 1.5, k, rho) if edge_model == "utd" else 0.0
     assert table.phase[i] == pytest.approx(phase, abs=1e-5)
     assert edge_model == "estimate" or table.phase[i] == pytest.approx(-math.pi / 4, abs=0.02)
     assert np.all(table.phase[table.kind_names() != "edge"] == 0.0)
@@ -477,7 +478,7 @@ def test_a_thin_wall_s_free_end_inside_the_map_diffracts_as_a_half_plane(impleme
     k = physics.wavenumber(t.frequency_hz, scene.medium.c)
     # φ from the wall's upper face (along −x) through the free region: 180° − 39.8°
     phi = math.pi - math.atan2(at[1] - end[1], at[0] - end[0])
-    gain = physics.edge_gain(d, d, phi, phi, 2.0, k, 1.0)
+    gain = physics.edge_gain(d, d, phi, phi, 2.0, k, 1.0, scene.echo.reflection_coefficient)
     assert table.amplitude[0] == pytest.approx(t.amplitude * gain, rel=1e-4)
     assert table.tof_s[0] == pytest.approx(2 * d / scene.medium.c, rel=1e-6)
 

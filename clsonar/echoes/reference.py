@@ -262,7 +262,7 @@ def _ref_edge(pb: EchoProblem, pr: np.ndarray) -> tuple[np.ndarray, ...]:
         phi_t, n = physics.wedge_angles(T, V, va, vb)
         phi_r, _ = physics.wedge_angles(R, V, va, vb)
         g = physics.edge_diffraction(d1, d2, phi_t, phi_r, n, pb.wavenumber,
-                                     pb.edge_coefficient)
+                                     pb.edge_coefficient, pb.rho)
         gain, phase = np.abs(g), np.angle(g)
     else:
         gain = physics.edge_gain_estimate(d1, d2, pb.wavenumber, pb.edge_coefficient)

@@ -211,7 +211,7 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard
             q, along = _tangent(p, end, T[side], R[side], u[side])
         else:
             along = (u[side] - end) * sign * scale  # arc length
-        stop = _end(along, ratio[side], loud[side], gauged, p.straight, edge_share(scene))
+        stop = _end(along, ratio[side], loud[side], gauged, p.straight)
         if stop == 0 or math.isinf(stop):
             ends.append(end + sign * stop)
         elif line:
@@ -250,16 +250,8 @@ def _tangent(p: Patch, end: float, T: np.ndarray, R: np.ndarray, u: np.ndarray
     return q, np.where(inside, np.minimum(along, 0.0), along)
 
 
-def edge_share(scene: Scene) -> float:
-    """A face's echo with its reflection point on its edge, over the mirror's echo of the
-    scene's walls (:func:`mirror_echo`, ρ·A0): half a rigid mirror's
-    (:data:`~.strength.EDGE_SHARE`; the diffraction carries no ρ, docs/physics.md), so
-    EDGE_SHARE/ρ of a wall's, at most 1."""
-    return min(EDGE_SHARE / scene.echo.reflection_coefficient, 1.0)
-
-
 def _end(along: np.ndarray, ratio: np.ndarray, loud: np.ndarray, gauged: bool,
-         halfway: bool, share_at_edge: float = EDGE_SHARE) -> float:
+         halfway: bool) -> float:
     """How far beyond its last reflection point (``along`` 0; the pairs ``along`` their
     reflection points' distances away from it, the patch's own at 0 or less) a surface
     ends, from whether the pairs heard it as strongly as its echo is (``loud``) and their
@@ -282,11 +274,11 @@ def _end(along: np.ndarray, ratio: np.ndarray, loud: np.ndarray, gauged: bool,
         return 0.0
     prev = int(silent[0]) - 1  # the last heard: one of the patch's own at the latest
     for k in range(int(silent[0]), len(along)):
-        if ratio[k] < share_at_edge:
+        if ratio[k] < EDGE_SHARE:
             if ratio[k] <= 0 and not halfway:
                 return max(float(along[prev]), 0.0)
             drop = float(ratio[prev] - ratio[k])
-            share = (float(ratio[prev]) - share_at_edge) / drop if drop > 0 else 0.5
+            share = (float(ratio[prev]) - EDGE_SHARE) / drop if drop > 0 else 0.5
             return max(float(along[prev] + min(max(share, 0.0), 1.0)
                              * (along[k] - along[prev])), 0.0)
         prev = k

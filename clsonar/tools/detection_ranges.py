@@ -65,10 +65,13 @@ def kinds() -> list[Kind]:
     bisector = np.full(1, 0.75 * math.pi)  # a 90° box corner seen along its bisector
 
     def utd(d: np.ndarray) -> np.ndarray:
-        return mirror * physics.edge_gain(d, d, bisector, bisector, np.full(1, 1.5), k, 1.0)
+        # the diffraction carries no ρ of its own: the faces' ρ weights its terms
+        return mirror / rho * physics.edge_gain(d, d, bisector, bisector, np.full(1, 1.5), k,
+                                                1.0, rho)
 
     def estimate(d: np.ndarray) -> np.ndarray:
-        return mirror * physics.edge_gain_estimate(d, d, k, EchoModel().edge_coefficient)
+        return mirror / rho * physics.edge_gain_estimate(d, d, k,
+                                                         EchoModel().edge_coefficient)
 
     def circle(radius: float) -> Callable[[np.ndarray], np.ndarray]:
         return lambda d: mirror * physics.curved_gain(d, d, np.full(1, 1.0 / radius),
