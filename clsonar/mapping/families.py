@@ -509,10 +509,14 @@ def shadowed(w: Window, families: list[Family], rows: np.ndarray,
              resolution: float) -> np.ndarray:
     """Which ``rows`` lie within ``resolution`` (the pulse's, c·σ) of the path a family
     predicts for their pair: echoes of that reflector that an overlapping echo distorted
-    (or another reflector's that no detector could have told from it)."""
+    (or another reflector's that no detector could have told from it) — but not a
+    detection :data:`POINT_SPREAD` times stronger than every echo of the family, which so
+    weak an echo barely shifts (a corner's double bounce beside a wall end's diffraction)."""
     out = np.zeros(len(rows), dtype=bool)
     for f in families:
-        out |= np.abs(predict(f, w.T[rows], w.R[rows]) - w.paths[rows]) <= resolution
+        loudest = POINT_SPREAD * float(np.max(f.window.amplitude[f.rows]))
+        out |= (np.abs(predict(f, w.T[rows], w.R[rows]) - w.paths[rows]) <= resolution) \
+            & (w.amplitude[rows] <= loudest)
     return out
 
 
