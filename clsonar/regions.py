@@ -58,7 +58,7 @@ def _boxes(rooms: list[Polyline]
            ) -> tuple[list[np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """The rooms' outlines, and each one's bounding box ``(lo [n, 2], hi [n, 2])``,
     widened by 10⁻⁹ of the largest coordinate (far beyond rounding): a point outside an
-    outline's box is not strictly inside it (:func:`~clsonar.geometry.inside_polygon`: a
+    outline's box is not strictly inside it (:func:`~clsonar.outlines.inside_polygon`: a
     line through it crosses the outline nowhere, or an even number of times), so only the
     outlines whose box holds a point need the exact test — the same answers, without
     testing the point against every room of a floor."""

@@ -93,8 +93,8 @@ def test_placements_round_trip_and_bad_placements_name_their_key():
 
 
 def _enclosing_every_pair(surfaces):
-    """geometry.enclosing as it was, every outline tried for every one (the reference)."""
-    from clsonar.geometry import inside_polygon, on_outline
+    """outlines.enclosing as it was, every outline tried for every one (the reference)."""
+    from clsonar.outlines import inside_polygon, on_outline
     from clsonar.scene import Polyline
 
     outlines = {i: np.asarray(s.points, dtype=np.float64) for i, s in enumerate(surfaces)
@@ -112,10 +112,10 @@ def _enclosing_every_pair(surfaces):
 
 
 def test_only_outlines_whose_box_holds_a_point_are_tried_with_the_same_answers():
-    """geometry.enclosing and the rooms' lookup (regions._boxes, _holding) try only the
+    """outlines.enclosing and the rooms' lookup (regions._boxes, _holding) try only the
     outlines whose widened box holds the point: the same answers as trying every one, for
     outlines nested, touching, sharing edges and a hair apart (random, seeded)."""
-    from clsonar.geometry import enclosing, inside_polygon
+    from clsonar.outlines import enclosing, inside_polygon
     from clsonar.regions import _boxes, _holding
     from clsonar.scene import Polyline
 
