@@ -17,12 +17,27 @@ from clsonar.scene import scene_from_dict
 from clsonar.tools.floors import floor_scene
 
 
-def _children() -> list[int]:
-    """The processes this one started and has not yet waited for."""
-    found = []
+def _all_children() -> set[int]:
+    found: set[int] = set()
     for task in Path(f"/proc/{os.getpid()}/task").iterdir():
-        found += [int(p) for p in (task / "children").read_text().split()]
+        found |= {int(p) for p in (task / "children").read_text().split()}
     return found
+
+
+_EARLIER: set[int] = set()
+
+
+@pytest.fixture(autouse=True)
+def _earlier_children():
+    """The children earlier tests of the session left (a dask cluster's, a plot worker's
+    not yet waited for): not this test's."""
+    _EARLIER.clear()
+    _EARLIER.update(_all_children())
+
+
+def _children() -> list[int]:
+    """The processes this test started and has not yet waited for."""
+    return sorted(_all_children() - _EARLIER)
 
 
 def _same(a, b) -> None:
