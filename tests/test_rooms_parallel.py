@@ -4,6 +4,7 @@ run and leaves no process behind; a worker's error comes back as the same one li
 
 import dataclasses
 import os
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -158,10 +159,13 @@ def test_the_device_is_named_for_the_workers():
 
 
 class _Odd(Exception):
-    """An error whose pickle cannot make it again (its constructor needs two values)."""
+    """An error that cannot be pickled: it holds a lock (its constructor also needs two
+    values, which a pickle of its one message cannot give again — unless, as in the whole
+    suite after dask's tblib is installed, exceptions pickle by their attributes)."""
 
     def __init__(self, a: int, b: int) -> None:
         super().__init__(f"odd {a} {b}")
+        self.lock = threading.Lock()
 
 
 def test_an_error_that_cannot_be_pickled_comes_back_as_its_type_and_one_line():
