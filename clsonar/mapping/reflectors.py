@@ -204,8 +204,12 @@ def corners_heard(families: list[Family], sensors: SensorArray, loci: Loci, scen
     alone (they part by L²/(4r): 0.15 mm for elements 5.6 cm apart at 4.8 m, as much as
     a weak echo overlapping a detection shifts it): docs/reproduce's edge at 3 m, seed 0,
     a face's three echoes named a corner 0.56 m from the edge, which 3 of the 55 pairs
-    that would have heard it did."""
-    corners = [k for k, f in enumerate(families) if f.kind == "corner"]
+    that would have heard it did. Noise-free detections only: with noise the naming
+    already takes a plane that explains the echoes within their noise
+    (:func:`~.families.outside_allowed`), and a noisy sinusoid's trough named a corner was
+    drawn as a plane across it (docs/reproduce's Fig 3.20 at σ 1.2: 0.40 → 0.49 cm)."""
+    corners = [k for k, f in enumerate(families)
+               if f.kind == "corner" and f.window.noise_std == 0]
     if not corners:
         return families
     heard = heard_index(loci, sensors, scene.medium.c)
