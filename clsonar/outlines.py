@@ -21,19 +21,38 @@ def enclosing(surfaces: tuple[Surface, ...]) -> list[int | None]:
     outlines = {i: np.asarray(s.points, dtype=np.float64) for i, s in enumerate(surfaces)
                 if isinstance(s, Polyline) and s.closed}
     out: list[int | None] = [None] * len(surfaces)
-    box = {j: [*(p.min(0) - 1e-9 * (1 + abs(p).max())), *(p.max(0) + 1e-9 * (1 + abs(p).max()))]
-           for j, p in outlines.items()}  # widened far beyond rounding: holds all inside
+    index = list(outlines)
+    boxes = outline_boxes([outlines[j] for j in index])
     for i, pts in outlines.items():
         mean = pts.mean(axis=0, keepdims=True)
-        x, y = mean[0]
-        for j, outer in outlines.items():  # a mean outside an outline's box is not inside it
-            if j != i and box[j][0] <= x <= box[j][2] and box[j][1] <= y <= box[j][3] \
-                    and bool(inside_polygon(outer, mean)[0]) \
+        for j in (index[k] for k in holding(boxes, mean[0])):
+            outer = outlines[j]
+            if j != i and bool(inside_polygon(outer, mean)[0]) \
                     and not bool(on_outline(outer, mean)[0]) \
                     and bool(np.all(inside_polygon(outer, pts) | on_outline(outer, pts))):
                 out[i] = j
                 break
     return out
+
+
+def outline_boxes(polys: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Each outline's bounding box ``(lo [n, 2], hi [n, 2])``, widened by 10⁻⁹ of the
+    largest coordinate (far beyond rounding): a point outside an outline's box is not
+    strictly inside it (:func:`inside_polygon`: a line through it crosses the outline
+    nowhere, or an even number of times), so only the outlines whose box holds a point
+    (:func:`holding`) need the exact test — the same answers, without testing the point
+    against every room of a floor."""
+    lo = np.array([p.min(axis=0) for p in polys]).reshape(-1, 2)
+    hi = np.array([p.max(axis=0) for p in polys]).reshape(-1, 2)
+    widen = 1e-9 * (1.0 + float(np.abs(np.concatenate([lo, hi])).max(initial=0.0)))
+    return lo - widen, hi + widen
+
+
+def holding(boxes: tuple[np.ndarray, np.ndarray], point) -> np.ndarray:
+    """The indices, ascending, of the outlines whose box (:func:`outline_boxes`) holds
+    ``point``."""
+    p = np.asarray(point, dtype=np.float64).reshape(2)
+    return np.flatnonzero(np.all((boxes[0] <= p) & (p <= boxes[1]), axis=1))
 
 
 def sensor_anchors(scene: Scene) -> np.ndarray | None:

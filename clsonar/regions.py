@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .outlines import inside_polygon, sensor_anchors, solid_surfaces
+from .outlines import holding, inside_polygon, outline_boxes, sensor_anchors, solid_surfaces
 from .scene import (
     Circle,
     Circular,
@@ -52,27 +52,6 @@ class Region:
 
 def _inside(poly: np.ndarray, p: np.ndarray) -> np.ndarray:
     return inside_polygon(poly, np.asarray(p, dtype=np.float64).reshape(-1, 2))
-
-
-def _boxes(rooms: list[Polyline]
-           ) -> tuple[list[np.ndarray], tuple[np.ndarray, np.ndarray]]:
-    """The rooms' outlines, and each one's bounding box ``(lo [n, 2], hi [n, 2])``,
-    widened by 10⁻⁹ of the largest coordinate (far beyond rounding): a point outside an
-    outline's box is not strictly inside it (:func:`~clsonar.outlines.inside_polygon`: a
-    line through it crosses the outline nowhere, or an even number of times), so only the
-    outlines whose box holds a point need the exact test — the same answers, without
-    testing the point against every room of a floor."""
-    polys = [np.asarray(r.points, dtype=np.float64) for r in rooms]
-    lo = np.array([p.min(axis=0) for p in polys]).reshape(-1, 2)
-    hi = np.array([p.max(axis=0) for p in polys]).reshape(-1, 2)
-    widen = 1e-9 * (1.0 + float(np.abs(np.concatenate([lo, hi])).max(initial=0.0)))
-    return polys, (lo - widen, hi + widen)
-
-
-def _holding(boxes: tuple[np.ndarray, np.ndarray], point) -> np.ndarray:
-    """The indices, ascending, of the outlines whose box (:func:`_boxes`) holds ``point``."""
-    p = np.asarray(point, dtype=np.float64).reshape(2)
-    return np.flatnonzero(np.all((boxes[0] <= p) & (p <= boxes[1]), axis=1))
 
 
 def _anchor(item) -> tuple[float, float] | None:
@@ -104,13 +83,13 @@ def split_rooms(scene: Scene) -> list[Region] | None:
                   if p is not None]
     if len(rooms) < 2 or any(isinstance(p, PerWall) for p in placements):
         return None
-    polys, boxes = _boxes(rooms)
+    boxes = outline_boxes(polys := [np.asarray(r.points, dtype=np.float64) for r in rooms])
     if any(i != j and _inside(polys[j], a[:1])[0]  # a room inside another
-           for i, a in enumerate(polys) for j in _holding(boxes, a[0])):
+           for i, a in enumerate(polys) for j in holding(boxes, a[0])):
         return None
 
     def room_of(point) -> int | None:
-        hits = [int(i) for i in _holding(boxes, point) if _inside(polys[i], point)[0]]
+        hits = [int(i) for i in holding(boxes, point) if _inside(polys[i], point)[0]]
         return hits[0] if len(hits) == 1 else None
 
     surfaces: list[list] = [[r] for r in rooms]

@@ -112,11 +112,10 @@ def _enclosing_every_pair(surfaces):
 
 
 def test_only_outlines_whose_box_holds_a_point_are_tried_with_the_same_answers():
-    """outlines.enclosing and the rooms' lookup (regions._boxes, _holding) try only the
+    """outlines.enclosing and the rooms' lookup (outlines.outline_boxes, holding) try only the
     outlines whose widened box holds the point: the same answers as trying every one, for
     outlines nested, touching, sharing edges and a hair apart (random, seeded)."""
-    from clsonar.outlines import enclosing, inside_polygon
-    from clsonar.regions import _boxes, _holding
+    from clsonar.outlines import enclosing, holding, inside_polygon, outline_boxes
     from clsonar.scene import Polyline
 
     rng = np.random.default_rng(7)
@@ -132,9 +131,10 @@ def test_only_outlines_whose_box_holds_a_point_are_tried_with_the_same_answers()
             pts = c + r * np.column_stack([np.cos(a), np.sin(a)])
             shapes.append(Polyline(tuple(map(tuple, pts.tolist())), closed=True))
         assert enclosing(tuple(shapes)) == _enclosing_every_pair(tuple(shapes))
-        polys, boxes = _boxes(shapes)
+        polys = [np.asarray(s.points, dtype=np.float64) for s in shapes]
+        boxes = outline_boxes(polys)
         for p in [v for s in shapes for v in s.points] + rng.uniform(-1, 4, (30, 2)).tolist():
-            held = set(_holding(boxes, p).tolist())
+            held = set(holding(boxes, p).tolist())
             inside = {i for i, poly in enumerate(polys) if inside_polygon(poly, np.array([p]))[0]}
             assert inside <= held
     floor = floor_scene(size_m=20.0)
