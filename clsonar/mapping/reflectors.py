@@ -227,15 +227,14 @@ def _heard_share(f: Family, sensors: SensorArray, loci: Loci, heard, ka: float) 
     (:func:`corners_heard`) and have a detection at its path (1 where none would)."""
     w, rows, v = f.window, f.rows, f.params[:2]
     own = _corner_gain(f.params, w.T[rows], w.axT[rows], w.R[rows], w.axR[rows], ka)
-    seen = np.concatenate([np.arctan2(*(w.T[rows] - v).T[::-1]),
-                           np.arctan2(*(w.R[rows] - v).T[::-1])])
+    seen = np.concatenate([_bearing(w.T[rows], v), _bearing(w.R[rows], v)])
     share, total = 0.0, 0
     for g in np.unique(sensors.groups[loci.tx[f.loci]]):
         for pairs in group_pairs(sensors, int(g)):
             T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
             near = np.ones(len(pairs), dtype=bool)
             for X in (T, R):
-                turn = np.angle(np.exp(1j * (np.arctan2(*(X - v).T[::-1])[:, None] - seen)))
+                turn = np.angle(np.exp(1j * (_bearing(X, v)[:, None] - seen)))
                 near &= np.min(np.abs(turn), axis=1) <= CORNER_APERTURE_RAD
             axT, axR = sensors.axes[pairs[:, 0]], sensors.axes[pairs[:, 1]]
             near &= _corner_gain(f.params, T, axT, R, axR, ka) >= own.min() * (1 - 1e-9)
@@ -243,6 +242,11 @@ def _heard_share(f: Family, sensors: SensorArray, loci: Loci, heard, ka: float) 
             share += float(np.count_nonzero(loudest(heard, pairs[near], path)[1]))
             total += int(np.count_nonzero(near))
     return share / total if total else 1.0
+
+
+def _bearing(X: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The directions (radians) from ``v`` to the points ``X`` [n, 2]."""
+    return np.arctan2(X[:, 1] - v[1], X[:, 0] - v[0])
 
 
 def _corner_gain(params: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
@@ -321,12 +325,9 @@ def near_vertex(w: Window, vertex: Family, rows: np.ndarray, resolution: float
 def _seen(w: Window, kind: str, params: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """The detections ``rows``' amplitudes over their two-way beams towards the vertex of
     ``params`` (for a corner, along the double bounce's legs)."""
-    T, R = w.T[rows], w.R[rows]
-    if kind == "corner":
-        at_t, at_r = corner_images(params, T, R)
-    else:
-        at_t = at_r = np.broadcast_to(params[:2], T.shape)
-    gain = two_way(at_t, T, w.axT[rows], R, w.axR[rows], w.ka, at_r)
+    T, axT, R, axR = w.T[rows], w.axT[rows], w.R[rows], w.axR[rows]
+    gain = (_corner_gain(params, T, axT, R, axR, w.ka) if kind == "corner"
+            else two_way(np.broadcast_to(params[:2], T.shape), T, axT, R, axR, w.ka))
     return w.amplitude[rows] / np.maximum(gain, 1e-3)
 
 
