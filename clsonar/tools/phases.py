@@ -76,7 +76,7 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
     write_folder(outputs.check_out(out), files, outputs.OUTPUT_NAMES)
     clock.mark("writing the files")
     return {**clock.phases,
-            **{f"worker: {k}": v for k, v in (plotter.seconds if plotter else {}).items()}}
+            **{f"{WORKER}{k}": v for k, v in (plotter.seconds if plotter else {}).items()}}
 
 
 def _run_and_write(scene, png: str, out: str, plotter, clock: _Clock) -> dict[str, bytes]:

@@ -168,14 +168,23 @@ EDGE_ANGLES = (5.0, 45.0, 85.0, 89.0, 91.0, 95.0, 135.0, 175.0, 185.0, 225.0, 26
 def edge_rows(ranges=RANGES, angles=EDGE_ANGLES, edge_model: str = "utd") -> Iterator[Row]:
     """A rigid box corner (a 270° free wedge, n = 1.5) seen monostatically at angle φ from
     face a through the free region (90° and 180°: the faces' reflection boundaries)."""
-    box = [{"type": "polyline", "points": [[-10.0, 0.0], [0.0, 0.0], [0.0, -10.0]]}]
+    box = [[-10.0, 0.0], [0.0, 0.0], [0.0, -10.0]]
+    return _wedge_rows("edge", box, _FACE_B, ranges, angles, edge_model)
+
+
+def _wedge_rows(kind: str, points: list[list[float]], face_b: np.ndarray, ranges, angles,
+                edge_model: str = "utd") -> Iterator[Row]:
+    """The diffraction of the vertex at the origin of the polyline ``points`` (face a along
+    −x, face b along ``face_b``) seen monostatically at angle φ from face a, against the
+    BTM solution, as rows of ``kind``."""
+    wall = [{"type": "polyline", "points": points}]
     for d in ranges:
         for phi in angles:
             t = _polar(d, 180.0 - phi)  # face a points to 180°, φ grows clockwise
-            scene = _scene(box, [(t, np.zeros(2))], edge_model)
+            scene = _scene(wall, [(t, np.zeros(2))], edge_model)
             got = model_gain(scene, "edge")
-            want = ref.btm_edge_gain(t, t, np.zeros(2), _FACE_A, _FACE_B, **_wave(scene))
-            yield Row("edge", f"φ {phi:g}°", d, got, want)
+            want = ref.btm_edge_gain(t, t, np.zeros(2), _FACE_A, face_b, **_wave(scene))
+            yield Row(kind, f"φ {phi:g}°", d, got, want)
 
 
 #: Angles of the knife-edge rows: 90° and 270° are the reflection boundaries of the wall's
@@ -187,14 +196,7 @@ def knife_rows(ranges=RANGES, angles=KNIFE_ANGLES) -> Iterator[Row]:
     """A thin wall's free end inside the map (the wall along −x from the origin, both of
     its sides reflecting: a rigid half-plane, n = 2) seen monostatically at angle φ from
     its upper side through the free region."""
-    wall = [{"type": "polyline", "points": [[-10.0, 0.0], [0.0, 0.0]]}]
-    for d in ranges:
-        for phi in angles:
-            t = _polar(d, 180.0 - phi)
-            scene = _scene(wall, [(t, np.zeros(2))])
-            got = model_gain(scene, "edge")
-            want = ref.btm_edge_gain(t, t, np.zeros(2), _FACE_A, _FACE_A, **_wave(scene))
-            yield Row("knife", f"φ {phi:g}°", d, got, want)
+    return _wedge_rows("knife", [[-10.0, 0.0], [0.0, 0.0]], _FACE_A, ranges, angles)
 
 
 #: Angles of the boundary rows: within 3° of face a's reflection boundary (90°), where the
