@@ -404,6 +404,14 @@ class SurfaceSets:
         return cls(a, ab, ab2, walls, circles, rings)
 
     @cached_property
+    def columns(self) -> tuple[np.ndarray, ...]:
+        """The segments' ``(ax, ay, abx, aby, ab2)`` and the circles' ``(cx, cy, r)``,
+        each [B, O or C, 1] (:func:`nearest_xy`)."""
+        return tuple(np.ascontiguousarray(v[..., None]) for v in (
+            self.a[..., 0], self.a[..., 1], self.ab[..., 0], self.ab[..., 1], self.ab2,
+            *self.circles.transpose(2, 0, 1)))
+
+    @cached_property
     def kinds(self) -> tuple[bool, bool, bool, bool]:
         """``(any wall, some scene's walls padded, any circle, some scene's padded)``."""
         return (bool(self.walls.any()), not self.walls.all(), bool(self.rings.any()),
@@ -425,46 +433,98 @@ def nearest_points(surfaces: SurfaceSets, points: np.ndarray
                    ) -> tuple[np.ndarray, np.ndarray]:
     """``(distance [B, M], surface point [B, M, 2])``: for each scene b of ``surfaces``,
     the distance from each of its ``points[b]`` [M, 2] to its nearest surface and that
-    point (few array operations, one set per sub-step of the wall-following traces: x and
-    y apart, the segments' frames precomputed, padding masked only where there is some)."""
-    shape = points.shape[:2]
-    flat = np.arange(shape[0] * shape[1])
-    any_wall, ragged, any_circle, ragged_circles = surfaces.kinds
-    if any_wall:  # ragged: some scene has fewer segments than the padding
-        a, ab, ab2 = surfaces.a[:, None], surfaces.ab[:, None], surfaces.ab2[:, None]
-        px, py = points[..., 0:1], points[..., 1:2]
-        t = _clip(((px - a[..., 0]) * ab[..., 0] + (py - a[..., 1]) * ab[..., 1]) / ab2,
-                  0.0, 1.0)
-        qx, qy = a[..., 0] + t * ab[..., 0], a[..., 1] + t * ab[..., 1]
-        d = np.hypot(px - qx, py - qy)
-        d = np.where(surfaces.walls[:, None], d, np.inf) if ragged else d
-        o = d.shape[-1]
-        j = d.argmin(axis=-1).ravel()
-        best = d.reshape(-1, o)[flat, j].reshape(shape)
-        near = np.empty(points.shape)  # x and y written in place: no stacking
-        near[..., 0], near[..., 1] = (v.reshape(-1, o)[flat, j].reshape(shape) for v in (qx, qy))
-        if ragged:  # a scene without walls: no point
-            near = np.where(np.isfinite(best)[..., None], near, np.nan)
-    else:
-        best, near = np.full(shape, np.inf), np.full(points.shape, np.nan)
-    if any_circle:
-        c, r = surfaces.circles[:, None, :, :2], surfaces.circles[:, None, :, 2]
-        v = points[:, :, None] - c
-        dist_c = np.hypot(v[..., 0], v[..., 1])
-        d = np.abs(dist_c - r)
-        if ragged_circles:
-            d = np.where(surfaces.rings[:, None], d, np.inf)
-        k = d.shape[-1]
-        j = np.argmin(d, axis=-1).ravel()
-        d_j = d.reshape(-1, k)[flat, j].reshape(shape)
-        unit = (v.reshape(-1, k, 2)[flat, j]
-                / np.maximum(dist_c.reshape(-1, k)[flat, j], 1e-300)[:, None])
-        circle = surfaces.circles[flat // shape[1], j]
-        q = (circle[:, :2] + unit * circle[:, 2:3]).reshape(points.shape)
-        closer = d_j < best
-        best = np.where(closer, d_j, best)
-        near = np.where(closer[..., None], q, near)
+    point (:func:`nearest_xy`)."""
+    best, qx, qy = nearest_xy(surfaces, points[..., 0], points[..., 1])
+    near = np.empty(points.shape)
+    near[..., 0], near[..., 1] = qx, qy
     return best, near
+
+
+def nearest_xy(surfaces: SurfaceSets, px: np.ndarray, py: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(distance, x, y)`` [B, M] each: for each scene b of ``surfaces``, the distance
+    from each point ``(px[b, m], py[b, m])`` to its nearest surface, and that surface
+    point (``inf`` and NaN with no surface). Few array operations, one set per sub-step
+    of the wall-following traces: the segments' frames precomputed as columns [B, O, 1]
+    against the points' rows [B, 1, M], padding masked only where there is some; per
+    point and segment the arithmetic of the earlier form (points [B, M, 2] against
+    segments [B, 1, O, 2], kept in tests/test_speed_trace.py), so the same bits."""
+    best, qx, qy = _nearest(surfaces, px, py, True)
+    assert qx is not None and qy is not None
+    return best, qx, qy
+
+
+def nearest_distances(surfaces: SurfaceSets, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+    """[B, M] the distances of :func:`nearest_xy` alone (no point gathered)."""
+    return _nearest(surfaces, px, py, False)[0]
+
+
+def _nearest(surfaces: SurfaceSets, px: np.ndarray, py: np.ndarray, near: bool
+             ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """:func:`nearest_xy`, its points only with ``near`` (else None)."""
+    px, py = px[:, None], py[:, None]  # [B, 1, M]
+    shape = (px.shape[0], px.shape[2])
+    any_wall, ragged, any_circle, ragged_circles = surfaces.kinds
+    qx = qy = None
+    if any_wall:  # ragged: some scene has fewer segments than the padding
+        ax, ay, bx, by, ab2 = surfaces.columns[:5]
+        dx, dy = px - ax, py - ay  # [B, O, M]
+        dx *= bx
+        dy *= by
+        t = dx + dy
+        t /= ab2
+        _clip(t, 0.0, 1.0, out=t)
+        qx, qy = t * bx, t * by
+        qx += ax  # a + t·ab
+        qy += ay
+        d = np.hypot(np.subtract(px, qx, out=dx), np.subtract(py, qy, out=dy), out=dx)
+        if ragged:
+            d = np.where(surfaces.walls[:, :, None], d, np.inf)
+        if near:
+            at = _gather(d.argmin(axis=1), d.shape)
+            best, qx, qy = d.ravel()[at], qx.ravel()[at], qy.ravel()[at]
+            if ragged:  # a scene without walls: no point
+                qx[~np.isfinite(best)] = qy[~np.isfinite(best)] = np.nan
+        else:
+            best, qx, qy = d.min(axis=1), None, None
+    else:
+        best = np.full(shape, np.inf)
+        if near:
+            qx, qy = np.full(shape, np.nan), np.full(shape, np.nan)
+    if any_circle:
+        best, qx, qy = _nearer_circles(surfaces, px, py, best, qx, qy, ragged_circles)
+    return best, qx, qy
+
+
+def _gather(j: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    """[B, M] flat indices of the entries ``[b, j[b, m], m]`` of an array [B, K, M]."""
+    b, k, m = shape
+    return j * m + (np.arange(b)[:, None] * (k * m) + np.arange(m))
+
+
+def _nearer_circles(surfaces: SurfaceSets, px: np.ndarray, py: np.ndarray, best: np.ndarray,
+                    qx: np.ndarray | None, qy: np.ndarray | None, ragged: bool
+                    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """:func:`_nearest`'s ``(best, x, y)`` where a circle of ``surfaces`` is nearer
+    (points ``px``, ``py`` [B, 1, M])."""
+    cx, cy, r = surfaces.columns[5:]
+    vx, vy = px - cx, py - cy  # [B, C, M]
+    dist_c = np.hypot(vx, vy)
+    d = np.abs(dist_c - r)
+    if ragged:
+        d = np.where(surfaces.rings[:, :, None], d, np.inf)
+    if qx is None or qy is None:  # the distances alone
+        d_j = d.min(axis=1)
+        return np.where(d_j < best, d_j, best), qx, qy
+    j = d.argmin(axis=1)
+    at = _gather(j, d.shape)
+    d_j = d.ravel()[at]
+    closer = d_j < best
+    length = np.maximum(dist_c.ravel()[at], 1e-300)
+    circle = surfaces.circles[np.arange(len(j))[:, None], j]  # [B, M, 3]
+    x = circle[..., 0] + vx.ravel()[at] / length * circle[..., 2]
+    y = circle[..., 1] + vy.ravel()[at] / length * circle[..., 2]
+    return np.where(closer, d_j, best), np.where(closer, x, qx), np.where(closer, y, qy)
 
 
 def segment_distance(points: np.ndarray, polygon: np.ndarray, closed: bool = True

@@ -12,9 +12,17 @@ import numpy as np
 
 from .. import steps
 from ..errors import SceneError
-from ..geometry import Geometry, SurfaceSets, nearest_points, nearest_surface_point
+from ..geometry import Geometry, SurfaceSets, nearest_distances, nearest_surface_point, nearest_xy
 from ..scene import Circular, Scene, WallFollowing
-from .space import Placed, crosses, crosses_each, extent_contains, in_free_space, placement_error
+from .space import (
+    NearestOne,
+    Placed,
+    crosses,
+    crosses_each,
+    extent_contains,
+    in_free_space,
+    placement_error,
+)
 
 
 def ring(center: tuple[float, float], radius_m: float, elements: int,
@@ -62,21 +70,31 @@ def _projects(surfaces: SurfaceSets, points: np.ndarray, c: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`_project` of ``points[b]`` [B, 2] onto the curve at ``c[b]`` from scene b of
     ``surfaces``, side by side: the points, their distance errors and nearest surface
-    points, each point moved until it is on its curve (16 moves at most)."""
-    points = np.array(points, dtype=np.float64)
-    err = np.full(len(points), math.inf)
-    q = points.copy()
-    live = np.arange(len(points))
+    points, each point moved until it is on its curve (16 moves at most). x and y apart
+    (:func:`~clsonar.geometry.nearest_xy`), every row measured at once until one must
+    move (a sub-step's point is mostly on its curve at once)."""
+    points = np.asarray(points, dtype=np.float64)
+    x, y = points[:, 0].copy(), points[:, 1].copy()
+    err, qx, qy = np.full(len(x), math.inf), x.copy(), y.copy()
+    live: np.ndarray | None = None  # None: every row
+    sets, c_live = surfaces, c
     for _ in range(16):
-        dist, near = nearest_points(surfaces.take(live), points[live][:, None])
-        d, q[live] = dist[:, 0], near[:, 0]
-        err[live] = np.abs(d - c[live])
-        on = (err[live] <= _ON_CURVE_TOL * 0.01) | ~np.isfinite(d) | (d <= 1e-12)
-        live, d = live[~on], d[~on]
-        points[live] = q[live] + (points[live] - q[live]) * (c[live] / d)[:, None]
-        if len(live) == 0:
+        px, py = (x, y) if live is None else (x[live], y[live])
+        d, nx, ny = (v[:, 0] for v in nearest_xy(sets, px[:, None], py[:, None]))
+        off = np.abs(d - c_live)
+        if live is None:
+            err[:], qx[:], qy[:] = off, nx, ny
+        else:
+            err[live], qx[live], qy[live] = off, nx, ny
+        off = ~((off <= _ON_CURVE_TOL * 0.01) | ~np.isfinite(d) | (d <= 1e-12))
+        if not off.any():
             break
-    return points, err, q
+        live = np.flatnonzero(off) if live is None else live[off]
+        scale = c_live[off] / d[off]
+        x[live] = nx[off] + (px[off] - nx[off]) * scale
+        y[live] = ny[off] + (py[off] - ny[off]) * scale
+        sets, c_live = surfaces.take(live), c[live]
+    return np.stack([x, y], axis=-1), err, np.stack([qx, qy], axis=-1)
 
 
 def wall_following_path(p: WallFollowing, scene: Scene, geom: Geometry
@@ -207,6 +225,13 @@ def wall_following_paths(jobs: list[TraceJob]) -> list[Traced | SceneError]:
             traces[i] = _start_trace(p, scene, geom)
         except SceneError as error:
             out[i] = error
+    if len(traces) == 1:  # one trace: its sub-steps in floats (_trace_alone)
+        (i, trace), = traces.items()
+        try:
+            out[i] = _trace_alone(trace, jobs[i][2])
+        except SceneError as error:
+            out[i] = error
+        return [r for r in out if r is not None]
     going = _Going.start(traces, SurfaceSets.of([jobs[i][2] for i in traces]))
     while len(going.ids):
         steps.poll()
@@ -249,41 +274,156 @@ def _advance(going: _Going, traces: dict[int, _Trace],
     return going if keep.all() else going.take(np.flatnonzero(keep))
 
 
+#: Sweep samples of the circle evaluated first (:func:`_substeps`): along a wall the next
+#: point is the 18th; the rest of the circle only where some trace turns farther.
+FIRST_SAMPLES = 24
+
+
 def _substeps(going: _Going, traces: list[_Trace]
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[SceneError | None]]:
     """One sub-step of each trace going from its last point: the first point back at its
     clearance c on the circle of radius h swept from the direction of its nearest surface,
     re-projected onto the curve. ``(points [L, 2], their nearest surface points, the
-    steps' lengths [L], each trace's error or None)``."""
+    steps' lengths [L], each trace's error or None)``.
+
+    The circle's samples are measured :data:`FIRST_SAMPLES` first, the rest only where
+    some trace finds none of those back at its clearance: each sample's clearance is its
+    own arithmetic whatever others are measured with it, so the first found and the one
+    before it are those of the whole circle, to the bit."""
     point, h, c = going.point, going.h, going.c
     to_wall = going.wall - point
     phi0 = np.array([math.atan2(y, x) for x, y in to_wall.tolist()])
-    angles = phi0[:, None] + going.sweep
-    unit = np.empty((*angles.shape, 2))
-    unit[..., 0], unit[..., 1] = np.cos(angles), np.sin(angles)
-    ring_pts = point[:, None] + h[:, None, None] * unit
-    g = nearest_points(going.surfaces, ring_pts)[0] - c[:, None]
+    angles = phi0[:, None] + going.sweep[:, :FIRST_SAMPLES]
+    g = _clearances(going, angles)
     ahead = g >= 0.0
+    if not ahead.any(axis=1).all():
+        rest = phi0[:, None] + going.sweep[:, FIRST_SAMPLES:]
+        angles = np.concatenate([angles, rest], axis=1)
+        g = np.concatenate([g, _clearances(going, rest)], axis=1)
+        ahead = g >= 0.0
     k = np.argmax(ahead, axis=1)
     rows = np.arange(len(point))
-    first = k > 0
-    g_k, g_prev = g[rows, k], np.where(first, g[rows, k - 1], -h)
-    a_prev = np.where(first, angles[rows, k - 1], phi0)
+    found = ahead[rows, k]  # some sample back at the clearance
+    g_k, a_k = g[rows, k], angles[rows, k]
+    if k.all():  # the sample before the first found is on the circle
+        g_prev, a_prev = g[rows, k - 1], angles[rows, k - 1]
+    else:  # before the first sample: the nearest surface's direction, a clearance of -h
+        first = k > 0
+        g_prev = np.where(first, g[rows, k - 1], -h)
+        a_prev = np.where(first, angles[rows, k - 1], phi0)
     same = g_k == g_prev
     frac = np.where(same, 1.0, g_prev / np.where(same, 1.0, g_prev - g_k))
-    a = (a_prev + frac * (angles[rows, k] - a_prev)).tolist()
+    a = (a_prev + frac * (a_k - a_prev)).tolist()
     turn = np.array([[math.cos(x), math.sin(x)] for x in a]).reshape(-1, 2)
     nxt, err, near = _projects(going.surfaces, point + h[:, None] * turn, c)
     step = np.hypot(*(nxt - point).T)
     errors: list[SceneError | None] = [None] * len(point)
-    for b in np.flatnonzero(~ahead.any(axis=1) | (err > _ON_CURVE_TOL) | (step < 0.25 * h)):
+    for b in np.flatnonzero(~found | (err > _ON_CURVE_TOL) | (step < 0.25 * h)):
         x, y = point[b]
         errors[b] = traces[b].fail(
             f"stuck at ({x:.3f}, {y:.3f}): no way on at clearance_m = {c[b]:g}"
-            if not ahead[b].any() else
+            if not found[b] else
             f"stuck at ({x:.3f}, {y:.3f}): the curve at clearance_m = {c[b]:g} cannot be "
             "followed there")
     return nxt, near, step, errors
+
+
+def _clearances(going: _Going, angles: np.ndarray) -> np.ndarray:
+    """[L, S] how far beyond its clearance c each point of the circle of radius h around
+    each trace's point, at ``angles`` [L, S], lies from the trace's surfaces."""
+    h = going.h[:, None]
+    x = going.point[:, 0, None] + h * np.cos(angles)
+    y = going.point[:, 1, None] + h * np.sin(angles)
+    return nearest_distances(going.surfaces, x, y) - going.c[:, None]
+
+
+def _trace_alone(trace: _Trace, geom: Geometry) -> Traced:
+    """The one trace of :func:`wall_following_paths` (its result; its error raised): the
+    sub-steps of :func:`_advance` and :func:`_substeps` with a trace's scalars as Python
+    floats — the same IEEE operations, math's atan2, cos and sin where those use them and
+    numpy's hypot where they use numpy's (math.hypot rounds otherwise) — and only the
+    circle's samples and the projection's distances as arrays: a third of their array
+    operations, the same path to the bit."""
+    surfaces, h = (SurfaceSets.of([geom]), NearestOne(geom)), trace.h
+    (x0, y0), (wx, wy) = trace.path[0].tolist(), trace.wall.tolist()
+    x, y, left = x0, y0, False
+    while True:
+        steps.poll()
+        stuck, nx, ny, wx, wy = _substep_alone(surfaces, trace, x, y, wx, wy)
+        step, back, gone = np.hypot([nx - x, x - x0, nx - x0], [ny - y, y - y0, ny - y0]).tolist()
+        if stuck is None and step < 0.25 * h:
+            stuck = _stuck(trace, x, y, True)
+        if stuck is not None:
+            trace.checks.flush()  # a sub-step that failed its checks before is first
+            raise stuck
+        trace.checks.add(np.array([x, y]), np.array([nx, ny]))
+        if left and back <= step + 0.5 * h + 1e-9 and (t := _closing(
+                trace.path[0], np.array([x, y]), np.array([nx, ny]), step, h)) is not None:
+            trace.checks.flush()
+            return np.asarray(trace.path), np.asarray(trace.arc), trace.arc[-1] + t * step
+        left = left or gone > 2.0 * h
+        trace.path.append(np.array([nx, ny]))
+        trace.arc.append(trace.arc[-1] + step)
+        if trace.arc[-1] > trace.max_length or len(trace.path) > trace.max_substeps:
+            raise trace.unclosed()
+        x, y = nx, ny
+
+
+def _substep_alone(both: tuple[SurfaceSets, NearestOne], trace: _Trace, x: float, y: float,
+                   wx: float, wy: float) -> tuple[SceneError | None, float, float, float, float]:
+    """:func:`_substeps` of the one trace at ``(x, y)``, its nearest surface point
+    ``(wx, wy)``, its scene's surfaces ``both`` ways: ``(its error or None, the next
+    point, its nearest surface point)`` (the step's length checked by the caller)."""
+    (surfaces, one), c, h = both, trace.c, trace.h
+    phi0 = math.atan2(wy - y, wx - x)
+    angles = phi0 + trace.sweep[:FIRST_SAMPLES]
+    g = _clearances_alone(surfaces, x, y, h, c, angles)
+    k = int(np.argmax(g >= 0.0))
+    if not g[k] >= 0.0:
+        angles = np.concatenate([angles, phi0 + trace.sweep[FIRST_SAMPLES:]])
+        g = np.concatenate([g, _clearances_alone(surfaces, x, y, h, c,
+                                                 angles[FIRST_SAMPLES:])])
+        k = int(np.argmax(g >= 0.0))
+    if not g[k] >= 0.0:
+        return _stuck(trace, x, y, False), x, y, wx, wy
+    g_k, a_k = float(g[k]), float(angles[k])
+    g_prev, a_prev = (float(g[k - 1]), float(angles[k - 1])) if k else (-h, phi0)
+    frac = 1.0 if g_k == g_prev else g_prev / (g_prev - g_k)
+    a = a_prev + frac * (a_k - a_prev)
+    nx, ny, err, wx, wy = _project_alone(surfaces, one, x + h * math.cos(a),
+                                         y + h * math.sin(a), c)
+    return (_stuck(trace, x, y, True) if err > _ON_CURVE_TOL else None), nx, ny, wx, wy
+
+
+def _clearances_alone(surfaces: SurfaceSets, x: float, y: float, h: float, c: float,
+                      angles: np.ndarray) -> np.ndarray:
+    """[S] :func:`_clearances` of the one trace at ``(x, y)``."""
+    return nearest_distances(surfaces, (x + h * np.cos(angles))[None],
+                             (y + h * np.sin(angles))[None])[0] - c
+
+
+def _project_alone(surfaces: SurfaceSets, one: NearestOne, x: float, y: float, c: float
+                   ) -> tuple[float, float, float, float, float]:
+    """:func:`_projects` of the one point ``(x, y)``: ``(x, y, error, nearest x, y)``
+    (its distances by ``one`` where it is usable)."""
+    err = qx = qy = math.inf
+    for _ in range(16):
+        d, qx, qy = one(x, y) if one.usable else (
+            float(v[0, 0]) for v in nearest_xy(surfaces, np.array([[x]]), np.array([[y]])))
+        err = abs(d - c)
+        if err <= _ON_CURVE_TOL * 0.01 or not math.isfinite(d) or d <= 1e-12:
+            break
+        x, y = qx + (x - qx) * (c / d), qy + (y - qy) * (c / d)
+    return x, y, err, qx, qy
+
+
+def _stuck(trace: _Trace, x: float, y: float, found: bool) -> SceneError:
+    """The error of a trace stuck at ``(x, y)``: ``found`` a point back at its clearance
+    on the circle, which the curve does not follow (else no way on)."""
+    return trace.fail(
+        f"stuck at ({x:.3f}, {y:.3f}): the curve at clearance_m = {trace.c:g} cannot be "
+        "followed there" if found else
+        f"stuck at ({x:.3f}, {y:.3f}): no way on at clearance_m = {trace.c:g}")
 
 
 def _closing(p0: np.ndarray, point: np.ndarray, nxt: np.ndarray, step: float, h: float

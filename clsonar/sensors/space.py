@@ -65,3 +65,54 @@ def crosses_each(geom: Geometry, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def placement_error(scene: Scene, message: str, key: str = "sensors.placement") -> SceneError:
     """The error of a placement of ``scene`` that cannot be made (the scene's name as source)."""
     return SceneError(message, key=key, source=scene.name)
+
+
+class NearestOne:
+    """The nearest surface point of one point at a time, from a scene's few segments and
+    circles as Python floats (a wall-following trace's projections, one point per call):
+    the arithmetic of :func:`~clsonar.geometry.nearest_xy` for one point — its clip as
+    numpy's (``max`` then ``min``, -0 clipped to +0), numpy's hypot on the lists, the
+    first of equal distances — so the same bits, without its array operations per
+    segment. ``usable`` is False where a segment has no length or there are more than
+    :data:`MAX_SEGMENTS` (the arrays are cheaper then)."""
+
+    #: Segments and circles beyond which the arrays of ``nearest_xy`` cost less.
+    MAX_SEGMENTS = 32
+
+    def __init__(self, geom: Geometry) -> None:
+        a, ab, ab2 = geom.occluder_frames
+        self.walls = list(zip(*(v.tolist() for v in (a[:, 0], a[:, 1], ab[:, 0], ab[:, 1],
+                                                       ab2)), strict=True))
+        self.circles = geom.circles.tolist()
+        self.usable = (bool(np.all(ab2 > 0.0))
+                       and len(self.walls) + len(self.circles) <= self.MAX_SEGMENTS)
+
+    def __call__(self, x: float, y: float) -> tuple[float, float, float]:
+        """``(distance, nearest x, nearest y)`` of the point ``(x, y)`` (inf, NaN, NaN
+        with no surface)."""
+        dx, dy, near = [], [], []
+        for ax, ay, bx, by, ab2 in self.walls:
+            t = ((x - ax) * bx + (y - ay) * by) / ab2
+            t = t if t > 0.0 else 0.0
+            t = t if t < 1.0 else 1.0
+            qx, qy = ax + t * bx, ay + t * by
+            dx.append(x - qx)
+            dy.append(y - qy)
+            near.append((qx, qy))
+        n = len(near)
+        for cx, cy, _ in self.circles:
+            dx.append(x - cx)
+            dy.append(y - cy)
+        h = np.hypot(dx, dy).tolist()
+        best, qx, qy = math.inf, math.nan, math.nan
+        if n:
+            j = min(range(n), key=h.__getitem__)  # the first of the least
+            best, (qx, qy) = h[j], near[j]
+        if self.circles:
+            d = [abs(length - r) for length, (_, _, r) in zip(h[n:], self.circles, strict=True)]
+            j = min(range(len(d)), key=d.__getitem__)
+            if d[j] < best:
+                cx, cy, r = self.circles[j]
+                length = h[n + j] if h[n + j] > 1e-300 else 1e-300
+                best, qx, qy = d[j], cx + dx[n + j] / length * r, cy + dy[n + j] / length * r
+        return best, qx, qy
