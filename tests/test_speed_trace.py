@@ -174,3 +174,24 @@ def test_the_nearest_point_of_one_point_in_floats_is_the_arrays_bits():
             assert np.array_equal(got[:, k], want[k][0])
     sinusoid = NearestOne(build_geometry(load_scene(bundled_scenes() / "sinusoid-4m.json")))
     assert not sinusoid.usable  # hundreds of chords
+
+
+def test_the_poses_projected_in_floats_are_the_arrays_bits():
+    """``place_wall_following`` projects each pose with ``_project_alone`` (floats): the
+    poses of ``_project`` (arrays), as the placement computed them before."""
+    from clsonar.sensors.rings import _project, place_wall_following, wall_following_path
+
+    for name in ["room.json", "room-l.json", "room-cylinder.json", "room-obstacles.json"]:
+        scene = load_scene(bundled_scenes() / name)
+        p, geom = scene.sensors.placement, build_geometry(scene)
+        path, arc, length = wall_following_path(p, scene, geom)
+        closed_path, closed_arc = np.concatenate([path, path[:1]]), np.append(arc, length)
+        want = []
+        for s in np.arange(0.0, length - 0.5 * min(p.clearance_m / 4, p.step_m / 4, 0.02),
+                           p.step_m):
+            i = min(int(np.searchsorted(closed_arc, s, side="right")) - 1, len(path) - 1)
+            t = (s - closed_arc[i]) / (closed_arc[i + 1] - closed_arc[i])
+            guess = closed_path[i] + t * (closed_path[i + 1] - closed_path[i])
+            want.append(_project(geom, guess, p.clearance_m)[0])
+        poses = place_wall_following(p, scene, geom)[3]
+        assert len(poses) > 40 and poses.tobytes() == np.asarray(want).tobytes()

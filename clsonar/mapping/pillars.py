@@ -58,16 +58,41 @@ def _directions(x: np.ndarray, T: np.ndarray) -> np.ndarray:
     return d / np.maximum(np.hypot(*d.T), 1e-300)[:, None]
 
 
+class _Lengths:
+    """|x − T_k| for a residual, kept with the differences x − T_k for the Jacobian at
+    the same x (:func:`_gauss_newton` takes the step's Jacobian where it last evaluated
+    the residual, unless a halving moved it): :func:`_directions` of x from them, the same
+    arithmetic without computing them again."""
+
+    def __init__(self, T: np.ndarray) -> None:
+        self.T = T
+        self.x: np.ndarray | None = None
+        self.d = self.h = np.zeros(0)
+
+    def __call__(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """[k] or [m, k]: the lengths |v − T_k| (``v`` the point of ``x``, [2] or [m, 2])."""
+        self.d = v[..., None, :] - self.T
+        self.h = np.hypot(self.d[..., 0], self.d[..., 1])
+        self.x = x
+        return self.h
+
+    def directions(self, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """:func:`_directions` of ``v`` (the point of ``x`` [n]) from T."""
+        if x is self.x and self.d.ndim == 2:
+            return self.d / np.maximum(self.h, 1e-300)[:, None]
+        return _directions(v, self.T)
+
+
 def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
     """Least-squares circle ``(C, R)`` with |C − T_k| = ρ_k + R (:func:`_gauss_newton`
     from ``start`` and R = 0.1 m), and the residuals."""
+    lengths = _Lengths(T)
 
     def residual(x: np.ndarray) -> np.ndarray:  # x [3] or [m, 3]: [k] or [m, k]
-        d = x[..., None, :2] - T
-        return np.hypot(d[..., 0], d[..., 1]) - rho - x[..., 2, None]
+        return lengths(x, x[..., :2]) - rho - x[..., 2, None]
 
     def jacobian(x: np.ndarray) -> np.ndarray:
-        return np.column_stack([_directions(x[:2], T), -np.ones(len(T))])
+        return np.column_stack([lengths.directions(x, x[:2]), -np.ones(len(T))])
 
     x, r = _gauss_newton(residual, jacobian, np.r_[start, 0.1])
     return x[:2], float(x[2]), r
@@ -87,13 +112,14 @@ def _gauss_newton(residual: Callable[[np.ndarray], np.ndarray],
         step = _least_squares_step(jacobian(x), r)
         trial = x - step
         r_trial = residual(trial)
-        if not r_trial @ r_trial <= cost:
+        trial_cost = r_trial @ r_trial
+        if not trial_cost <= cost:
             halved = _halved(residual, x, step, cost)
             if halved is None:
                 break
             step, trial, r_trial = halved
-        x, r = trial, r_trial
-        cost = r @ r
+            trial_cost = r_trial @ r_trial
+        x, r, cost = trial, r_trial, trial_cost
         if math.sqrt(float(step @ step)) <= GN_STEP_M:  # numpy.linalg.norm's own form
             break
     return x, r
@@ -137,12 +163,12 @@ def _least_squares_step(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
     """The least-squares solution s of J·s = r: for two unknowns by the normal equations
     (Cramer's rule: a tenth of ``numpy.linalg.lstsq``'s cost, and this runs thousands of
     times a map), by ``lstsq`` for more or where J is (nearly) of rank one."""
-    if jac.shape[1] == 2:
+    if jac.shape[1] == 2:  # the sums by numpy (BLAS), the rest in floats: the same IEEE
         jx, jy = jac[:, 0], jac[:, 1]
-        a, b, c = jx @ jx, jx @ jy, jy @ jy
+        a, b, c = float(jx @ jx), float(jx @ jy), float(jy @ jy)
         det = a * c - b * b
         if det > 1e-10 * a * c:  # J's columns far from parallel: a well-posed 2 × 2 solve
-            gx, gy = jx @ r, jy @ r
+            gx, gy = float(jx @ r), float(jy @ r)
             return np.array([(c * gx - b * gy) / det, (a * gy - b * gx) / det])
     return np.linalg.lstsq(jac, r, rcond=None)[0]
 
@@ -264,16 +290,16 @@ def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nd
     return centre, radius, np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
 
 
-def _point_residual(v: np.ndarray, T: np.ndarray, R: np.ndarray, a: np.ndarray
-                    ) -> np.ndarray:
+def _point_residual(v: np.ndarray, T: np.ndarray, R: np.ndarray, a: np.ndarray,
+                    kept: tuple[_Lengths, _Lengths] | None = None) -> np.ndarray:
     """[k] how far the point ``v`` lies off each locus, (|v − T_k| + |v − R_k|)/2 − a_k
-    ([m, k] for points ``v`` [m, 2]; ``R is T``: |v − T_k| − a_k, the same to the bit)."""
-    dT = v[..., None, :] - T
-    hT = np.hypot(dT[..., 0], dT[..., 1])
+    ([m, k] for points ``v`` [m, 2]; ``R is T``: |v − T_k| − a_k, the same to the bit);
+    ``kept``: the lengths from T and R, kept for the Jacobian (:class:`_Lengths`)."""
+    to_t, to_r = kept or (_Lengths(T), _Lengths(R))
+    hT = to_t(v, v)
     if R is T:  # 0.5·(h + h) is h: doubling and halving are exact
         return hT - a
-    dR = v[..., None, :] - R
-    return 0.5 * (hT + np.hypot(dR[..., 0], dR[..., 1])) - a
+    return 0.5 * (hT + to_r(v, v)) - a
 
 
 def _positions(T: np.ndarray) -> int:
@@ -288,11 +314,13 @@ def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
     (:func:`_gauss_newton` from ``start``)."""
     if R is not T and T.shape == R.shape and T.tobytes() == R.tobytes():
         R = T  # T = R: each distance computed once
+    kept = _Lengths(T), _Lengths(R)
     if R is T:  # 0.5·(d + d) is d
-        return _gauss_newton(lambda v: _point_residual(v, T, T, a),
-                             lambda v: _directions(v, T), start)
-    return _gauss_newton(lambda v: _point_residual(v, T, R, a),
-                         lambda v: 0.5 * (_directions(v, T) + _directions(v, R)), start)
+        return _gauss_newton(lambda v: _point_residual(v, T, T, a, kept),
+                             lambda v: kept[0].directions(v, v), start)
+    return _gauss_newton(lambda v: _point_residual(v, T, R, a, kept),
+                         lambda v: 0.5 * (kept[0].directions(v, v) + kept[1].directions(v, v)),
+                         start)
 
 
 def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,

@@ -226,19 +226,17 @@ def _tangent_segments(s: SampledLoci, i: int, ks: np.ndarray,
 def _isolated_points(s: SampledLoci, isolated: np.ndarray, bias: float, linked: np.ndarray,
                      env: tuple[np.ndarray, ...]) -> tuple[list[np.ndarray], list[int]]:
     """Per locus in ``isolated``: where the scan envelope ``env`` has points on it, the arcs
-    around them inside the element's beam; else the middle of its in-beam arc (none for a
-    locus in ``linked``: the scan envelope's links already hold its surface point). And the
-    slots of the loci given a middle of arc (point and, T = R, pillar candidates)."""
-    found, stubs = [], []
-    for k, i in enumerate(isolated):
-        mine = np.flatnonzero(env[0] == i)
-        if len(mine):  # around the scan envelope's points, inside the element's beam
-            arcs = np.concatenate([_arc_around(env[1][m], env[2][m], env[3][m],
-                                               min(bias, ENVELOPE_ARC_BIAS_M))
-                                   for m in mine])
-            found.append(arcs[in_beams(arcs, s.T[i], s.axes[s.loci.tx[i]], s.cut_sin2)])
-        elif i in linked:
-            found.append(np.zeros((0, 2)))
+    around them inside the element's beam (:func:`_arcs_around`); else the middle of its
+    in-beam arc (none for a locus in ``linked``: the scan envelope's links already hold its
+    surface point). And the slots of the loci given a middle of arc (point and pillar)."""
+    arcs, locus = _arcs_around(env, min(bias, ENVELOPE_ARC_BIAS_M))
+    beam = in_beams(arcs, s.T[locus], s.axes[s.loci.tx[locus]], s.cut_sin2)
+    order = np.argsort(locus[beam], kind="stable")  # by locus, in the envelope's order
+    arcs, ends = arcs[beam][order], np.searchsorted(locus[beam][order], [isolated, isolated + 1])
+    enveloped, linked_set, found, stubs = np.isin(isolated, env[0]), set(linked.tolist()), [], []
+    for k, (i, a, b) in enumerate(zip(isolated.tolist(), *ends.tolist(), strict=True)):
+        if enveloped[k] or i in linked_set:  # a linked locus has no arc (a = b)
+            found.append(arcs[a:b])
         else:
             found.append(_middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
             if len(found[-1]):
@@ -573,14 +571,15 @@ def tangent_map(scene: Scene, sensors: SensorArray, loci,
             np.asarray(vertices, dtype=np.float64).reshape(-1, 2))
 
 
-def _arc_around(centre: np.ndarray, radius: float, point: np.ndarray,
-                bias: float) -> np.ndarray:
-    """Samples (every 0.25°) of the circle (``centre``, ``radius``) within ±sqrt(2·r·bias)
-    of arc around its ``point``: where it stays within ``bias`` of its tangent there."""
+def _arcs_around(env: tuple[np.ndarray, ...], bias: float) -> tuple[np.ndarray, np.ndarray]:
+    """Samples (every 0.25°) of each scan envelope point's circle (``env``: locus, centre, r,
+    point) within ±sqrt(2·r·bias) of the point (within ``bias`` of its tangent); their loci."""
     step = 2 * np.pi / LOCUS_SAMPLES
-    half = int(np.sqrt(2.0 * bias / radius) / step)
-    phi = np.arctan2(*(point - centre)[::-1]) + step * np.arange(-half, half + 1)
-    return centre + radius * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+    half = (np.sqrt(2.0 * bias / env[2]) / step).astype(np.int64)
+    row = np.repeat(np.arange(len(half)), 2 * half + 1)
+    offset = np.arange(len(row)) - np.repeat(np.cumsum(2 * half + 1) - half - 1, 2 * half + 1)
+    phi = np.arctan2(env[3][:, 1] - env[1][:, 1], env[3][:, 0] - env[1][:, 0])[row] + step * offset
+    return env[1][row] + env[2][row, None] * np.stack([np.cos(phi), np.sin(phi)], -1), env[0][row]
 
 
 def _middle_of_arc(samples: np.ndarray, inside: np.ndarray, a: float,

@@ -559,13 +559,13 @@ def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry,
                                      f"max_poses = {p.max_poses}")
     closed_path = np.concatenate([path, path[:1]])
     closed_arc = np.append(arc, length)
-    centres = []
+    centres, surfaces, one = [], SurfaceSets.of([geom]), NearestOne(geom)
     for s in targets:
         i = min(int(np.searchsorted(closed_arc, s, side="right")) - 1, len(path) - 1)
         seg = closed_arc[i + 1] - closed_arc[i]
         t = (s - closed_arc[i]) / seg if seg > 0 else 0.0
-        guess = closed_path[i] + t * (closed_path[i + 1] - closed_path[i])
-        centres.append(_project(geom, guess, p.clearance_m)[0])
+        gx, gy = (closed_path[i] + t * (closed_path[i + 1] - closed_path[i])).tolist()
+        centres.append(_project_alone(surfaces, one, gx, gy, p.clearance_m)[:2])  # _project
     poses = np.asarray(centres).reshape(-1, 2)
     start_deg = square_to_walls(geom, p.elements) if p.start_deg is None else p.start_deg
     pos, head = [], []

@@ -1,0 +1,99 @@
+"""Issue 16, the room's pipeline: the point and circle fits' Jacobians taken from the
+residual's own differences (``pillars._Lengths``) are ``pillars._directions`` to the bit
+(tests/test_tangent_speed.py checks the whole fits against the loops they replaced), and
+the isolated loci's arcs, all at once, are the locus-by-locus loop's, kept here."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from clsonar.files import bundled_scenes
+from clsonar.mapping import pillars, tangents
+from clsonar.mapping.envelope import in_beams
+from clsonar.pipeline import run
+from clsonar.scene import load_scene
+from clsonar.tools.variants import with_seed
+
+
+def test_the_kept_lengths_give_the_directions_bits():
+    rng = np.random.default_rng(11)
+    for k in (1, 3, 17, 40):
+        T = rng.uniform(-5.0, 5.0, (k, 2))
+        lengths = pillars._Lengths(T)
+        x = rng.uniform(-5.0, 5.0, 3)
+        h = lengths(x, x[:2])
+        assert np.array_equal(h, np.hypot(*(x[:2] - T).T))
+        kept = lengths.directions(x, x[:2])
+        assert kept.tobytes() == pillars._directions(x[:2], T).tobytes()
+        other = x.copy()  # equal values, another array: computed afresh, the same
+        assert lengths.directions(other, other[:2]).tobytes() == kept.tobytes()
+        trials = x[:2] - rng.normal(0.0, 1.0, (5, 2))
+        assert lengths(trials, trials).shape == (5, k)  # a batch: nothing kept for one x
+        assert lengths.directions(trials[2], trials[2]).tobytes() == pillars._directions(
+            trials[2], T).tobytes()
+    on = pillars._Lengths(np.array([[1.0, 2.0]]))  # x on T: no direction, 0 as before
+    on(np.array([1.0, 2.0]), np.array([1.0, 2.0]))
+    assert np.array_equal(on.directions(on.x, on.x), np.zeros((1, 2)))
+
+
+def test_a_point_fit_reaches_the_point():
+    """The corner a ring hears from four poses: the fit lands on it, its residuals 0."""
+    corner = np.array([2.0, 3.0])
+    T = np.array([[0.0, 0.0], [1.0, 0.2], [3.5, 0.5], [4.0, 1.0]])
+    a = np.hypot(*(corner - T).T)
+    v, r = pillars._point_from(T, T, a, np.array([2.3, 2.6]))
+    np.testing.assert_allclose(v, corner, atol=1e-12)
+    np.testing.assert_allclose(r, 0.0, atol=1e-12)
+
+
+def _arc_around_reference(centre, radius, point, bias):
+    """``tangents._arc_around`` before issue 16's pipeline work: one envelope point."""
+    step = 2 * np.pi / tangents.LOCUS_SAMPLES
+    half = int(np.sqrt(2.0 * bias / radius) / step)
+    phi = np.arctan2(*(point - centre)[::-1]) + step * np.arange(-half, half + 1)
+    return centre + radius * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+
+
+def _isolated_points_reference(s, isolated, bias, linked, env):
+    """``tangents._isolated_points`` before issue 16's pipeline work: locus by locus."""
+    found, stubs = [], []
+    for k, i in enumerate(isolated):
+        mine = np.flatnonzero(env[0] == i)
+        if len(mine):
+            arcs = np.concatenate([_arc_around_reference(
+                env[1][m], env[2][m], env[3][m], min(bias, tangents.ENVELOPE_ARC_BIAS_M))
+                for m in mine])
+            found.append(arcs[in_beams(arcs, s.T[i], s.axes[s.loci.tx[i]], s.cut_sin2)])
+        elif i in linked:
+            found.append(np.zeros((0, 2)))
+        else:
+            found.append(tangents._middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
+            if len(found[-1]):
+                stubs.append(k)
+    return found, stubs
+
+
+@pytest.mark.parametrize("name, noise", [("room.json", 0.0), ("room-obstacles.json", 0.6),
+                                         ("room-cylinder.json", 0.0)])
+def test_the_isolated_loci_arcs_are_the_loops_bits(name, noise, monkeypatch):
+    """The arcs around the scan envelope's points, all at once, and the loci's grouping:
+    the loop's arcs, stubs and empty slots to the bit, on the rooms' own isolated loci."""
+    calls = []
+    mine = tangents._isolated_points
+
+    def spy(*args):
+        found, stubs = mine(*args)
+        calls.append((args, (list(found), list(stubs))))  # the caller replaces slots
+        return found, stubs
+
+    monkeypatch.setattr(tangents, "_isolated_points", spy)
+    scene = load_scene(bundled_scenes() / name)
+    run(scene if noise == 0 else with_seed(scene, 1, noise))
+    assert calls
+    for args, (found, stubs) in calls:
+        want, want_stubs = _isolated_points_reference(*args)
+        assert stubs == want_stubs and len(found) == len(want) == len(args[1])
+        for a, b in zip(found, want, strict=True):
+            assert a.shape == b.shape and a.tobytes() == b.tobytes()
+        assert sum(len(f) for f in found) > 100 and len(stubs) > 0
