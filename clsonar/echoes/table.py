@@ -57,10 +57,10 @@ class EchoTable:
     def write_csv(self, file: TextIO) -> None:
         """Write ``tx,rx,tof_s,amplitude,kind,order`` rows (docs/design.md, ``echoes.csv``)."""
         file.write("tx,rx,tof_s,amplitude,kind,order\n")
-        names = self.kind_names()
-        for i in range(len(self)):
-            file.write(f"{self.tx[i]},{self.rx[i]},{self.tof_s[i]:.12g},"
-                       f"{self.amplitude[i]:.9g},{names[i]},{self.order[i]}\n")
+        columns = (np.asarray(c).tolist() for c in (  # Python's numbers: the same text
+            self.tx, self.rx, self.tof_s, self.amplitude, self.kind_names(), self.order))
+        file.write("".join(f"{tx},{rx},{tof:.12g},{amp:.9g},{kind},{order}\n"
+                           for tx, rx, tof, amp, kind, order in zip(*columns, strict=True)))
 
 
 def _pair_chunks(n_pairs: int, width: int) -> Iterator[slice]:

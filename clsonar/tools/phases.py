@@ -7,7 +7,9 @@ steps of ``clsonar run`` (load, pipeline, outputs; :mod:`clsonar.cli`) in ``N`` 
 processes, each timing its own phases, and prints each phase's shortest time, its share of
 their sum, and the shortest whole process. A phase is the wall time from the end of the one
 before; "interpreter start-up, ``import clsonar``" is what the process took before its first
-phase began (the parent's wall time less the phases). With ``--png all`` scene.png and
+phase began and after its last ended, its exit (the parent's wall time less the phases);
+NumPy is one of the command line's imports (:mod:`clsonar.cli` sets its BLAS threads
+first), and the collector freezes what exists as ``cli.main`` does. With ``--png all`` scene.png and
 profile.png are drawn as the command draws them where a core is free, by a worker process
 on the other core (:mod:`clsonar.drawing`; here even on a busy machine), whose own
 seconds are listed after the table: they overlap its phases; ``--no-worker`` draws them
@@ -23,6 +25,7 @@ _START = time.perf_counter()
 
 import argparse  # noqa: E402  (the clock above starts first)
 import contextlib  # noqa: E402
+import gc  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import subprocess  # noqa: E402
@@ -61,6 +64,7 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
     clock = _Clock()
     from .. import cli  # noqa: F401  (what the command line imports to start)
 
+    gc.freeze()  # as the command's cli.main does once its line is read
     clock.mark("command line imports")
     from .. import outputs, pipeline  # noqa: F401  (imported by the command line's run)
     from ..files import write_folder
@@ -164,6 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.child:
         print(json.dumps(measure(args.scene, args.png, args.child, not args.no_worker)))
+        gc.freeze()  # and as it does before the interpreter's exit
         return 0
     print("\n".join(table(*best_of(args.scene, args.png, args.repeat, not args.no_worker))))
     return 0
