@@ -8,6 +8,7 @@ loaded (docs/speed.md, "2026-11-27, start-up").
 
 from __future__ import annotations
 
+import importlib
 from typing import TYPE_CHECKING, Any
 
 from .errors import ClsonarError, DeviceError, SceneError
@@ -21,12 +22,11 @@ SCENE_NAMES = ("Scene", "load_scene", "save_scene")
 
 
 def __getattr__(name: str) -> Any:
-    """``clsonar.Scene``, ``clsonar.load_scene``, ``clsonar.save_scene``: from
-    :mod:`clsonar.scene`, imported on first use (PEP 562)."""
-    if name in SCENE_NAMES:
-        from . import scene
-
-        return getattr(scene, name)
+    """``clsonar.Scene``, ``clsonar.load_scene``, ``clsonar.save_scene`` and
+    ``clsonar.scene`` itself: from :mod:`clsonar.scene`, imported on first use (PEP 562)."""
+    if name in SCENE_NAMES or name == "scene":
+        scene = importlib.import_module(".scene", __name__)
+        return scene if name == "scene" else getattr(scene, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

@@ -48,6 +48,8 @@ def test_the_scene_names_are_imported_when_asked_for():
     assert set(clsonar.SCENE_NAMES) <= set(clsonar.__all__)
     assert _fresh("from clsonar import load_scene; import json; "
                   f"print(json.dumps(load_scene({ROOM!r}).name))") == "room"
+    assert _fresh("import clsonar, json; "
+                  "print(json.dumps(clsonar.scene.Scene.__name__))") == "Scene"
     with pytest.raises(AttributeError, match="no attribute 'Scenes'"):
         clsonar.Scenes  # noqa: B018
 
