@@ -11,7 +11,7 @@ the span drawn) would have had its reflection point on that extension, inside be
 wide as the family's own detections show, and heard no echo there, the surface ends
 somewhere between: where the pairs' echoes beyond fall to half a mirror's, as a face's
 does with its reflection point on its edge, or, with nothing heard there, halfway to the
-first silent pair (:func:`_clamp_to_silence`, :func:`_end`).
+first silent pair (:func:`clamp_to_silence`, :func:`_end`).
 
 Plane patches of the same line (from overlapping stretches of an array, or other arrays)
 join into one, fitted again to all their detections, across gaps up to :data:`JOIN_GAP_M`;
@@ -177,8 +177,8 @@ def own_beams(p: Patch, sensors: SensorArray) -> Beams:
             sensors.axes[p.rx])
 
 
-def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
-                      lo: float, hi: float) -> tuple[float, float]:
+def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
+                     lo: float, hi: float) -> tuple[float, float]:
     """The span ``(lo, hi)`` cut where the arrays heard nothing (module docstring): pairs
     in front of the surface whose two-way beam (:func:`~.strength.two_way`) points at it
     beyond the span at least as well as for the weakest of the patch's own detections,
@@ -458,7 +458,7 @@ def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     cut_sin2, _ = scene.transducer.beam(c)
     resolution = c * scene.transducer.pulse_sigma_s
     lo, hi = extents(p, sensors, cut_sin2, resolution)
-    lo, hi = _clamp_to_silence(p, scene, sensors, heard, lo, hi)
+    lo, hi = clamp_to_silence(p, scene, sensors, heard, lo, hi)
     reach = trusted_reach(replace(p, bend=min(p.bend, strength_bend(p, scene, sensors,
                                                                      amplitude))))
     return replace(p, lo=min(max(lo, p.lo - reach), p.lo), hi=max(min(hi, p.hi + reach), p.hi))
@@ -561,6 +561,7 @@ __all__ = [
     "Patches",
     "amplitude_noise",
     "carrier_points",
+    "clamp_to_silence",
     "coordinates",
     "draw_patch",
     "extents",
