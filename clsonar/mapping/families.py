@@ -306,11 +306,8 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
     moved by at most the window's ``neighbour_m``) whose paths change no more than one
     surface allows (:data:`MAX_PATH_SLOPE`), nearest first, at most :data:`SEED_SIZE`; when
     these are too few to fit, the nearest free rows whose paths are within that of the
-    seed's, however far and however weaker than :data:`SEED_SPREAD` lets neighbours be:
-    the elements of a sparse array face every way, and their beams alone set one
-    reflector's echoes apart by more (the zoo's seed 3 corner-07: the double bounce heard
-    at 3.6, 0.3 and 0.04 units by three pairs of a random-lines array, its vertex missed
-    by 34 cm; seed 7 wall-07: 3.2, 0.03 and 4.4 units, an empty map)."""
+    seed's, however far and however weaker (a sparse array's elements face every way:
+    their beams alone set one reflector's echoes apart by more than :data:`SEED_SPREAD`)."""
     step = w.neighbour_m
     members = [seed]
     frontier = [seed]
@@ -326,8 +323,7 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
         frontier = left[reached].tolist()
         members += frontier
         left = left[~reached]
-    if len(members) < MIN_FAMILY:  # a sparse array (elements facing every way): farther,
-        # and however weaker: such elements' beams set one reflector's echoes far apart
+    if len(members) < MIN_FAMILY:  # a sparse array: farther, however weaker
         left = free[(free != seed) & ~np.isin(free, members)]
         moved = _moved(w, seed, left)
         near = np.abs(w.paths[left] - w.paths[seed]) <= (MAX_PATH_SLOPE * moved
@@ -594,9 +590,9 @@ def find_families(w: Window, resolution: float) -> tuple[list[Family], np.ndarra
     taken = np.zeros(len(w.paths), dtype=bool)
     families = _select(w, np.arange(len(w.paths)), taken, resolution)
     left = np.flatnonzero(~taken)
-    if len(left) >= MIN_CURVE:  # a loose curve: from as many rows as an array's
-        families += _select(replace(w, curve_tolerance=CURVE_TOLERANCE_M, least_curve=MIN_CURVE),
-                            left, taken, resolution)
+    if len(left) >= MIN_CURVE:  # loose curves need as many rows as an array's
+        loose = replace(w, curve_tolerance=CURVE_TOLERANCE_M, least_curve=MIN_CURVE)
+        families += _select(loose, left, taken, resolution)
     return families, np.flatnonzero(~taken)
 
 
