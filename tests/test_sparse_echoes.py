@@ -54,14 +54,18 @@ def test_a_plane_family_takes_a_far_weaker_echo_of_a_sparse_array():
     assert row["accuracy_m"] is not None and row["accuracy_m"] <= 1e-4
 
 
-def test_an_edge_heard_by_one_pair_ends_its_face():
-    """Seeds 4 and 13 edge-03: one pair heard the edge's diffraction (0.09 and 0.07
-    units); its locus crosses the face's line at the edge, which ends the face there
-    (mapping.ends): 32 and 19 cm from the edge before, 0.9 and 1.3 mm now."""
-    for seed in (4, 13):
-        row = _row(seed, "edge", 3)
-        assert row["passed"], seed
-        assert row["vertex_error_m"] is not None and row["vertex_error_m"] <= 0.002, seed
+@pytest.mark.parametrize(("seed", "index", "vertex_m"), [
+    (4, 3, 0.002),  # one pair heard the edge (0.09 units): 32 cm before
+    (13, 3, 0.002),  # one pair (0.07 units): 19 cm before
+    (12, 0, 0.015),  # a flat circle's face ended by its strength 2.1 cm short
+])
+def test_an_edge_heard_by_one_pair_ends_its_face(seed, index, vertex_m):
+    """Random-lines and array faces whose edge's diffraction one or two pairs heard:
+    the locus crosses the face's line at the edge, which ends the face there
+    (mapping.ends, joins.reach_heard_ends)."""
+    row = _row(seed, "edge", index)
+    assert row["passed"]
+    assert row["vertex_error_m"] is not None and row["vertex_error_m"] <= vertex_m
 
 
 @pytest.mark.parametrize(("seed", "kind", "index", "accuracy_m"), [

@@ -23,7 +23,7 @@ from .envelope import in_beams
 from .families import window_tolerance
 from .loci import Loci
 from .models import dot2
-from .patches import Patch, carrier_points, mirror_echo
+from .patches import Patch, carrier_points, mirror_echo, outward
 from .strength import EDGE_SHARE, two_way
 
 
@@ -51,37 +51,38 @@ def locus_crossings(T: np.ndarray, R: np.ndarray, path: np.ndarray, foot: np.nda
     return np.stack([(-B - root) / (2 * A), (-B + root) / (2 * A)], axis=-1)
 
 
-def heard_ends(p: Patch, scene: Scene, sensors: SensorArray, loci: Loci,
-               rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(u, points)``: where the loci of ``rows`` (detections no family explains) cross
-    the straight patch ``p``'s line beyond its reflection points, inside both of their
-    beams, and are no stronger there than an edge's diffraction can be
-    (:data:`~.strength.EDGE_SHARE` of a flat mirror's echo through their two-way beam):
-    the places one heard diffraction puts the face's edge (module docstring), where the
-    detection's path tolerance (:func:`~.families.window_tolerance`) moves its crossing
-    along the line by at most the pulse's resolution c·σ."""
+def heard_ends(p: Patch, end: float, scene: Scene, sensors: SensorArray, loci: Loci,
+               rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(s, points, spread)``: where the loci of ``rows`` (detections no family explains) cross
+    the tangent of ``p``'s carrier at its coordinate ``end`` (a plane's line; a circle at
+    least as flat as its range, a face's slightly bent last stretch, is as good as its
+    tangent there), ``s`` metres beyond that end, inside both of their beams, no stronger
+    there than an edge's diffraction can be (:data:`~.strength.EDGE_SHARE` of a flat
+    mirror's echo through their two-way beam), and where the detection's path tolerance
+    (:func:`~.families.window_tolerance`) moves the crossing along the line by at most
+    the pulse's resolution c·σ (``spread``, how far it does): the places one heard
+    diffraction puts the face's edge (module docstring)."""
     c = scene.medium.c
     cut_sin2, ka = scene.transducer.beam(c)
     T, R = sensors.positions[loci.tx[rows]], sensors.positions[loci.rx[rows]]
     axT, axR = sensors.axes[loci.tx[rows]], sensors.axes[loci.rx[rows]]
-    foot = carrier_points(p.params, p.x0, np.zeros(1))[0]
-    t = carrier_points(p.params, p.x0, np.ones(1))[0] - foot
-    u = locus_crossings(T, R, loci.tof_s[rows] * c, foot, t)
-    k, j = np.nonzero(np.isfinite(u) & ((u < p.u.min()) | (u > p.u.max())))
-    u = u[k, j]
-    X = foot + u[:, None] * t
+    at, t = carrier_points(p.params, p.x0, np.array([end]))[0], outward(p, end)
+    s = locus_crossings(T, R, loci.tof_s[rows] * c, at, t)
+    k, j = np.nonzero(np.isfinite(s) & (s > 0))
+    s = s[k, j]
+    X = at + s[:, None] * t
     amplitude = loci.amplitude[rows[k]]
     # how far along the line the path's tolerance moves the crossing: a locus that grazes
     # the line (a face's own echo) fixes no point on it
     slope = np.abs(dot2((X - T[k]) / np.hypot(*(X - T[k]).T)[:, None]
                         + (X - R[k]) / np.hypot(*(X - R[k]).T)[:, None], t))
-    tolerance = window_tolerance(amplitude, scene.signal.noise_std, c,
-                                 scene.transducer.pulse_sigma_s)
+    spread = window_tolerance(amplitude, scene.signal.noise_std, c,
+                              scene.transducer.pulse_sigma_s) / np.maximum(slope, 1e-12)
     ok = (in_beams(X, T[k], axT[k], cut_sin2) & in_beams(X, R[k], axR[k], cut_sin2)
           & (amplitude <= EDGE_SHARE * mirror_echo(scene)
              * two_way(X, T[k], axT[k], R[k], axR[k], ka))
-          & (tolerance <= c * scene.transducer.pulse_sigma_s * slope))
-    return u[ok], X[ok]
+          & (spread <= c * scene.transducer.pulse_sigma_s))
+    return s[ok], X[ok], spread[ok]
 
 
 __all__ = ["heard_ends", "locus_crossings"]

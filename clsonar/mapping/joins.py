@@ -289,34 +289,37 @@ END_AT_VERTEX_M = 0.02
 def reach_heard_ends(patches: list[Patch], vertices: np.ndarray, scene: Scene,
                      sensors: SensorArray, loci: Loci, heard: Heard, rows: np.ndarray
                      ) -> tuple[list[Patch], np.ndarray]:
-    """Straight patches whose ends no located vertex ends, each extended to the edge
-    that one diffraction of ``rows`` puts nearest it beyond its drawn end
-    (:func:`~.ends.heard_ends`), farther than the pulse's resolution c·σ (nearer, the
-    face is drawn to its edge already) and within :data:`MEET_M`, where the arrays'
-    silence lets it go on that far (:func:`~.patches.clamp_to_silence`); those edges are
-    located vertices."""
+    """Faces (planes, circles as flat as their range: :func:`~.patches.flat`) whose ends no
+    located vertex ends, each extended to the edge that one diffraction of ``rows`` puts
+    nearest it beyond its drawn end (:func:`~.ends.heard_ends`), farther than the
+    detection's tolerance moves it (nearer, the face is drawn to its edge already) and
+    within :data:`MEET_M`, where the arrays' silence lets it go on that far, to within
+    the pulse's resolution c·σ (:func:`~.patches.clamp_to_silence`, whose end is a
+    region of constant depth's); those edges are located vertices."""
     found = [vertices]
     resolution = scene.medium.c * scene.transducer.pulse_sigma_s
     for k, p in enumerate(patches):
-        if not p.straight or len(rows) == 0:
+        if not flat(p) or len(rows) == 0:
             continue
-        u, X = heard_ends(p, scene, sensors, loci, rows)
-        for sign, end in ((-1.0, p.lo), (1.0, p.hi)):
+        scale = 1.0 if p.straight else abs(float(curve_geometry(p.params, p.x0)[1]))
+        for end in (p.lo, p.hi):
             at = carrier_points(p.params, p.x0, np.array([end]))
             done = np.concatenate(found)
             if len(done) and np.hypot(*(done - at).T).min() <= END_AT_VERTEX_M:
                 continue
-            side = (sign * (u - end) <= MEET_M) & (sign * (u - end) > resolution)
-            if not side.any():
+            s, X, spread = heard_ends(p, end, scene, sensors, loci, rows)
+            side = np.flatnonzero((s > spread) & (s <= MEET_M))
+            if len(side) == 0:
                 continue
-            i = np.flatnonzero(side)[np.argmin(sign * u[side])]
-            span = clamp_to_silence(p, scene, sensors, heard, min(u[i], p.lo), max(u[i], p.hi))
-            if sign * (span[sign > 0] - u[i]) < 0:
+            x = X[side[np.argmin(s[side])]]
+            ux = float(coordinates(p.params, p.x0, x[None])[0])
+            lo, hi = clamp_to_silence(p, scene, sensors, heard, min(ux, p.lo), max(ux, p.hi))
+            if not lo - resolution / scale <= ux <= hi + resolution / scale:
                 continue  # pairs that would have heard the face on the way heard nothing
-            reached = _reach(p, X[i], drawn=True)
+            reached = _reach(p, x, drawn=True)
             if reached is not None:
                 patches[k] = p = reached
-                found.append(X[i][None])
+                found.append(x[None])
     return patches, np.concatenate(found)
 
 

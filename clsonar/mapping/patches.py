@@ -216,13 +216,13 @@ def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
             ends.append(end + sign * stop)
         elif line:
             ends.append(float(coordinates(p.params, p.x0,
-                                          (q + stop * _outward(p, end))[None])[0]))
+                                          (q + stop * outward(p, end))[None])[0]))
         else:
             ends.append(end + sign * stop / scale)
     return max(lo, ends[0]), min(hi, ends[1])
 
 
-def _outward(p: Patch, end: float) -> np.ndarray:
+def outward(p: Patch, end: float) -> np.ndarray:
     """The unit tangent of ``p``'s carrier at coordinate ``end``, away from its reflection
     points."""
     ahead = end + (1e-6 if end >= float(p.u.max()) else -1e-6)
@@ -240,7 +240,7 @@ def _tangent(p: Patch, end: float, T: np.ndarray, R: np.ndarray, u: np.ndarray
     circle reflects beyond it, along the face, as the line does: on the circle, the pairs'
     reflection points are drawn together by its curvature)."""
     q = carrier_points(p.params, p.x0, np.array([end]))[0]
-    t = _outward(p, end)
+    t = outward(p, end)
     n = np.array([t[1], -t[0]])
     if float(dot2(n, T.mean(axis=0) - q)) > 0:
         n = -n  # the plane's normal points away from the transducers
@@ -567,6 +567,7 @@ __all__ = [
     "extents",
     "flat",
     "nearest_index",
+    "outward",
     "patch_of",
     "spread_patch",
     "strength_bend",
