@@ -6,14 +6,12 @@ reflection point (:func:`find_families`).
 
 The plane/corner/edge distinction of Kleeman & Kuc (1995): with T ≠ R pairs the three
 predict different times of flight (:mod:`.models`), so the family's pairs decide. The
-families are grown from seeds: a detection and its nearest detections in the array
-(pairs of neighbouring elements, paths that can come from one surface) give a first fit of
-each model; each model then takes every unexplained detection it predicts to within the
-tolerance (and whose reflection point lies in both beams), is fitted again to them, and so
-on; the model that explains most wins the detections, and the simplest model (plane,
-point, corner) that explains them about as well as the free curve names the family.
-The models' first fits are :mod:`.starts`. A plane takes the detections no family
-explained, every array's, that it predicts (:func:`widened`).
+families are grown from seeds: a detection and its nearest detections in the array give
+a first fit of each model (:mod:`.starts`); each model then takes every unexplained
+detection it predicts within the tolerance, its reflection point in both beams, is fitted
+again, and so on; the model that explains most wins the detections, and the simplest
+(plane, point, corner) that explains them about as well as the free curve names the
+family. A plane takes the detections no family explained that it predicts (:func:`widened`).
 """
 
 from __future__ import annotations
@@ -306,8 +304,8 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
     moved by at most the window's ``neighbour_m``) whose paths change no more than one
     surface allows (:data:`MAX_PATH_SLOPE`), nearest first, at most :data:`SEED_SIZE`; when
     these are too few to fit, the nearest free rows whose paths are within that of the
-    seed's, however far and however weaker (a sparse array's elements face every way:
-    their beams alone set one reflector's echoes apart by more than :data:`SEED_SPREAD`)."""
+    seed's, however far, and if still too few, however weaker (a sparse array's elements
+    face every way: their beams part one reflector's echoes more than :data:`SEED_SPREAD`)."""
     step = w.neighbour_m
     members = [seed]
     frontier = [seed]
@@ -323,12 +321,14 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
         frontier = left[reached].tolist()
         members += frontier
         left = left[~reached]
-    if len(members) < MIN_FAMILY:  # a sparse array: farther, however weaker
-        left = free[(free != seed) & ~np.isin(free, members)]
-        moved = _moved(w, seed, left)
-        near = np.abs(w.paths[left] - w.paths[seed]) <= (MAX_PATH_SLOPE * moved
-                                                         + w.tolerance[left] + w.tolerance[seed])
-        members += left[near][np.argsort(moved[near], kind="stable")].tolist()
+    for weaker in (False, True):  # a sparse array: farther, then however weaker
+        if len(members) >= MIN_FAMILY:
+            break
+        pool = free[(free != seed) & ~np.isin(free, members)] if weaker else left
+        moved = _moved(w, seed, pool)
+        near = np.abs(w.paths[pool] - w.paths[seed]) <= (MAX_PATH_SLOPE * moved
+                                                         + w.tolerance[pool] + w.tolerance[seed])
+        members += pool[near][np.argsort(moved[near], kind="stable")].tolist()
     found = np.asarray(members)
     order = np.argsort(_moved(w, seed, found), kind="stable")
     return np.sort(found[order[:SEED_SIZE]])
