@@ -82,6 +82,15 @@ def test_what_the_rules_for_few_echoes_leave_alone(seed, kind, index, accuracy_m
     assert row["accuracy_m"] is not None and row["accuracy_m"] <= accuracy_m
 
 
+def test_a_locus_crossing_the_face_on_both_sides_of_its_end_extends_nothing():
+    """Seed 14 corner-03 (a seed no rule was written on): a face drawn 5 cm past its free
+    end, whose diffraction's locus crosses the line 6 cm inside the drawn end and 5 cm
+    beyond it; taking the outer crossing drew the face 10 cm past the end (1.30 → 3.57 cm
+    RMS). Which side the edge is on, that locus cannot say (mapping.ends)."""
+    row = _row(14, "corner", 3)
+    assert row["accuracy_m"] is not None and row["accuracy_m"] <= 0.014
+
+
 def test_a_sparse_arrays_seed_takes_far_weaker_echoes_only_when_nothing_else_fits():
     """Seed 9 cylinder-03: the nearest rows within the tenfold spread make a circle of
     14 echoes; taking the weaker ones first named 3 of them a point, 71 → 15 % of the

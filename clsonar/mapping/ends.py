@@ -52,7 +52,7 @@ def locus_crossings(T: np.ndarray, R: np.ndarray, path: np.ndarray, foot: np.nda
 
 
 def heard_ends(p: Patch, end: float, scene: Scene, sensors: SensorArray, loci: Loci,
-               rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               rows: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(s, points, spread)``: where the loci of ``rows`` (detections no family explains) cross
     the tangent of ``p``'s carrier at its coordinate ``end`` (a plane's line; a circle at
     least as flat as its range, a face's slightly bent last stretch, is as good as its
@@ -61,15 +61,22 @@ def heard_ends(p: Patch, end: float, scene: Scene, sensors: SensorArray, loci: L
     mirror's echo through their two-way beam), and where the detection's path tolerance
     (:func:`~.families.window_tolerance`) moves the crossing along the line by at most
     the pulse's resolution c·σ (``spread``, how far it does): the places one heard
-    diffraction puts the face's edge (module docstring)."""
+    diffraction puts the face's edge (module docstring). A locus whose other crossing
+    lies on the face within ``reach`` of that end is left out: its diffraction may be
+    of an edge the face is drawn past (the zoo's seed 14 corner-03: a free end 5 cm
+    inside the drawn end, its monostatic locus crossing the line 6 cm inside and 5 cm
+    beyond it)."""
     c = scene.medium.c
     cut_sin2, ka = scene.transducer.beam(c)
     T, R = sensors.positions[loci.tx[rows]], sensors.positions[loci.rx[rows]]
     axT, axR = sensors.axes[loci.tx[rows]], sensors.axes[loci.rx[rows]]
     at, t = carrier_points(p.params, p.x0, np.array([end]))[0], outward(p, end)
-    s = locus_crossings(T, R, loci.tof_s[rows] * c, at, t)
-    k, j = np.nonzero(np.isfinite(s) & (s > 0))
-    s = s[k, j]
+    both = locus_crossings(T, R, loci.tof_s[rows] * c, at, t)
+    # a locus that also crosses the drawn face near this end says nothing of which side
+    # the edge is on: the face may be drawn past its edge there
+    inner = np.where(np.isfinite(both[:, 0]), both[:, 0], np.inf)  # the lesser root
+    k, j = np.nonzero(np.isfinite(both) & (both > 0) & ~((inner < 0) & (inner >= -reach))[:, None])
+    s = both[k, j]
     X = at + s[:, None] * t
     amplitude = loci.amplitude[rows[k]]
     # how far along the line the path's tolerance moves the crossing: a locus that grazes

@@ -307,7 +307,7 @@ def reach_heard_ends(patches: list[Patch], vertices: np.ndarray, scene: Scene,
             done = np.concatenate(found)
             if len(done) and np.hypot(*(done - at).T).min() <= END_AT_VERTEX_M:
                 continue
-            s, X, spread = heard_ends(p, end, scene, sensors, loci, rows)
+            s, X, spread = heard_ends(p, end, scene, sensors, loci, rows, MEET_M)
             side = np.flatnonzero((s > spread) & (s <= MEET_M))
             if len(side) == 0:
                 continue
