@@ -119,3 +119,21 @@ def test_throughput_section_counts_the_sweeps_runs_and_every_png_choice(tmp_path
     text = "\n".join(throughput_markdown("plane-2m", sweep, process))
     assert "## End to end: `plane-2m`" in text and "| stages |" in text
     assert "every stage computed" in text
+
+
+def test_the_floors_table_gives_the_wall_time_and_every_process_memory():
+    """A floor mapped by two worker processes: its wall time beside the stages' seconds
+    summed over the rooms (about twice it), and the peak memory of the parent plus each
+    worker's."""
+    from clsonar.tools.bench import floors_markdown
+    from clsonar.tools.floors import FloorRow
+
+    row = FloorRow("floor-100m", 10**8, 400, 99200, 793600, {"accumulation": 40.0}, 70.0,
+                   1152.0, 954.0, 0.0006, 0.999, "1600/1600", wall_s=35.8, workers=2,
+                   workers_peak_rss_mb=178.0)
+    table = "\n".join(floors_markdown([row]))
+    assert "| wall s | workers | stages s |" in table
+    line = next(x for x in table.splitlines() if x.startswith("| floor-100m"))
+    cells = [c.strip() for c in line.strip("|").split("|")]
+    assert cells[5:8] == ["35.8", "2", "70.0"]
+    assert "1,508 MB" in cells

@@ -93,7 +93,7 @@ def test_another_array_s_silence_ends_a_wall_past_its_free_end():
     of constant depth of its echoes (0.235 m at 3 m): alone, the array cannot tell, and
     the wall is drawn past its end; a second array whose pairs would hear the wall just
     past its end, and hear nothing, ends it between the first array's last reflection
-    point and its own first (patches._clamp_to_silence: every group's pairs, for a
+    point and its own first (patches.clamp_to_silence: every group's pairs, for a
     plane, over the span drawn)."""
     top = 2.85
     alone = _wall_run(top, [(2.5, 10, 0.05)])

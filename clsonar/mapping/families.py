@@ -6,14 +6,12 @@ reflection point (:func:`find_families`).
 
 The plane/corner/edge distinction of Kleeman & Kuc (1995): with T ≠ R pairs the three
 predict different times of flight (:mod:`.models`), so the family's pairs decide. The
-families are grown from seeds: a detection and its nearest detections in the array
-(pairs of neighbouring elements, paths that can come from one surface) give a first fit of
-each model; each model then takes every unexplained detection it predicts to within the
-tolerance (and whose reflection point lies in both beams), is fitted again to them, and so
-on; the model that explains most wins the detections, and the simplest model (plane,
-point, corner) that explains them about as well as the free curve names the family.
-The models' first fits are :mod:`.starts`. A plane takes the detections no family
-explained, every array's, that it predicts (:func:`widened`).
+families are grown from seeds: a detection and its nearest detections in the array give
+a first fit of each model (:mod:`.starts`); each model then takes every unexplained
+detection it predicts within the tolerance, its reflection point in both beams, is fitted
+again, and so on; the model that explains most wins the detections, and the simplest
+(plane, point, corner) that explains them about as well as the free curve names the
+family. A plane takes the detections no family explained that it predicts (:func:`widened`).
 """
 
 from __future__ import annotations
@@ -113,6 +111,9 @@ class Window:
     neighbour_m: float  # pairs whose transducers moved this far (or less) are neighbours
     curve_tolerance: float = 0.0  # least path residual a free curve's rows may have
     max_failed: int = 24  # seeds in a row that grow nothing before the search stops
+    #: detections a free curve needs (:func:`_least`): :data:`~.starts.MIN_CURVE`, one
+    #: fewer for the detections of scattered elements (:func:`~.reflectors._families`)
+    least_curve: int = MIN_CURVE
     #: a flat mirror's echo on both axes (A0·ρ), the beam's k·a and the noise σ of a
     #: detection's amplitude (:func:`~.patches.amplitude_noise`), for the amplitude a
     #: plane's echo has (:func:`mirror_floor`); mirror 0: not checked
@@ -256,9 +257,10 @@ def _tolerance(w: Window, kind: str, rows: np.ndarray) -> np.ndarray:
     return np.maximum(tol, w.curve_tolerance) if kind == "curve" else tol
 
 
-def _least(kind: str) -> int:
-    """Fewest members a family of ``kind`` needs: more than the model has parameters."""
-    return MIN_CURVE if kind == "curve" else MIN_FAMILY
+def _least(w: Window, kind: str) -> int:
+    """Fewest members a family of ``kind`` needs: more than the model has parameters
+    (for a free curve, the window's ``least_curve``)."""
+    return w.least_curve if kind == "curve" else MIN_FAMILY
 
 
 def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
@@ -272,7 +274,7 @@ def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
     path, _ = _predict(w, kind, start, seed_rows)
     close = seed_rows[np.abs(path - w.paths[seed_rows])
                       <= START_TOLERANCE_M + w.tolerance[seed_rows]]
-    least = _least(kind)
+    least = _least(w, kind)
     if len(close) < least and kind != "curve":
         return None  # the start explains too few: another model's seed
     members = close if len(close) >= least else seed_rows
@@ -302,7 +304,8 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
     moved by at most the window's ``neighbour_m``) whose paths change no more than one
     surface allows (:data:`MAX_PATH_SLOPE`), nearest first, at most :data:`SEED_SIZE`; when
     these are too few to fit, the nearest free rows whose paths are within that of the
-    seed's, however far."""
+    seed's, however far, and if still too few, however weaker (a sparse array's elements
+    face every way: their beams part one reflector's echoes more than :data:`SEED_SPREAD`)."""
     step = w.neighbour_m
     members = [seed]
     frontier = [seed]
@@ -318,11 +321,14 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
         frontier = left[reached].tolist()
         members += frontier
         left = left[~reached]
-    if len(members) < MIN_FAMILY:  # a sparse array (elements facing every way): farther
-        moved = _moved(w, seed, left)
-        near = np.abs(w.paths[left] - w.paths[seed]) <= (MAX_PATH_SLOPE * moved
-                                                         + w.tolerance[left] + w.tolerance[seed])
-        members += left[near][np.argsort(moved[near], kind="stable")].tolist()
+    for weaker in (False, True):  # a sparse array: farther, then however weaker
+        if len(members) >= MIN_FAMILY:
+            break
+        pool = free[(free != seed) & ~np.isin(free, members)] if weaker else left
+        moved = _moved(w, seed, pool)
+        near = np.abs(w.paths[pool] - w.paths[seed]) <= (MAX_PATH_SLOPE * moved
+                                                         + w.tolerance[pool] + w.tolerance[seed])
+        members += pool[near][np.argsort(moved[near], kind="stable")].tolist()
     found = np.asarray(members)
     order = np.argsort(_moved(w, seed, found), kind="stable")
     return np.sort(found[order[:SEED_SIZE]])
@@ -346,7 +352,7 @@ def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
         members, fit = grown
         q = _predict(w, kind, fit.params, members)[1]
         members = members[_strong(w, kind, members, q, fit.params)]
-        if seed not in members or len(members) < _least(kind):
+        if seed not in members or len(members) < _least(w, kind):
             continue
         if (best is None or len(members) > len(best[0])
                 or (len(members) == len(best[0]) and fit.rms < best[1].rms)):
@@ -371,7 +377,7 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
     fits: dict[str, Fit] = {kind: fit}
     first = family_starts(w, kind, fit.params, members)
     for other, start in first.items():
-        if other in fits or len(members) < _least(other):
+        if other in fits or len(members) < _least(w, other):
             continue
         path, _ = _predict(w, other, start, members)
         if np.sqrt(np.mean((path - w.paths[members]) ** 2)) <= HOPELESS_START_M:
@@ -560,12 +566,12 @@ def _select(w: Window, rows: np.ndarray, taken: np.ndarray, resolution: float
     for cand in sorted(_candidates(w, rows, resolution), key=lambda f: -len(f.rows)):
         keep = cand.rows[~taken[cand.rows]]
         v = cand.window
-        if len(keep) < _least(cand.kind):
+        if len(keep) < _least(v, cand.kind):
             continue
         if len(keep) < len(cand.rows):
-            kind = "curve" if cand.kind == "plane" and len(keep) >= MIN_CURVE else cand.kind
+            kind = "curve" if cand.kind == "plane" and len(keep) >= v.least_curve else cand.kind
             keep = _inliers(v, kind, _fit(v, kind, keep, cand.params).params, keep)
-            if len(keep) < _least(kind):
+            if len(keep) < _least(v, kind):
                 continue
             cand = _simplest(v, keep, _fit(v, kind, keep, cand.params), kind)
         families.append(cand)
@@ -584,9 +590,9 @@ def find_families(w: Window, resolution: float) -> tuple[list[Family], np.ndarra
     taken = np.zeros(len(w.paths), dtype=bool)
     families = _select(w, np.arange(len(w.paths)), taken, resolution)
     left = np.flatnonzero(~taken)
-    if len(left) >= MIN_CURVE:
-        families += _select(replace(w, curve_tolerance=CURVE_TOLERANCE_M), left, taken,
-                            resolution)
+    if len(left) >= MIN_CURVE:  # loose curves need as many rows as an array's
+        loose = replace(w, curve_tolerance=CURVE_TOLERANCE_M, least_curve=MIN_CURVE)
+        families += _select(loose, left, taken, resolution)
     return families, np.flatnonzero(~taken)
 
 

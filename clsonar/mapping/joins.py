@@ -21,14 +21,17 @@ import numpy as np
 from .. import steps
 from ..scene import Scene
 from ..sensors import SensorArray
+from .ends import heard_ends
 from .families import Family
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2, fit_curve
 from .patches import (
     STEP_CELLS,
+    Heard,
     Patch,
     Patches,
     carrier_points,
+    clamp_to_silence,
     coordinates,
     draw_patch,
     flat,
@@ -279,11 +282,53 @@ def drawn_spans(p: Patch) -> list[tuple[float, float]]:
     return [(float(a), float(b)) for a, b in zip(starts, stops, strict=True)]
 
 
+#: A patch's end within this of a located vertex (metres) ends there.
+END_AT_VERTEX_M = 0.02
+
+
+def reach_heard_ends(patches: list[Patch], vertices: np.ndarray, scene: Scene,
+                     sensors: SensorArray, loci: Loci, heard: Heard, rows: np.ndarray
+                     ) -> tuple[list[Patch], np.ndarray]:
+    """Faces (planes, circles as flat as their range: :func:`~.patches.flat`) whose ends no
+    located vertex ends, each extended to the edge that one diffraction of ``rows`` puts
+    nearest it beyond its drawn end (:func:`~.ends.heard_ends`), farther than the
+    detection's tolerance moves it (nearer, the face is drawn to its edge already) and
+    within :data:`MEET_M`, where the arrays' silence lets it go on that far, to within
+    the pulse's resolution c·σ (:func:`~.patches.clamp_to_silence`, whose end is a
+    region of constant depth's); those edges are located vertices."""
+    found = [vertices]
+    resolution = scene.medium.c * scene.transducer.pulse_sigma_s
+    for k, p in enumerate(patches):
+        if not flat(p) or len(rows) == 0:
+            continue
+        scale = 1.0 if p.straight else abs(float(curve_geometry(p.params, p.x0)[1]))
+        for end in (p.lo, p.hi):
+            at = carrier_points(p.params, p.x0, np.array([end]))
+            done = np.concatenate(found)
+            if len(done) and np.hypot(*(done - at).T).min() <= END_AT_VERTEX_M:
+                continue
+            s, X, spread = heard_ends(p, end, scene, sensors, loci, rows, MEET_M)
+            side = np.flatnonzero((s > spread) & (s <= MEET_M))
+            if len(side) == 0:
+                continue
+            x = X[side[np.argmin(s[side])]]
+            ux = float(coordinates(p.params, p.x0, x[None])[0])
+            lo, hi = clamp_to_silence(p, scene, sensors, heard, min(ux, p.lo), max(ux, p.hi))
+            if not lo - resolution / scale <= ux <= hi + resolution / scale:
+                continue  # pairs that would have heard the face on the way heard nothing
+            reached = _reach(p, x, drawn=True)
+            if reached is not None:
+                patches[k] = p = reached
+                found.append(x[None])
+    return patches, np.concatenate(found)
+
+
 def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
-                  families: list[Family]) -> Patches:
+                  families: list[Family], alone: np.ndarray | None = None) -> Patches:
     """The points and vertices of ``families``: patches spread over their regions of
-    constant depth, joined, met at corners and edges, drawn every :data:`STEP_CELLS`
-    cells."""
+    constant depth, joined, met at corners and edges, reaching the edges that one
+    diffraction of the detections ``alone`` (no family's) puts at their ends
+    (:func:`reach_heard_ends`), drawn every :data:`STEP_CELLS` cells."""
     spread = [f for f in families if f.kind in ("plane", "curve")]
     heard = heard_index(loci, sensors, scene.medium.c)
     patches = [spread_patch(patch_of(f, loci), scene, sensors, heard,
@@ -294,6 +339,9 @@ def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
         np.asarray([f.params[:2] for f in points], dtype=np.float64).reshape(-1, 2),
         np.asarray([len(f.rows) for f in points], dtype=np.float64))
     patches, vertices = meet(join_collinear(patches), vertices)
+    if alone is not None:
+        patches, vertices = reach_heard_ends(patches, vertices, scene, sensors, loci, heard,
+                                             alone)
     patches = [clip_to_extent(p, scene.extent) for p in patches]
     vertices = merge_vertices(vertices, np.zeros(len(vertices)))
     step = STEP_CELLS * scene.cell
@@ -305,5 +353,6 @@ def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
     return Patches(pts, src.astype(np.int64), vertices, ends)
 
 
-__all__ = ["JOIN_GAP_M", "MEET_M", "SAME_LINE_M", "SAME_LINE_RAD", "SAME_VERTEX_M",
-           "draw_families", "drawn_spans", "join_collinear", "meet", "merge_vertices"]
+__all__ = ["END_AT_VERTEX_M", "JOIN_GAP_M", "MEET_M", "SAME_LINE_M", "SAME_LINE_RAD",
+           "SAME_VERTEX_M", "draw_families", "drawn_spans", "join_collinear", "meet",
+           "merge_vertices", "reach_heard_ends"]

@@ -11,7 +11,7 @@ the span drawn) would have had its reflection point on that extension, inside be
 wide as the family's own detections show, and heard no echo there, the surface ends
 somewhere between: where the pairs' echoes beyond fall to half a mirror's, as a face's
 does with its reflection point on its edge, or, with nothing heard there, halfway to the
-first silent pair (:func:`_clamp_to_silence`, :func:`_end`).
+first silent pair (:func:`clamp_to_silence`, :func:`_end`).
 
 Plane patches of the same line (from overlapping stretches of an array, or other arrays)
 join into one, fitted again to all their detections, across gaps up to :data:`JOIN_GAP_M`;
@@ -177,8 +177,8 @@ def own_beams(p: Patch, sensors: SensorArray) -> Beams:
             sensors.axes[p.rx])
 
 
-def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
-                      lo: float, hi: float) -> tuple[float, float]:
+def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
+                     lo: float, hi: float) -> tuple[float, float]:
     """The span ``(lo, hi)`` cut where the arrays heard nothing (module docstring): pairs
     in front of the surface whose two-way beam (:func:`~.strength.two_way`) points at it
     beyond the span at least as well as for the weakest of the patch's own detections,
@@ -216,13 +216,13 @@ def _clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard
             ends.append(end + sign * stop)
         elif line:
             ends.append(float(coordinates(p.params, p.x0,
-                                          (q + stop * _outward(p, end))[None])[0]))
+                                          (q + stop * outward(p, end))[None])[0]))
         else:
             ends.append(end + sign * stop / scale)
     return max(lo, ends[0]), min(hi, ends[1])
 
 
-def _outward(p: Patch, end: float) -> np.ndarray:
+def outward(p: Patch, end: float) -> np.ndarray:
     """The unit tangent of ``p``'s carrier at coordinate ``end``, away from its reflection
     points."""
     ahead = end + (1e-6 if end >= float(p.u.max()) else -1e-6)
@@ -240,7 +240,7 @@ def _tangent(p: Patch, end: float, T: np.ndarray, R: np.ndarray, u: np.ndarray
     circle reflects beyond it, along the face, as the line does: on the circle, the pairs'
     reflection points are drawn together by its curvature)."""
     q = carrier_points(p.params, p.x0, np.array([end]))[0]
-    t = _outward(p, end)
+    t = outward(p, end)
     n = np.array([t[1], -t[0]])
     if float(dot2(n, T.mean(axis=0) - q)) > 0:
         n = -n  # the plane's normal points away from the transducers
@@ -458,7 +458,7 @@ def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     cut_sin2, _ = scene.transducer.beam(c)
     resolution = c * scene.transducer.pulse_sigma_s
     lo, hi = extents(p, sensors, cut_sin2, resolution)
-    lo, hi = _clamp_to_silence(p, scene, sensors, heard, lo, hi)
+    lo, hi = clamp_to_silence(p, scene, sensors, heard, lo, hi)
     reach = trusted_reach(replace(p, bend=min(p.bend, strength_bend(p, scene, sensors,
                                                                      amplitude))))
     return replace(p, lo=min(max(lo, p.lo - reach), p.lo), hi=max(min(hi, p.hi + reach), p.hi))
@@ -561,11 +561,13 @@ __all__ = [
     "Patches",
     "amplitude_noise",
     "carrier_points",
+    "clamp_to_silence",
     "coordinates",
     "draw_patch",
     "extents",
     "flat",
     "nearest_index",
+    "outward",
     "patch_of",
     "spread_patch",
     "strength_bend",

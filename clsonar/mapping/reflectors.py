@@ -48,7 +48,7 @@ from .families import (
     widened,
     window_tolerance,
 )
-from .joins import draw_families
+from .joins import END_AT_VERTEX_M, draw_families
 from .loci import Loci, _subset
 from .models import corner_images, corner_paths, dot2
 from .patches import Patches, amplitude_noise, group_pairs, heard_index, loudest, mirror_echo
@@ -87,6 +87,16 @@ def linear_groups(sensors: SensorArray) -> dict[int, tuple[np.ndarray, np.ndarra
 #: The search over all arrays together gives up after this many seeds in a row grew no
 #: family (its seeds are single detections far apart; a few tell whether any wall is there).
 GLOBAL_MAX_FAILED = 12
+
+#: A free curve of the detections no stretch explained, all arrays together, needs this
+#: many: scattered elements (thesis-style random lines, one element of each of several
+#: arrays) see a reflector from directions far apart, so four of their detections fix a
+#: circle and test it, as three do a plane (the zoo's seed 7 cylinder-03: a 1 m cylinder
+#: heard by four pairs of three elements, an empty map; seed 0 sinusoid-03). An array's
+#: stretch keeps :data:`~.starts.MIN_CURVE` (with four, seed 4 sinusoid-01's crests drew
+#: circles of a crest's echoes and a trough's: 0.41 → 1.06 cm RMS), and so does the loose
+#: pass (seed 6 corner-00: a circle of five distorted double bounces, 0.00 → 3.84 cm).
+SCATTERED_CURVE = MIN_CURVE - 1
 
 #: Neighbouring pairs of an array: transducers moved by at most this many element pitches.
 NEIGHBOUR_PITCHES = 1.5
@@ -172,7 +182,7 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
     if len(rest) >= MIN_FAMILY:
         x0 = sensors.positions[loci.tx[rest]].mean(axis=0)
         w = replace(_window(scene, sensors, loci, rest, x0, math.inf),
-                    max_failed=GLOBAL_MAX_FAILED)
+                    max_failed=GLOBAL_MAX_FAILED, least_curve=SCATTERED_CURVE)
         found, free = find_families(w, resolution)
         families += found
         rest = rest[free]
@@ -423,13 +433,18 @@ def _unshadowed(scene: Scene, sensors: SensorArray, loci: Loci, families: list[F
 
 def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
     """The points, their loci and the located vertices (:class:`~.patches.Patches`) of
-    every linear array's families, and the tangent points of the other groups' detections
-    and of those no family explains, where they are as strong as a room scan's floor
+    every linear array's families (their faces reaching the edges that one diffraction no
+    family explains locates: :func:`~.joins.reach_heard_ends`), and the tangent points of
+    the other groups' detections and of those no family explains, where they are as
+    strong as a room scan's floor
     (:data:`~clsonar.survey.DEFAULT_MIN_ENVELOPE`): a tangent point is a specular echo's,
     and a weak echo no reflector explains is a diffraction's or a multipath's."""
     arrays = {} if in_a_room(scene, sensors.positions) else linear_groups(sensors)
     families, left = _families(scene, sensors, loci, arrays)
-    drawn = draw_families(scene, sensors, loci, families)
+    explained = np.zeros(len(loci), dtype=bool)
+    for f in families:
+        explained[f.loci] = True
+    drawn = draw_families(scene, sensors, loci, families, np.flatnonzero(~explained))
     others = np.flatnonzero(~np.isin(sensors.groups[loci.tx], list(arrays)))
     rest = np.sort(np.concatenate([others, left]))
     rest = rest[loci.amplitude[rest] >= DEFAULT_MIN_ENVELOPE]
@@ -442,10 +457,9 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
     return drawn.plus(points[keep], rest[source[keep]], vertices)
 
 
-#: A face that ends at a located vertex (within this, metres) does not go on past it: no
-#: tangent point is drawn within :data:`PAST_END_M` beyond that end, within
-#: :data:`PAST_END_WIDTH_M` plus :data:`PAST_END_SLOPE` of the distance from its line.
-END_AT_VERTEX_M = 0.02
+#: A face that ends at a located vertex (within :data:`~.joins.END_AT_VERTEX_M`) does not
+#: go on past it: no tangent point is drawn within :data:`PAST_END_M` beyond that end,
+#: within :data:`PAST_END_WIDTH_M` plus :data:`PAST_END_SLOPE` of the distance from its line.
 PAST_END_M = 0.5
 PAST_END_WIDTH_M = 0.01
 PAST_END_SLOPE = 0.1

@@ -31,7 +31,12 @@ class Window(Protocol):
     @property
     def x0(self) -> np.ndarray: ...  # [2] the curve model's reference point
 
-#: A free curve (three parameters) needs this many detections.
+    @property
+    def least_curve(self) -> int: ...  # detections a free curve needs
+
+
+#: A free curve (three parameters) needs this many detections of an array's neighbouring
+#: pairs, whose paths barely tell its parameters apart: two more than it has.
 MIN_CURVE = 5
 
 #: The rows a start explains to within this are the first fit's, metres of path.
@@ -89,7 +94,7 @@ def starts(w: Window, seed: int, rows: np.ndarray) -> list[tuple[str, np.ndarray
     along = float(np.hypot(*rel) + dot2(np.array([math.cos(phi), math.sin(phi)]), w.x0))
     as_point = np.array([phi, along, 1.0 / (reach + POINT_START_RADIUS_M)])
     starts = [("plane", plane), ("corner", point), ("point", point)]
-    if len(rows) >= MIN_CURVE:
+    if len(rows) >= w.least_curve:
         starts.append(("curve", max((plane, as_point), key=lambda p: explained(w, p, rows))))
     return starts
 

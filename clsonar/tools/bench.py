@@ -391,17 +391,21 @@ def floors_markdown(rows: list[FloorRow]) -> list[str]:
              "Square rooms 5 m apart (walls 0.2 m thick, a 1.6 m cylinder in every fourth), "
              "each scanned by its own wall-following ring at 50 cm steps, mapped room by room "
              "(`clsonar.regions`) into a mosaic at 1 cm. Each floor runs in a fresh process; "
-             "peak memory is that whole process's high-water mark (interpreter and OpenCL "
-             "runtime included), the mosaic the floor's own maps.", "",
-             "| floor | cells | rooms | transducers | pairs | total s | "
+             "its rooms are mapped in `workers` processes side by side (`clsonar.rooms`; "
+             "– : one loop), so the run's wall time is less than its stages' seconds, "
+             "summed over the rooms. Peak memory is the whole process's high-water mark "
+             "(interpreter and OpenCL runtime included) plus the largest worker's for each "
+             "worker, the mosaic the floor's own maps.", "",
+             "| floor | cells | rooms | transducers | pairs | wall s | workers | stages s | "
              + " | ".join(STAGES) + " | peak memory | mosaic | accuracy RMS (cm) | "
              "completeness ≤ 2 cm | vertices found |",
-             "| --- |" + " ---: |" * (10 + len(STAGES))]
+             "| --- |" + " ---: |" * (12 + len(STAGES))]
     for f in rows:
+        peak = f.peak_rss_mb + f.workers * f.workers_peak_rss_mb
         lines.append(f"| {f.scene} | {f.cells:,} | {f.rooms} | {f.transducers:,} | "
-                     f"{f.pairs:,} | {f.total_s:.1f} | "
+                     f"{f.pairs:,} | {f.wall_s:.1f} | {f.workers or NONE} | {f.total_s:.1f} | "
                      + " | ".join(f"{f.seconds.get(s, 0.0):.1f}" for s in STAGES)
-                     + f" | {f.peak_rss_mb:,.0f} MB | {f.mosaic_mb:,.0f} MB | "
+                     + f" | {peak:,.0f} MB | {f.mosaic_mb:,.0f} MB | "
                      f"{cm(f.accuracy_m)} | {percent(f.completeness_2cm, 1)} | "
                      f"{f.vertices_found or NONE} |")
     return lines
