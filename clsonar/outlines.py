@@ -24,15 +24,19 @@ def enclosing(surfaces: tuple[Surface, ...]) -> list[int | None]:
     index = list(outlines)
     boxes = outline_boxes([outlines[j] for j in index])
     for i, pts in outlines.items():
-        mean = pts.mean(axis=0, keepdims=True)
-        for j in (index[k] for k in holding(boxes, mean[0])):
-            outer = outlines[j]
-            if j != i and bool(inside_polygon(outer, mean)[0]) \
-                    and not bool(on_outline(outer, mean)[0]) \
-                    and bool(np.all(inside_polygon(outer, pts) | on_outline(outer, pts))):
+        for j in (index[k] for k in holding(boxes, pts.mean(axis=0))):
+            if j != i and encloses(outlines[j], pts):
                 out[i] = j
                 break
     return out
+
+
+def encloses(outer: np.ndarray, pts: np.ndarray) -> bool:
+    """Whether the closed outline ``outer`` encloses the polygon ``pts`` [n, 2]: every
+    vertex inside or on it, the mean of the vertices strictly inside."""
+    mean = pts.mean(axis=0, keepdims=True)
+    return (bool(inside_polygon(outer, mean)[0]) and not bool(on_outline(outer, mean)[0])
+            and bool(np.all(inside_polygon(outer, pts) | on_outline(outer, pts))))
 
 
 def outline_boxes(polys: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:

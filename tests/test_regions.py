@@ -94,18 +94,15 @@ def test_placements_round_trip_and_bad_placements_name_their_key():
 
 def _enclosing_every_pair(surfaces):
     """outlines.enclosing as it was, every outline tried for every one (the reference)."""
-    from clsonar.outlines import inside_polygon, on_outline
+    from clsonar.outlines import encloses
     from clsonar.scene import Polyline
 
     outlines = {i: np.asarray(s.points, dtype=np.float64) for i, s in enumerate(surfaces)
                 if isinstance(s, Polyline) and s.closed}
     out = [None] * len(surfaces)
     for i, pts in outlines.items():
-        mean = pts.mean(axis=0, keepdims=True)
         for j, outer in outlines.items():
-            if j != i and bool(inside_polygon(outer, mean)[0]) \
-                    and not bool(on_outline(outer, mean)[0]) \
-                    and bool(np.all(inside_polygon(outer, pts) | on_outline(outer, pts))):
+            if j != i and encloses(outer, pts):
                 out[i] = j
                 break
     return out

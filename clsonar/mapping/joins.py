@@ -297,9 +297,11 @@ def reach_heard_ends(patches: list[Patch], vertices: np.ndarray, scene: Scene,
     the pulse's resolution c·σ (:func:`~.patches.clamp_to_silence`, whose end is a
     region of constant depth's); those edges are located vertices."""
     found = [vertices]
+    if len(rows) == 0:
+        return patches, vertices
     resolution = scene.medium.c * scene.transducer.pulse_sigma_s
     for k, p in enumerate(patches):
-        if not flat(p) or len(rows) == 0:
+        if not flat(p):
             continue
         scale = 1.0 if p.straight else abs(float(curve_geometry(p.params, p.x0)[1]))
         for end in (p.lo, p.hi):
