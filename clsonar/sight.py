@@ -24,6 +24,7 @@ import numpy as np
 from . import steps
 from .geometry import cell_centres
 from .mapping import point_map, points_window
+from .mapping.points import nonzero_cells
 from .post import extract_profile, filter_and_thin
 from .scene import Scene
 
@@ -78,15 +79,70 @@ def first_hits_each(origins: np.ndarray, occluders: np.ndarray, cell: float,
     enough and inside (or whose cell reaches into) the arc of the origin's wanted bins, found
     tile by tile. Those pairs go through the very arithmetic of :func:`first_hits`, so the
     distances are the same to the bit (tests/test_rooms.py; tests/test_speed_sight.py
-    against the dense pre-filter of every pair this replaced)."""
+    against the dense pre-filter of every pair this replaced). :func:`first_hits_at` is
+    the same search giving the wanted bins alone."""
     n, bins = wanted.shape
     hits = np.full(n * bins, np.inf)
+    owner, dist, lo, width = _covering(origins, occluders, cell, within,
+                                       _wanted_arcs(wanted, bin_rad), bin_rad, tiles)
+    use = _wanted_between(wanted, owner, lo % bins, width) > 0
+    owner, dist, lo, width = owner[use], dist[use], lo[use], width[use]
+    span = width + 1  # every bin lo .. lo + width of every cell, in one scatter
+    first = np.cumsum(span) - span
+    offset = np.arange(int(span.sum())) - np.repeat(first, span)
+    where = np.repeat(owner * bins, span) + (np.repeat(lo, span) + offset) % bins
+    np.minimum.at(hits, where, np.repeat(dist, span))
+    return hits.reshape(n, bins)
+
+
+def first_hits_at(origins: np.ndarray, occluders: np.ndarray, cell: float,
+                  within: np.ndarray, rows: np.ndarray, at: np.ndarray, bins: int,
+                  bin_rad: float = SIGHT_BIN_RAD, tiles: Tiles | None = None) -> np.ndarray:
+    """[w] :func:`first_hits_each`'s distances in the wanted bins alone: bin ``at[k]`` of
+    origin ``rows[k]`` (each once, by origin then bin: ``np.nonzero`` of the wanted
+    [S, ``bins``]). Each pair's cell is scattered only into the wanted bins it covers
+    (found in the sorted keys row·bins + bin, its range of bins round the circle in at
+    most two runs) rather than into every bin it covers: the minimum of the same
+    distances in each wanted bin (in any order: a minimum of numbers, none NaN, is one of
+    them), so the same bits, without the [S, B] arrays (the room's near cells cover
+    hundreds of bins each, a few of them wanted)."""
+    keys = rows * bins + at
+    hits = np.full(len(keys), np.inf)
+    owner, dist, lo, width = _covering(origins, occluders, cell, within,
+                                       _arcs_of(rows, at, len(origins), bins, bin_rad),
+                                       bin_rad, tiles)
+    base, start = owner * bins, lo % bins
+    end = start + width  # the last bin, past the circle's end where it goes round
+    a1 = np.searchsorted(keys, base + start)
+    n1 = np.searchsorted(keys, base + np.minimum(end, bins - 1), side="right") - a1
+    a2 = np.searchsorted(keys, base)  # round the circle: bins 0 .. end − bins
+    n2 = np.where(end >= bins, np.searchsorted(keys, base + end - bins, side="right") - a2, 0)
+    count = n1 + n2
+    pair = np.repeat(np.arange(len(count)), count)
+    offset = np.arange(int(count.sum())) - np.repeat(np.cumsum(count) - count, count)
+    past = offset >= n1[pair]
+    where = np.where(past, a2[pair] + offset - n1[pair], a1[pair] + offset)
+    if len(where):  # each bin's least distance (np.minimum.at's, in a third of its time)
+        order = np.argsort(where, kind="stable")
+        where, value = where[order], dist[pair[order]]
+        first = np.flatnonzero(np.r_[True, where[1:] != where[:-1]])
+        hits[where[first]] = np.minimum.reduceat(value, first)
+    return hits
+
+
+def _covering(origins: np.ndarray, occluders: np.ndarray, cell: float, within: np.ndarray,
+              arcs: tuple[np.ndarray, np.ndarray], bin_rad: float, tiles: Tiles | None
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(origin, distance, lo, width)`` of the (origin, occluder) pairs :func:`first_hits`
+    would use but for the wanted bins (farther than half a cell, at most ``within``), of
+    the :func:`_candidate_pairs` within the origins' box: each cell covers the bins lo ..
+    lo + width (lo may be negative: round the circle), its arithmetic
+    :func:`first_hits`'s."""
     reach = float(np.max(within, initial=0.0))  # none farther along x or y is used
     (x0, y0), (x1, y1) = origins.min(axis=0) - reach, origins.max(axis=0) + reach
     if tiles is None:
         tiles = occluder_tiles(occluders, cell)
-    owner, cell_of, dx, dy = _candidate_pairs(origins, occluders, tiles, cell, within, wanted,
-                                              bin_rad)
+    owner, cell_of, dx, dy = _candidate_pairs(origins, occluders, tiles, cell, within, *arcs)
     x, y = occluders[:, 0][cell_of], occluders[:, 1][cell_of]
     box = (x >= x0) & (y >= y0) & (x <= x1) & (y <= y1)
     owner, dx, dy = owner[box], dx[box], dy[box]
@@ -97,14 +153,7 @@ def first_hits_each(origins: np.ndarray, occluders: np.ndarray, cell: float,
     half = 0.75 * cell / dist
     lo = np.floor((theta - half) / bin_rad).astype(np.int64)
     width = np.floor((theta + half) / bin_rad).astype(np.int64) - lo
-    use = _wanted_between(wanted, owner, lo % bins, width) > 0
-    owner, dist, lo, width = owner[use], dist[use], lo[use], width[use]
-    span = width + 1  # every bin lo .. lo + width of every cell, in one scatter
-    first = np.cumsum(span) - span
-    offset = np.arange(int(span.sum())) - np.repeat(first, span)
-    where = np.repeat(owner * bins, span) + (np.repeat(lo, span) + offset) % bins
-    np.minimum.at(hits, where, np.repeat(dist, span))
-    return hits.reshape(n, bins)
+    return owner, dist, lo, width
 
 
 def _wanted_between(wanted: np.ndarray, row: np.ndarray, start: np.ndarray,
@@ -159,7 +208,7 @@ def occluder_tiles(occluders: np.ndarray, cell: float) -> Tiles:
 
 
 def _candidate_pairs(origins: np.ndarray, occluders: np.ndarray, tiles: Tiles, cell: float,
-                     within: np.ndarray, wanted: np.ndarray, bin_rad: float
+                     within: np.ndarray, phi: np.ndarray, beta: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``(origin, occluder, dx, dy)``: index pairs, a superset of those :func:`first_hits`
     uses (farther than half a cell, at most ``within`` [S], the cell's bins meeting a
@@ -170,7 +219,6 @@ def _candidate_pairs(origins: np.ndarray, occluders: np.ndarray, tiles: Tiles, c
     within asin(ρ/R) of c's direction, farther than max(R − ρ, cell/2), so their cells'
     angular half-widths are below 0.75·cell/max(R − ρ, cell/2). :func:`_may_cover` then
     narrows the kept tiles' pairs."""
-    phi, beta = _wanted_arcs(wanted, bin_rad)
     v = tiles.centre[None, :, :] - origins[:, None, :]
     r = np.hypot(v[..., 0], v[..., 1])
     rho = tiles.radius
@@ -180,7 +228,7 @@ def _candidate_pairs(origins: np.ndarray, occluders: np.ndarray, tiles: Tiles, c
     toward = (v[..., 0] * np.cos(phi)[:, None] + v[..., 1] * np.sin(phi)[:, None]
               >= r * np.cos(np.minimum(reach, math.pi)) - 1e-9 * (r + 1.0))
     keep = (r - rho <= within[:, None] + 1e-9 * (r + 1.0)) & ((reach >= math.pi) | toward)
-    owner, tile = np.nonzero(keep)
+    owner, tile = nonzero_cells(keep)
     count = (tiles.ends - tiles.starts)[tile]
     first = np.cumsum(count) - count
     member = np.repeat(tiles.starts[tile] - first, count) + np.arange(int(count.sum()))
@@ -220,8 +268,15 @@ def _wanted_arcs(wanted: np.ndarray, bin_rad: float) -> tuple[np.ndarray, np.nda
     shortest arc holding all its wanted bins (bin k spans k·bin_rad to (k+1)·bin_rad, the
     angle taken in [0, 2π)), widened by two bins; π (all round) for a row without any."""
     n, bins = wanted.shape
+    rows, at = nonzero_cells(wanted)
+    return _arcs_of(rows, at, n, bins, bin_rad)
+
+
+def _arcs_of(rows: np.ndarray, at: np.ndarray, n: int, bins: int, bin_rad: float
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_wanted_arcs` of the wanted bins ``at`` of rows ``rows`` (``np.nonzero`` of
+    the [``n``, ``bins``] wanted)."""
     phi, beta = np.zeros(n), np.full(n, math.pi)
-    rows, at = np.nonzero(wanted)
     if len(rows) == 0:
         return phi, beta
     starts = np.flatnonzero(np.r_[True, rows[1:] != rows[:-1]])
@@ -255,8 +310,9 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
     ``occluders`` [m, 2] lies nearer than the point by more than ``margin_m`` (default
     :data:`SIGHT_MARGIN_CELLS` cells) in the point's direction, from T and from R.
 
-    Every transducer's z-buffer is built at once (:func:`first_hits_each`), as many
-    transducers at a time as :data:`SIGHT_PAIRS_AT_ONCE` allows;
+    Every transducer's z-buffer is built at once, in the bins of its points alone
+    (:func:`first_hits_at`), as many transducers at a time as
+    :data:`SIGHT_PAIRS_AT_ONCE` allows;
     :func:`line_of_sight_per_sensor` is the same test one transducer at a time."""
     points, margin, keep = _start(points, cell, margin_m)
     if len(points) == 0 or len(occluders) == 0:
@@ -278,9 +334,12 @@ def line_of_sight(points: np.ndarray, tx: np.ndarray, rx: np.ndarray,
                           np.diff(np.r_[starts[first:first + step], b]))
         wanted = np.zeros((group[-1] + 1, bins), dtype=bool)
         wanted[group, where[a:b]] = True
-        hits = first_hits_each(positions[sensor[starts[first:first + step]]], occluders, cell,
-                               farthest[first:first + step] - margin, wanted, tiles=tiles)
-        hidden = dist[a:b] > hits[group, where[a:b]] + margin
+        rows, at = nonzero_cells(wanted)
+        hits = first_hits_at(positions[sensor[starts[first:first + step]]], occluders, cell,
+                             farthest[first:first + step] - margin, rows, at, bins,
+                             tiles=tiles)
+        mine = np.searchsorted(rows * bins + at, group * bins + where[a:b])  # its bin's hit
+        hidden = dist[a:b] > hits[mine] + margin
         keep[point[a:b][hidden]] = False
     steps.step("transducers", len(starts), len(starts))
     return keep
@@ -344,11 +403,11 @@ def in_sight_of_map(scene: Scene, positions: np.ndarray, points: np.ndarray,
     counts, sums = point_map(scene, points, window)
     filtered, _, thin = filter_and_thin(counts, scene.post, points=True, box=box)
     profile = extract_profile(thin, scene.extent, scene.cell, scene.post, filtered, counts, sums)
-    iy, ix = np.nonzero(thin)  # one-cell curves leave no gap between z-buffer bins
+    iy, ix = nonzero_cells(thin)  # one-cell curves leave no gap between z-buffer bins
     cells = cell_centres(scene.extent, scene.cell, iy + row0, ix + col0)
     occluders = np.concatenate([cells, profile.points])
     return line_of_sight(points, tx, rx, positions, occluders, scene.cell)
 
 
-__all__ = ["first_hits", "first_hits_each", "in_sight_of_map", "line_of_sight",
-           "line_of_sight_per_sensor"]
+__all__ = ["first_hits", "first_hits_at", "first_hits_each", "in_sight_of_map",
+           "line_of_sight", "line_of_sight_per_sensor"]

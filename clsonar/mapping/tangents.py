@@ -33,7 +33,7 @@ from .pillars import (
     pillar_arcs,
     point_reflectors,
 )
-from .points import densified
+from .points import densified, nonzero_cells
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
@@ -89,7 +89,7 @@ def _locus_samples(scene: Scene, sensors: SensorArray, loci: Loci):
     inside = np.zeros((len(a), LOCUS_SAMPLES), dtype=bool)
     inside[rows, ks] = in_beams(p[rows, ks], T[rows], axes[loci.tx][rows], cut_sin2)
     inside &= (a > f)[:, None]
-    i, k = np.nonzero(inside)  # R's beam tested only where T's holds (a small part)
+    i, k = nonzero_cells(inside)  # R's beam tested only where T's holds (a small part)
     inside[i, k] = in_beams(p[i, k], R[i], axes[loci.rx][i], cut_sin2)
     return p, inside, a
 
@@ -159,7 +159,7 @@ def _neighbour_pairs(s: SampledLoci, groups: np.ndarray, lo: int, hi: int,
     of its own; by locus, then by other."""
     i, j = np.arange(lo, hi)[:, None], np.arange(len(s.loci))
     has = np.asarray(s.inside[lo:hi].any(axis=1))[:, None]
-    mine, other = np.nonzero((groups[j] == groups[i]) & (j > i) & has)
+    mine, other = nonzero_cells((groups[j] == groups[i]) & (j > i) & has)
     mine = mine + lo
     near = np.hypot(*(s.centre[other] - s.centre[mine]).T) <= np.sqrt(8.0 * s.a[mine] * max_bias_m)
     return mine[near], other[near]
@@ -182,7 +182,7 @@ def _pair_crossings(s: SampledLoci, mine: np.ndarray, other: np.ndarray
     part); ordered by pair, then by k. Element by element as for one locus at a time."""
     rows, inv = np.unique(mine, return_inverse=True)
     ok = s.inside[rows] & np.roll(s.inside[rows], -1, axis=-1)
-    row_of, step_of = np.nonzero(ok)  # each row's steps, ascending
+    row_of, step_of = nonzero_cells(ok)  # each row's steps, ascending
     first = np.searchsorted(row_of, np.arange(len(rows)))
     count = np.count_nonzero(ok, axis=-1)[inv]
     pair = np.repeat(np.arange(len(mine)), count)

@@ -1,0 +1,278 @@
+"""Issue 16, the room's accumulation and sight in fewer operations, the same bits: the
+fits' dot products through ``ndarray.dot`` (the same ``cblas_ddot`` call as ``@``, without
+the matmul ufunc's set-up), the circle fit's Jacobian filled in place, the neighbourhoods of
+the clusters and seed sets taken 64 rows at a time, and the point map counted by
+``np.bincount`` — each against the form it replaced, kept here."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from test_speed_sight import _cases as _sight_cases
+
+from clsonar import sight
+from clsonar.files import bundled_scenes
+from clsonar.mapping import pillars, points
+from clsonar.mapping.pillars import CLUSTER_M, GN_ITERATIONS, GN_STEP_M, SEED_M
+from clsonar.mapping.points import nonzero_cells
+from clsonar.scene import load_scene
+
+
+def _least_squares_step_matmul(jac, r):
+    """``pillars._least_squares_step`` before: the sums by ``@``."""
+    if jac.shape[1] == 2:
+        jx, jy = jac[:, 0], jac[:, 1]
+        a, b, c = float(jx @ jx), float(jx @ jy), float(jy @ jy)
+        det = a * c - b * b
+        if det > 1e-10 * a * c:
+            gx, gy = float(jx @ r), float(jy @ r)
+            return np.array([(c * gx - b * gy) / det, (a * gy - b * gx) / det])
+    return np.linalg.lstsq(jac, r, rcond=None)[0]
+
+
+def _gauss_newton_matmul(residual, jacobian, start):
+    """``pillars._gauss_newton`` before (each halving in turn, as
+    tests/test_tangent_speed.py's loop), its costs and steps summed by ``@``."""
+    x = np.asarray(start, dtype=np.float64)
+    r = residual(x)
+    for _ in range(GN_ITERATIONS):
+        step = _least_squares_step_matmul(jacobian(x), r)
+        for _ in range(30):
+            trial = x - step
+            r_trial = residual(trial)
+            if r_trial @ r_trial <= r @ r:
+                break
+            step = 0.5 * step
+        else:
+            break
+        x, r = trial, r_trial
+        if math.sqrt(float(step @ step)) <= GN_STEP_M:
+            break
+    return x, r
+
+
+def _point_from_matmul(T, a, start):
+    """``pillars._point_from`` for T = R before."""
+    return _gauss_newton_matmul(lambda v: np.hypot(*(v - T).T) - a,
+                                lambda v: pillars._directions(v, T), start)
+
+
+def _fit_matmul(T, rho, start):
+    """``pillars._fit`` before: the Jacobian a fresh ``np.column_stack`` each step."""
+
+    def residual(x):
+        return np.hypot(*(x[:2] - T).T) - rho - x[2]
+
+    def jacobian(x):
+        return np.column_stack([pillars._directions(x[:2], T), -np.ones(len(T))])
+
+    x, r = _gauss_newton_matmul(residual, jacobian, np.r_[start, 0.1])
+    return x[:2], float(x[2]), r
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 70), st.integers(1, 3),
+       st.sampled_from([1e-300, 1e-3, 1.0, 1e200]))
+def test_dot_is_matmul_to_the_bit(seed, n, stride, scale):
+    """``x.dot(y)`` and ``x @ y`` of 1-D float64 arrays are one ``cblas_ddot`` call: the
+    same bits, contiguous or strided (a column of an [n, 2] array), of any length."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(n, stride)) * scale
+    b = rng.normal(size=(n, stride))
+    for x, y in ((a[:, 0], b[:, 0]), (a[:, -1], a[:, 0]), (a[:, 0].copy(), b[:, 0].copy()),
+                 (a[:, 0], b[:, 0].copy())):
+        with np.errstate(all="ignore"):  # 1e200: inf and NaN sums alike
+            assert np.float64(x.dot(y)).tobytes() == np.float64(x @ y).tobytes()
+
+
+@st.composite
+def loci(draw):
+    """T = R loci around a point or a circle (radius 0 to 0.3 m), range errors from none
+    to centimetres, started near or far off."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    k = draw(st.integers(3, 40))
+    target = rng.uniform(-5, 5, 2)
+    angle = rng.uniform(0, 2 * np.pi, k)
+    T = target + rng.uniform(0.3, 6.0, (k, 1)) * np.stack([np.cos(angle), np.sin(angle)], -1)
+    radius = draw(st.sampled_from([0.0, 0.05, 0.3]))
+    a = np.hypot(*(target - T).T) - radius
+    a = a + rng.normal(0, 1, k) * draw(st.sampled_from([0.0, 1e-4, 3e-3, 0.05]))
+    start = target + rng.normal(0, 1, 2) * draw(st.sampled_from([0.01, 0.3, 2.0]))
+    return T, a, start
+
+
+@settings(max_examples=300, deadline=None)
+@given(loci())
+def test_the_fits_are_the_matmul_fits(case):
+    T, a, start = case
+    v, r = pillars._point_from(T, T, a, start)
+    v0, r0 = _point_from_matmul(T, a, start)
+    assert v.tobytes() == v0.tobytes() and r.tobytes() == r0.tobytes()
+    c, radius, r = pillars._fit(T, a, start)
+    c0, radius0, r0 = _fit_matmul(T, a, start)
+    assert c.tobytes() == c0.tobytes() and radius == radius0 and r.tobytes() == r0.tobytes()
+
+
+def test_a_fit_of_the_room_is_the_matmul_fit():
+    """A corner heard from four poses: both forms land on it, the same bits."""
+    corner = np.array([2.0, 3.0])
+    T = np.array([[0.0, 0.0], [1.0, 0.2], [3.5, 0.5], [4.0, 1.0]])
+    a = np.hypot(*(corner - T).T) + np.array([0.0, 1e-3, -2e-3, 5e-4])
+    v, r = pillars._point_from(T, T, a, np.array([2.3, 2.6]))
+    v0, r0 = _point_from_matmul(T, a, np.array([2.3, 2.6]))
+    assert v.tobytes() == v0.tobytes() and r.tobytes() == r0.tobytes()
+    np.testing.assert_allclose(v, corner, atol=3e-3)
+
+
+def _near_rows_each(points, reach):
+    """``pillars._near_rows`` before: one row at a time."""
+    return [np.flatnonzero(np.hypot(*(points - p).T) <= reach) for p in points]
+
+
+def _seed_sets_each(middles):
+    """``pillars._seed_sets`` before."""
+    tried, out = set(), []
+    for m in [*middles, None]:
+        near = (np.arange(len(middles)) if m is None
+                else np.flatnonzero(np.hypot(*(middles - m).T) <= SEED_M))
+        if len(near) >= pillars.MIN_PILLAR_LOCI and near.tobytes() not in tried:
+            tried.add(near.tobytes())
+            out.append(near)
+    return out
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 300), st.sampled_from([0.2, 1.0, 4.0]))
+def test_the_near_rows_and_seed_sets_are_one_row_at_a_time(seed, n, scale):
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(-scale, scale, (n, 2))
+    if n > 4:  # points exactly at the reach from another, and repeated points
+        pts[1] = pts[0] + [CLUSTER_M, 0.0]
+        pts[2] = pts[0] + [0.0, SEED_M]
+        pts[3] = pts[0]
+    for reach in (CLUSTER_M, SEED_M):
+        got = list(pillars._near_rows(pts, reach))
+        want = _near_rows_each(pts, reach)
+        assert len(got) == len(want)
+        assert all(g.dtype == w.dtype and np.array_equal(g, w)
+                   for g, w in zip(got, want, strict=True))
+    got = list(pillars._seed_sets(pts))
+    want = _seed_sets_each(pts)
+    assert all(np.array_equal(g, w) for g, w in zip(got, want, strict=True))
+
+
+def test_near_rows_in_blocks_of_fewer_rows(monkeypatch):
+    """Many points: fewer than 64 rows at once, the same rows."""
+    monkeypatch.setattr(pillars, "NEAR_AT_ONCE", 1000)
+    pts = np.random.default_rng(5).uniform(0.0, 3.0, (257, 2))
+    got = list(pillars._near_rows(pts, CLUSTER_M))
+    assert all(np.array_equal(g, w) for g, w in zip(got, _near_rows_each(pts, CLUSTER_M),
+                                                     strict=True))
+
+
+def _point_map_add_at(scene, pts, window=None):
+    """``points.point_map`` before: ``np.add.at``."""
+    from clsonar.geometry import point_cells
+
+    ny, nx = scene.grid_shape
+    iy, ix = point_cells(scene.extent, scene.cell, pts)
+    if window is not None:
+        row0, col0, ny, nx = window
+        iy, ix = iy - row0, ix - col0
+    ok = (ix >= 0) & (ix < nx) & (iy >= 0) & (iy < ny)
+    counts = np.zeros((ny, nx), dtype=np.float32)
+    sums = np.zeros((ny, nx, 2))
+    np.add.at(counts, (iy[ok], ix[ok]), 1.0)
+    np.add.at(sums, (iy[ok], ix[ok]), pts[ok])
+    return counts, sums
+
+
+_ROOM = load_scene(bundled_scenes() / "room.json")
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 3000), st.booleans(), st.booleans())
+def test_the_point_map_is_add_at(seed, n, windowed, single):
+    """Random points, many in few cells (sums of many terms in the points' order), some
+    outside the grid or the window, NaN, float32: the same counts and sums to the bit."""
+    rng = np.random.default_rng(seed)
+    pts = rng.uniform(-1.0, 11.0, (n, 2))
+    pts[: n // 2] = rng.uniform(4.0, 4.03, (n // 2, 2))  # three by three cells, crowded
+    if n > 3:
+        pts[0] = np.nan
+        pts[1] = [-0.0, 5.0]
+    if single:
+        pts = pts.astype(np.float32)
+    window = points.points_window(_ROOM, pts) if windowed else None
+    counts, sums = points.point_map(_ROOM, pts, window)
+    want_counts, want_sums = _point_map_add_at(_ROOM, pts, window)
+    assert counts.dtype == want_counts.dtype and counts.shape == want_counts.shape
+    assert counts.tobytes() == want_counts.tobytes() and sums.tobytes() == want_sums.tobytes()
+    assert float(counts.sum()) == np.count_nonzero(
+        np.isfinite(pts).all(axis=1) & (pts >= 0).all(axis=1) & (pts < 10).all(axis=1)
+    ) or windowed
+
+
+def test_the_point_map_counts_stop_where_float32_stops(monkeypatch):
+    """More than 2²⁴ points in one cell: float32's additions of 1 stop at 2²⁴, and so do
+    the counts (here with a smaller stop, the same rule)."""
+    monkeypatch.setattr(points, "_FLOAT32_COUNTS", 5)
+    pts = np.full((9, 2), 5.005)
+    counts, sums = points.point_map(_ROOM, pts)
+    assert counts.max() == 5.0 and sums[500, 500].tolist() == [9 * 5.005, 9 * 5.005]
+    counts, _ = points.point_map(_ROOM, pts[:3])
+    assert counts.max() == 3.0
+
+
+@settings(max_examples=150, deadline=None)
+@given(case=_sight_cases(), tile_cells=st.sampled_from([1, 16, 200]))
+def test_first_hits_at_is_first_hits_each_in_the_wanted_bins(case, tile_cells):
+    """The z-buffers in the wanted bins alone (sight.first_hits_at) are the whole
+    z-buffers' (first_hits_each, tests/test_speed_sight.py's cases: walls, clusters,
+    occluders on an origin; arcs across bin 0, scattered bins, none, all), to the bit."""
+    origins, occluders, cell, within, wanted = case
+    old = sight.SIGHT_TILE_CELLS
+    try:
+        sight.SIGHT_TILE_CELLS = tile_cells
+        whole = sight.first_hits_each(origins, occluders, cell, within, wanted)
+        rows, at = nonzero_cells(wanted)
+        got = sight.first_hits_at(origins, occluders, cell, within, rows, at, wanted.shape[1])
+    finally:
+        sight.SIGHT_TILE_CELLS = old
+    assert got.tobytes() == whole[rows, at].tobytes()
+
+
+def test_nonzero_cells_is_nonzero():
+    rng = np.random.default_rng(3)
+    for shape in ((0, 5), (5, 0), (1, 1), (7, 3600), (953, 952)):
+        mask = rng.random(shape) < 0.01
+        for m in (mask, mask.T, mask[::2]):  # views too
+            got, want = nonzero_cells(m), np.nonzero(m)
+            assert all(g.dtype == w.dtype and np.array_equal(g, w)
+                       for g, w in zip(got, want, strict=True))
+
+
+def test_the_room_line_of_sight_is_one_transducer_at_a_time(monkeypatch):
+    """The room's own points, pairs and map (1,622 ghosts of its 37,666 points): the
+    wanted bins' z-buffers give what one z-buffer per transducer gives."""
+    from clsonar.pipeline import run
+
+    calls = []
+    whole = sight.line_of_sight
+
+    def kept(*args):
+        calls.append(args)
+        return whole(*args)
+
+    monkeypatch.setattr(sight, "line_of_sight", kept)
+    result = run(_ROOM)
+    assert result.counts["ghost_points"] == 1622 and len(calls) == 1
+    points_, tx, rx, positions, occluders, cell = calls[0]
+    assert len(points_) == 37666
+    seen = whole(*calls[0])
+    assert np.count_nonzero(~seen) == 1622
+    np.testing.assert_array_equal(
+        seen, sight.line_of_sight_per_sensor(points_, tx, rx, positions, occluders, cell))
