@@ -172,8 +172,10 @@ def _wanted_between(wanted: np.ndarray, row: np.ndarray, start: np.ndarray,
             + np.where(past, flat[base + bins], 0))
 
 
-#: Side of the square tiles :func:`occluder_tiles` gathers the occluders in, cells.
-SIGHT_TILE_CELLS = 16
+#: Side of the square tiles :func:`occluder_tiles` gathers the occluders in, cells (32:
+#: with the z-buffers in the wanted bins alone, the room's line of sight 14.8 ms with 16,
+#: 12.8 with 32, 18 with 48; any size gives the same bits).
+SIGHT_TILE_CELLS = 32
 
 
 class Tiles(NamedTuple):

@@ -276,3 +276,44 @@ def test_the_room_line_of_sight_is_one_transducer_at_a_time(monkeypatch):
     assert np.count_nonzero(~seen) == 1622
     np.testing.assert_array_equal(
         seen, sight.line_of_sight_per_sensor(points_, tx, rx, positions, occluders, cell))
+
+
+def _halved_numpy_min(residual, x, step, cost):
+    """``pillars._halved`` before: the smallest nonzero |step| by numpy's min."""
+    nonzero = np.abs(step[step != 0])
+    if len(nonzero) and nonzero.min() * pillars._HALVES[-1, 0] >= pillars._TINY:
+        halvings = step * pillars._HALVES
+    else:
+        halvings = np.empty((pillars.GN_HALVINGS, len(step)))
+        for j in range(pillars.GN_HALVINGS):
+            halvings[j] = 0.5 * (step if j == 0 else halvings[j - 1])
+    trials = x - halvings
+    r_trials = residual(trials)
+    for j in range(pillars.GN_HALVINGS):
+        if r_trials[j] @ r_trials[j] <= cost:
+            return halvings[j], trials[j], r_trials[j]
+    return None
+
+
+def test_halvings_with_nan_infinite_and_subnormal_steps_are_numpys():
+    """Steps holding NaN (first or after a number), infinities, subnormal and tiny
+    entries: Python's min of the few |entries| takes the product form only where numpy's
+    did or where both forms give the same bits."""
+    tiny = np.finfo(np.float64).tiny
+    T = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+
+    def residual(v):
+        d = v[..., None, :] - T
+        return np.hypot(d[..., 0], d[..., 1]) - 0.7
+
+    x = np.array([0.3, 0.2])
+    cost = float(residual(x) @ residual(x))
+    for step in ([np.nan, 0.4], [0.4, np.nan], [np.nan, 3 * tiny], [3 * tiny, np.nan],
+                 [np.inf, 0.1], [0.0, 5e-310], [1e-300, 0.2], [0.0, 0.0], [0.25, -0.5]):
+        step = np.array(step)
+        with np.errstate(all="ignore"):
+            got = pillars._halved(residual, x, step, cost)
+            want = _halved_numpy_min(residual, x, step, cost)
+        assert (got is None) == (want is None)
+        if got is not None:
+            assert all(g.tobytes() == w.tobytes() for g, w in zip(got, want, strict=True))

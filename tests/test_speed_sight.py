@@ -114,13 +114,13 @@ def test_first_hits_each_by_tiles_is_the_dense_pre_filter_bit_for_bit(case, tile
 
 
 def test_occluder_tiles_hold_every_occluder_once_within_their_discs():
-    """Tiles of 16 cells: each occluder in exactly one tile, within its tile's radius of
-    its centre; here a 1 m wall of 0.01 m cells falls in 7 tiles."""
+    """Tiles of 32 cells: each occluder in exactly one tile, within its tile's radius of
+    its centre; here a 1 m wall of 0.01 m cells falls in 4 tiles."""
     wall = np.stack([np.linspace(0.0, 1.0, 101), np.full(101, 2.0)], axis=-1)
     tiles = occluder_tiles(wall, 0.01)
-    assert len(tiles.starts) == 7
+    assert len(tiles.starts) == 4
     np.testing.assert_array_equal(np.sort(tiles.order), np.arange(101))
     for k, (a, b) in enumerate(zip(tiles.starts, tiles.ends, strict=True)):
         held = wall[tiles.order[a:b]]
         assert np.hypot(*(held - tiles.centre[k]).T).max() <= tiles.radius[k]
-    assert tiles.radius[0] > 0.075  # cells 0 .. 15 around x = 0.075
+    assert tiles.radius[0] > 0.155  # cells 0 .. 31 around x = 0.155

@@ -99,12 +99,12 @@ def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: n
         return []  # the surface lies ahead along the scan: its side is ill-conditioned
     u = d / length
     v = np.array([-u[1], u[0]])
-    if v @ s.axes[s.loci.tx[i]] < 0:
+    if v.dot(s.axes[s.loci.tx[i]]) < 0:
         v = -v
     q = centre + along * u + np.sqrt(r * r - along * along) * v
     # a point at i's pose need not be in the beam of j's transducer moved without turning
     # (the poses far apart for its range)
-    straight = s.axes[s.loci.tx[i]] @ s.axes[s.loci.tx[j]] >= _SAME_HEADING_COS
+    straight = s.axes[s.loci.tx[i]].dot(s.axes[s.loci.tx[j]]) >= _SAME_HEADING_COS
     for k in (i, j):
         t = s.pos[s.loci.tx[k]]
         if (np.hypot(*(q - t)) < s.ranges[k] - ENVELOPE_TOL_M
@@ -221,12 +221,12 @@ def _link_radius(a: EnvelopePoint, b: EnvelopePoint) -> float | None:
     length = float(np.hypot(*chord))
     tol = math.sin(math.radians(LINK_DEG))
     cross = na[0] * nb[1] - na[1] * nb[0]
-    if not (na @ nb > 0 and abs(cross) <= tol and abs(chord @ na) <= tol * length
-            and abs(chord @ nb) <= tol * length):
+    if not (na.dot(nb) > 0 and abs(cross) <= tol and abs(chord.dot(na)) <= tol * length
+            and abs(chord.dot(nb)) <= tol * length):
         return None
     n = (na + nb) / np.hypot(*(na + nb))
-    moved = (b[1] - a[1]) - ((b[1] - a[1]) @ n) * n
-    if chord @ moved <= 0:
+    moved = (b[1] - a[1]) - ((b[1] - a[1]).dot(n)) * n
+    if chord.dot(moved) <= 0:
         return None
     k = length / float(np.hypot(*moved))
     radius = 0.5 * (a[2] + b[2]) * k / abs(1.0 - k) if k != 1.0 else math.inf

@@ -167,8 +167,11 @@ def _halved(residual: Callable[[np.ndarray], np.ndarray], x: np.ndarray, step: n
     The cost of each is summed by ``r @ r`` (BLAS's order of summation) only where another
     order's sum of the k squares, within (k + 2)·ε of it either way (Higham, *Accuracy
     and Stability of Numerical Algorithms*, §3.1), leaves it in doubt."""
-    nonzero = np.abs(step[step != 0])
-    if len(nonzero) and nonzero.min() * _HALVES[-1, 0] >= _TINY:
+    # two or three numbers: Python's min (with a NaN: the least finite one, or NaN where it
+    # comes first; numpy's: NaN) takes the product form only where no finite entry's
+    # halvings are subnormal, where both forms give the same bits (NaN stays NaN)
+    nonzero = [abs(v) for v in step.tolist() if v != 0]
+    if nonzero and min(nonzero) * _HALVES[-1, 0] >= _TINY:
         halvings = step * _HALVES
     else:  # a halving may round (subnormal): one after another, as the loop would
         halvings = np.empty((GN_HALVINGS, len(step)))
