@@ -237,7 +237,7 @@ def _candidate_pairs(origins: np.ndarray, occluders: np.ndarray, tiles: Tiles, c
     owner, cell_of = np.repeat(owner, count), tiles.order[member]
     dx = occluders[:, 0][cell_of] - origins[:, 0][owner]
     dy = occluders[:, 1][cell_of] - origins[:, 1][owner]
-    near = _may_cover(dx, dy, cell, within[owner], phi[owner], beta[owner])
+    near = _may_cover(dx, dy, cell, within, phi, beta, owner)
     return owner[near], cell_of[near], dx[near], dy[near]
 
 
@@ -247,22 +247,25 @@ _COVER_SLACK = 1e-9
 
 
 def _may_cover(dx: np.ndarray, dy: np.ndarray, cell: float, within: np.ndarray,
-               phi: np.ndarray, beta: np.ndarray) -> np.ndarray:
+               phi: np.ndarray, beta: np.ndarray, owner: np.ndarray) -> np.ndarray:
     """[k] bool, a superset of the (origin, occluder) pairs :func:`first_hits` uses, of
-    the pairs [k]: the occluder at (``dx``, ``dy``) from its origin is, up to rounding,
+    the pairs [k] (``owner`` [k]: the origin of each, ``within``, ``phi`` and ``beta`` [S]
+    by origin): the occluder at (``dx``, ``dy``) from its origin is, up to rounding,
     farther than half a cell and at most ``within``, and its cell's angular half-width
     h = 0.75·cell/r reaches the arc ``phi`` ± ``beta`` of the origin's wanted bins
     (:func:`_wanted_arcs`): its angle to φ is at most β + h, which holds only if
     ``v·u ≥ r·cos(β + h) ≥ r·cos β − w·sin β − w²/(2r)`` with w = r·h = 0.75·cell (cos'' ≥ −1),
-    or if β + h ≥ π. No arctangent and no hypot: a few products per pair."""
+    or if β + h ≥ π. No arctangent and no hypot: a few products per pair, the cosines and
+    sines taken per origin (each element's bits in any array) and gathered."""
     r = np.sqrt(dx * dx + dy * dy)
     slack = _COVER_SLACK * (r + 1.0)
     w = 0.75 * cell
     with np.errstate(divide="ignore"):
-        bound = r * np.cos(beta) - w * np.sin(beta) - w * w / (2.0 * r) - slack
-    toward = dx * np.cos(phi) + dy * np.sin(phi) >= bound
-    wide = r * (math.pi - beta) <= w + slack
-    return (r + slack > 0.5 * cell) & (r - slack <= within) & (toward | wide)
+        bound = (r * np.cos(beta)[owner] - w * np.sin(beta)[owner] - w * w / (2.0 * r)
+                 - slack)
+    toward = dx * np.cos(phi)[owner] + dy * np.sin(phi)[owner] >= bound
+    wide = r * (math.pi - beta[owner]) <= w + slack
+    return (r + slack > 0.5 * cell) & (r - slack <= within[owner]) & (toward | wide)
 
 
 def _wanted_arcs(wanted: np.ndarray, bin_rad: float) -> tuple[np.ndarray, np.ndarray]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_speed_sight import _cases as _sight_cases
@@ -317,3 +318,75 @@ def test_halvings_with_nan_infinite_and_subnormal_steps_are_numpys():
         assert (got is None) == (want is None)
         if got is not None:
             assert all(g.tobytes() == w.tobytes() for g, w in zip(got, want, strict=True))
+
+
+def _locus_samples_before(scene, sensors, loci):
+    """``tangents._locus_samples`` before: cos and sin of each sample's angle, the samples
+    gathered back for T's beam test, R's beam tested where R is T too."""
+    from clsonar.mapping.envelope import beam_arc_samples, in_beams
+    from clsonar.mapping.tangents import LOCUS_SAMPLES
+
+    pos, axes = sensors.positions, sensors.axes
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+    T, R = pos[loci.tx], pos[loci.rx]
+    a = 0.5 * scene.medium.c * loci.tof_s
+    f = 0.5 * np.hypot(*(R - T).T)
+    b = np.sqrt(np.maximum(a * a - f * f, 0.0))
+    u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
+    v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
+    phi = 2 * np.pi * np.arange(LOCUS_SAMPLES) / LOCUS_SAMPLES
+    centre = 0.5 * (T + R)
+    rows, ks = beam_arc_samples(u, v, axes[loci.tx], a, f, cut_sin2, LOCUS_SAMPLES)
+    p = np.zeros((len(a), LOCUS_SAMPLES, 2))
+    p[rows, ks] = (centre[rows] + (a[rows] * np.cos(phi[ks]))[:, None] * u[rows]
+                   + (b[rows] * np.sin(phi[ks]))[:, None] * v[rows])
+    inside = np.zeros((len(a), LOCUS_SAMPLES), dtype=bool)
+    inside[rows, ks] = in_beams(p[rows, ks], T[rows], axes[loci.tx][rows], cut_sin2)
+    inside &= (a > f)[:, None]
+    i, k = np.nonzero(inside)
+    inside[i, k] = in_beams(p[i, k], R[i], axes[loci.rx][i], cut_sin2)
+    return p, inside, a
+
+
+@pytest.mark.parametrize("name, noise", [("room.json", 0.0), ("room-obstacles.json", 0.6),
+                                         ("room-per-wall.json", 0.0), ("room-l.json", 0.6)])
+def test_the_locus_samples_are_the_earlier_forms(name, noise, monkeypatch):
+    """The rooms' own loci (T = R and pairs, 337 of the room's 465 T = R):
+    the samples and their beam tests to the bit."""
+    from clsonar.mapping import tangents
+    from clsonar.pipeline import run
+    from clsonar.tools.variants import with_seed
+
+    calls = []
+    mine = tangents._locus_samples
+
+    def spy(*args):
+        calls.append(args)
+        return mine(*args)
+
+    monkeypatch.setattr(tangents, "_locus_samples", spy)
+    scene = load_scene(bundled_scenes() / name)
+    run(scene if noise == 0 else with_seed(scene, 1, noise))
+    assert calls
+    for args in calls:
+        loci = args[2]
+        assert np.any(loci.tx != loci.rx)
+        got, want = mine(*args), _locus_samples_before(*args)
+        assert all(g.tobytes() == w.tobytes() for g, w in zip(got, want, strict=True))
+        assert np.count_nonzero(got[1]) > 100
+
+
+def test_cos_and_sin_gathered_are_of_the_gathered_angles():
+    """numpy's cos and sin give each element the same bits in any array (lengths 1 to 80,
+    unaligned, and the room's 47,067 samples' length): the 1,440 angles' values gathered
+    are those of the gathered angles."""
+    phi = 2 * np.pi * np.arange(1440) / 1440
+    rng = np.random.default_rng(2)
+    for n in [*range(1, 81), 47067]:
+        ks = rng.integers(0, len(phi), n)
+        for offset in range(3):
+            buf = np.empty(n + offset)
+            buf[offset:] = phi[ks]
+            x = buf[offset:]
+            assert np.cos(phi)[ks].tobytes() == np.cos(x).tobytes()
+            assert np.sin(phi)[ks].tobytes() == np.sin(x).tobytes()

@@ -42,6 +42,38 @@ def in_beams(p: np.ndarray, sensor: np.ndarray, axis: np.ndarray,
     return (cos > 0) & (cross * cross <= cut_sin2 * dist2)
 
 
+#: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
+ARC_MARGIN = 2
+
+
+def beam_arc_samples(u: np.ndarray, v: np.ndarray, axis: np.ndarray, a: np.ndarray,
+                     f: np.ndarray, cut_sin2: float, samples: int
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """``(rows, ks)``: for each locus (a > f; ``u``, ``v`` its axes, ``a``, ``f`` its half
+    path and half focal distance), the indices of its ``samples`` (every 2π/samples of
+    eccentric anomaly) on its arc inside the beam of its focus T (axis ``axis``), with
+    :data:`ARC_MARGIN` more either side (moved here from :mod:`.tangents`)."""
+    alpha = math.asin(math.sqrt(min(cut_sin2, 1.0)))
+    ok = a > f
+    e = np.where(ok, f / np.where(ok, a, 1.0), 0.0)
+    beta = np.arctan2(np.sum(v * axis, -1), np.sum(u * axis, -1))  # axis angle from u
+    step = 2 * np.pi / samples
+
+    def anomaly(nu: np.ndarray) -> np.ndarray:
+        nu = np.angle(np.exp(1j * nu))  # into (−π, π]
+        return 2 * np.arctan2(np.sqrt(1 + e) * np.sin(nu / 2), np.sqrt(1 - e) * np.cos(nu / 2))
+
+    lo, hi = anomaly(beta - alpha), anomaly(beta + alpha)
+    hi = np.where(hi < lo, hi + 2 * np.pi, hi)
+    k0 = np.floor(lo / step).astype(np.int64) - ARC_MARGIN
+    k1 = np.ceil(hi / step).astype(np.int64) + ARC_MARGIN
+    width = np.where(ok, np.minimum(k1 - k0 + 1, samples), 0)
+    rows = np.repeat(np.arange(len(a)), width)
+    first = np.repeat(np.cumsum(np.r_[0, width[:-1]]), width)
+    ks = (np.repeat(k0, width) + np.arange(int(width.sum())) - first) % samples
+    return rows, ks
+
+
 @dataclass(frozen=True, eq=False)
 class _Scan:
     """The loci of a scan and what the envelope of each pose's loci needs."""

@@ -4,7 +4,6 @@ them (:func:`tangent_points`; docs/mapping.md)."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -16,6 +15,7 @@ from ..sensors import SensorArray
 from ..signals import envelope_noise_scale, signal_model
 from .envelope import (
     ENVELOPE_ARC_BIAS_M,
+    beam_arc_samples,
     element_scans,
     envelope_links,
     in_beams,
@@ -59,9 +59,6 @@ HEARD_NOISE_SCALES = 3.0
 #: wall hears its foot as every locus' tangent point, which a circle can mimic.
 CIRCLE_ECHO_FACTOR = 2.0
 
-#: Samples tested beyond each end of the computed arc of T's beam (rounding margin).
-_ARC_MARGIN = 2
-
 
 def _locus_samples(scene: Scene, sensors: SensorArray, loci: Loci):
     """[n, S, 2] points of each locus (ellipse with foci T, R and path length c·τ) and
@@ -82,41 +79,20 @@ def _locus_samples(scene: Scene, sensors: SensorArray, loci: Loci):
     v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
     phi = 2 * np.pi * np.arange(LOCUS_SAMPLES) / LOCUS_SAMPLES
     centre = 0.5 * (T + R)
-    rows, ks = _beam_arc_samples(u, v, axes[loci.tx], a, f, cut_sin2)
+    rows, ks = beam_arc_samples(u, v, axes[loci.tx], a, f, cut_sin2, LOCUS_SAMPLES)
     p = np.zeros((len(a), LOCUS_SAMPLES, 2))
-    p[rows, ks] = (centre[rows] + (a[rows] * np.cos(phi[ks]))[:, None] * u[rows]
-                   + (b[rows] * np.sin(phi[ks]))[:, None] * v[rows])
+    # cos and sin of the 1,440 angles, gathered: each element's bits whatever the array
+    at = (centre[rows] + (a[rows] * np.cos(phi)[ks])[:, None] * u[rows]
+          + (b[rows] * np.sin(phi)[ks])[:, None] * v[rows])
+    p[rows, ks] = at
     inside = np.zeros((len(a), LOCUS_SAMPLES), dtype=bool)
-    inside[rows, ks] = in_beams(p[rows, ks], T[rows], axes[loci.tx][rows], cut_sin2)
+    inside[rows, ks] = in_beams(at, T[rows], axes[loci.tx][rows], cut_sin2)
     inside &= (a > f)[:, None]
-    i, k = nonzero_cells(inside)  # R's beam tested only where T's holds (a small part)
+    # R's beam tested only where T's holds (a small part), and not where R is T (the same
+    # test on the same numbers: it holds)
+    i, k = nonzero_cells(inside & (loci.tx != loci.rx)[:, None])
     inside[i, k] = in_beams(p[i, k], R[i], axes[loci.rx][i], cut_sin2)
     return p, inside, a
-
-
-def _beam_arc_samples(u: np.ndarray, v: np.ndarray, axis: np.ndarray, a: np.ndarray,
-                      f: np.ndarray, cut_sin2: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(rows, samples)``: for each locus (a > f), the sample indices of its arc inside
-    the beam of its focus T (axis ``axis``), with :data:`_ARC_MARGIN` more either side."""
-    alpha = math.asin(math.sqrt(min(cut_sin2, 1.0)))
-    ok = a > f
-    e = np.where(ok, f / np.where(ok, a, 1.0), 0.0)
-    beta = np.arctan2(np.sum(v * axis, -1), np.sum(u * axis, -1))  # axis angle from u
-    step = 2 * np.pi / LOCUS_SAMPLES
-
-    def anomaly(nu: np.ndarray) -> np.ndarray:
-        nu = np.angle(np.exp(1j * nu))  # into (−π, π]
-        return 2 * np.arctan2(np.sqrt(1 + e) * np.sin(nu / 2), np.sqrt(1 - e) * np.cos(nu / 2))
-
-    lo, hi = anomaly(beta - alpha), anomaly(beta + alpha)
-    hi = np.where(hi < lo, hi + 2 * np.pi, hi)
-    k0 = np.floor(lo / step).astype(np.int64) - _ARC_MARGIN
-    k1 = np.ceil(hi / step).astype(np.int64) + _ARC_MARGIN
-    width = np.where(ok, np.minimum(k1 - k0 + 1, LOCUS_SAMPLES), 0)
-    rows = np.repeat(np.arange(len(a)), width)
-    first = np.repeat(np.cumsum(np.r_[0, width[:-1]]), width)
-    ks = (np.repeat(k0, width) + np.arange(int(width.sum())) - first) % LOCUS_SAMPLES
-    return rows, ks
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,7 +155,9 @@ def _pair_crossings(s: SampledLoci, mine: np.ndarray, other: np.ndarray
     """``(q, k, i, b)``: where each locus ``mine[n]`` crosses ``other[n]`` between its samples k
     and k+1 (both in its beams), interpolated: the sign changes of b's path-length
     residual |q−T| + |q−R| − 2a, evaluated only at those steps (the in-beam arc is a small
-    part); ordered by pair, then by k. Element by element as for one locus at a time."""
+    part); ordered by pair, then by k. Element by element as for one locus at a time: the
+    residual at sample k + 1 of a pair's step k is its next step's own where that step
+    follows (the same point, the same locus b: the same number), computed once."""
     rows, inv = np.unique(mine, return_inverse=True)
     ok = s.inside[rows] & np.roll(s.inside[rows], -1, axis=-1)
     row_of, step_of = nonzero_cells(ok)  # each row's steps, ascending
@@ -188,11 +166,18 @@ def _pair_crossings(s: SampledLoci, mine: np.ndarray, other: np.ndarray
     pair = np.repeat(np.arange(len(mine)), count)
     k = step_of[np.repeat(first[inv] - np.cumsum(count) + count, count) + np.arange(len(pair))]
     i, b = mine[pair], other[pair]
-    here, there = s.p[i, k], s.p[i, (k + 1) % LOCUS_SAMPLES]
-    g_here, g_next = _path_residual(s, here, b), _path_residual(s, there, b)
+    here = s.p[i, k]
+    g_here = _path_residual(s, here, b)
+    follows = np.zeros(len(k), dtype=bool)
+    follows[:-1] = (pair[1:] == pair[:-1]) & (k[1:] == k[:-1] + 1)
+    g_next = np.empty_like(g_here)
+    g_next[:-1] = g_here[1:]
+    alone = np.flatnonzero(~follows)  # a pair's last step, or one before a gap
+    g_next[alone] = _path_residual(s, s.p[i[alone], (k[alone] + 1) % LOCUS_SAMPLES], b[alone])
     n = np.flatnonzero(np.sign(g_here) != np.sign(g_next))
     t = g_here[n] / (g_here[n] - g_next[n])
-    return here[n] + t[:, None] * (there[n] - here[n]), k[n], i[n], b[n]
+    there = s.p[i[n], (k[n] + 1) % LOCUS_SAMPLES]
+    return here[n] + t[:, None] * (there - here[n]), k[n], i[n], b[n]
 
 
 def _path_residual(s: SampledLoci, q: np.ndarray, b: np.ndarray) -> np.ndarray:
