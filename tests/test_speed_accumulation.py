@@ -390,3 +390,142 @@ def test_cos_and_sin_gathered_are_of_the_gathered_angles():
             x = buf[offset:]
             assert np.cos(phi)[ks].tobytes() == np.cos(x).tobytes()
             assert np.sin(phi)[ks].tobytes() == np.sin(x).tobytes()
+
+
+def _envelope_point_arrays(s, i, j, centre, r, d, dr, centred):
+    """``envelope._envelope_point`` before: its 2-vectors as numpy arrays."""
+    from clsonar.mapping.envelope import (
+        _SAME_HEADING_COS,
+        ENVELOPE_MAX_ALONG,
+        ENVELOPE_TOL_M,
+        in_beams,
+    )
+
+    length = float(np.hypot(*d))
+    along = -r * dr / length if length > 0 else np.inf
+    if abs(along) > ENVELOPE_MAX_ALONG * r:
+        return []
+    u = d / length
+    v = np.array([-u[1], u[0]])
+    if v @ s.axes[s.loci.tx[i]] < 0:
+        v = -v
+    q = centre + along * u + np.sqrt(r * r - along * along) * v
+    straight = s.axes[s.loci.tx[i]] @ s.axes[s.loci.tx[j]] >= _SAME_HEADING_COS
+    for k in (i, j):
+        t = s.pos[s.loci.tx[k]]
+        if (np.hypot(*(q - t)) < s.ranges[k] - ENVELOPE_TOL_M
+                or not (in_beams(q, t, s.axes[s.loci.tx[k]], s.cut_sin2)
+                        or (k == j and centred and straight))):
+            return []
+    return [(k, centre, r, q) for k in ((i,) if centred else (i, j))]
+
+
+def _partner_arrays(s, i, others):
+    """``envelope._partner`` before: numpy arrays for one locus too."""
+    from clsonar.mapping.envelope import ENVELOPE_TOL_M
+
+    if others is None:
+        return None
+    gap = np.hypot(*(s.pos[s.loci.tx[others[0]]] - s.pos[s.loci.tx[i]]))
+    diff = np.abs(s.ranges[others] - s.ranges[i])
+    k = int(np.argmin(diff))
+    return others[k] if diff[k] <= gap + ENVELOPE_TOL_M else None
+
+
+@pytest.mark.parametrize("name, noise", [("room.json", 0.0), ("room-obstacles.json", 0.6),
+                                         ("room-cylinder.json", 0.0), ("room-l.json", 0.6)])
+def test_the_envelope_points_are_the_array_forms(name, noise, monkeypatch):
+    """The rooms' element scans (every envelope point, its locus, circle and place) with
+    the 2-vectors and the partners' ranges in floats are those with numpy arrays, to the
+    bit."""
+    from clsonar.mapping import envelope
+    from clsonar.pipeline import run
+    from clsonar.tools.variants import with_seed
+
+    calls = []
+    mine = envelope.element_scans
+
+    def spy(*args):
+        calls.append(args)
+        return mine(*args)
+
+    monkeypatch.setattr(envelope, "element_scans", spy)
+    monkeypatch.setattr("clsonar.mapping.tangents.element_scans", spy)
+    scene = load_scene(bundled_scenes() / name)
+    run(scene if noise == 0 else with_seed(scene, 1, noise))
+    assert calls
+    got = mine(*calls[0])
+    monkeypatch.setattr(envelope, "_envelope_point", _envelope_point_arrays)
+    monkeypatch.setattr(envelope, "_partner", _partner_arrays)
+    want = mine(*calls[0])
+    flat = [(place, one, k, c.tobytes(), float(r), q.tobytes())
+            for scan in got for place, points_, one in scan for k, c, r, q in points_]
+    flat_want = [(place, one, k, c.tobytes(), float(r), q.tobytes())
+                 for scan in want for place, points_, one in scan for k, c, r, q in points_]
+    assert flat == flat_want and len(flat) > 100
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([0.01, 0.05, 0.3]))
+def test_one_point_beam_test_is_in_beams(seed, cut_sin2):
+    """Random points and axes, some exactly on the beam's edge or on the sensor."""
+    from clsonar.mapping.envelope import _in_beam, in_beams
+
+    rng = np.random.default_rng(seed)
+    angle = rng.uniform(0, 2 * np.pi, 50)
+    axes = np.stack([np.cos(angle), np.sin(angle)], -1)
+    sensor = rng.uniform(-3, 3, (50, 2))
+    edge = math.asin(math.sqrt(cut_sin2)) * rng.choice([-1.0, 1.0], 50)
+    turn = np.where(rng.random(50) < 0.5, edge, rng.uniform(-np.pi, np.pi, 50))
+    direction = np.stack([np.cos(angle + turn), np.sin(angle + turn)], -1)
+    p = sensor + rng.uniform(0, 5, (50, 1)) * direction
+    p[:3] = sensor[:3]
+    for k in range(50):
+        d = (p[k] - sensor[k]).tolist()
+        assert _in_beam(*d, *axes[k].tolist(), cut_sin2) == bool(
+            in_beams(p[k], sensor[k], axes[k], cut_sin2))
+
+
+def _stretches_each(chains, step, bias):
+    """``envelope._stretches`` before: one stretch at a time through ``np.linspace``."""
+    from clsonar.mapping.envelope import LINK_SAGITTA_M
+
+    points, ends = [], []
+    for run, radius, _ in chains:
+        q = np.array([p[3] for p in run])
+        first, last = q[0] - q[1], q[-1] - q[-2]
+        curved = math.sqrt(2.0 * radius * LINK_SAGITTA_M)
+        ext = [min(math.sqrt(2.0 * end[2] * bias), curved) for end in (run[0], run[-1])]
+        q = np.r_[q[:1] + first / np.hypot(*first) * ext[0], q,
+                  q[-1:] + last / np.hypot(*last) * ext[1]]
+        run = [run[0], *run, run[-1]]
+        for k in range(len(run) - 1):
+            n = max(2, math.ceil(math.hypot(*(q[k + 1] - q[k])) / step) + 1)
+            t = np.linspace(0.0, 1.0, n)[:, None]
+            points.append(q[k] + t * (q[k + 1] - q[k]))
+            ends.append(np.tile([run[k][0], run[k + 1][0]], (n, 1)))
+    if not points:
+        return np.zeros((0, 2)), np.zeros((0, 2), np.int64)
+    return np.concatenate(points), np.concatenate(ends).astype(np.int64)
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.integers(0, 5), st.sampled_from([0.002, 0.01, 0.3]))
+def test_the_stretches_are_one_at_a_time(seed, chains, step):
+    """Runs of 2 to 12 envelope points (some repeated, radii finite or infinite): every
+    sample and its loci as np.linspace one stretch at a time gave them."""
+    from clsonar.mapping.envelope import _stretches
+
+    rng = np.random.default_rng(seed)
+    made = []
+    for _ in range(chains):
+        m = int(rng.integers(2, 13))
+        q = np.cumsum(rng.normal(0, 0.05, (m, 2)), axis=0) + rng.uniform(-5, 5, 2)
+        if m > 3 and rng.random() < 0.3:
+            q[1] = q[2]  # a zero-length stretch inside the run (not at an end: no direction)
+        run = [(int(rng.integers(0, 500)), rng.uniform(-5, 5, 2), float(rng.uniform(0.3, 6)),
+                q[k]) for k in range(m)]
+        made.append((run, float(rng.choice([np.inf, rng.uniform(0.1, 50)])), set()))
+    got, want = _stretches(made, step, 0.001), _stretches_each(made, step, 0.001)
+    assert all(g.dtype == w.dtype and g.tobytes() == w.tobytes()
+               for g, w in zip(got, want, strict=True))

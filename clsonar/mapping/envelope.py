@@ -74,6 +74,14 @@ def beam_arc_samples(u: np.ndarray, v: np.ndarray, axis: np.ndarray, a: np.ndarr
     return rows, ks
 
 
+def _in_beam(d0: float, d1: float, a0: float, a1: float, cut_sin2: float) -> bool:
+    """:func:`in_beams` of one point d = p − sensor in floats: the same products, sums and
+    comparisons (numpy's ``x ** 2`` is ``x * x``)."""
+    cos = d0 * a0 + d1 * a1
+    cross = a0 * d1 - a1 * d0
+    return cos > 0 and cross * cross <= cut_sin2 * (d0 * d0 + d1 * d1)
+
+
 @dataclass(frozen=True, eq=False)
 class _Scan:
     """The loci of a scan and what the envelope of each pose's loci needs."""
@@ -112,10 +120,14 @@ def _partner(s: _Scan, i: int, others: list[int] | None) -> int | None:
     element changes its range by exactly its step)."""
     if others is None:
         return None
-    gap = np.hypot(*(s.pos[s.loci.tx[others[0]]] - s.pos[s.loci.tx[i]]))
-    diff = np.abs(s.ranges[others] - s.ranges[i])
-    k = int(np.argmin(diff))
-    return others[k] if diff[k] <= gap + ENVELOPE_TOL_M else None
+    (x0, y0), (x1, y1) = s.pos[s.loci.tx[others[0]]].tolist(), s.pos[s.loci.tx[i]].tolist()
+    gap = np.hypot(x0 - x1, y0 - y1)
+    if len(others) == 1:  # an element's first echo: one locus (floats, the same numbers)
+        diff = abs(float(s.ranges[others[0]]) - float(s.ranges[i]))
+        return others[0] if diff <= gap + ENVELOPE_TOL_M else None
+    diffs = np.abs(s.ranges[others] - s.ranges[i])
+    k = int(np.argmin(diffs))
+    return others[k] if diffs[k] <= gap + ENVELOPE_TOL_M else None
 
 
 def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: np.ndarray,
@@ -129,20 +141,24 @@ def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: n
     along = -r * dr / length if length > 0 else np.inf
     if abs(along) > ENVELOPE_MAX_ALONG * r:
         return []  # the surface lies ahead along the scan: its side is ill-conditioned
-    u = d / length
-    v = np.array([-u[1], u[0]])
+    # the arithmetic of the 2-vectors in floats, element by element as numpy did it (r² −
+    # along² ≥ r²/4 here), the products with the axes still BLAS's (their rounding)
+    u0, u1 = (float(x) / length for x in d)
+    v = np.array([-u1, u0])
     if v.dot(s.axes[s.loci.tx[i]]) < 0:
         v = -v
-    q = centre + along * u + np.sqrt(r * r - along * along) * v
+    (c0, c1), (v0, v1), root = centre.tolist(), v.tolist(), math.sqrt(r * r - along * along)
+    q0, q1 = c0 + along * u0 + root * v0, c1 + along * u1 + root * v1
     # a point at i's pose need not be in the beam of j's transducer moved without turning
     # (the poses far apart for its range)
     straight = s.axes[s.loci.tx[i]].dot(s.axes[s.loci.tx[j]]) >= _SAME_HEADING_COS
     for k in (i, j):
-        t = s.pos[s.loci.tx[k]]
-        if (np.hypot(*(q - t)) < s.ranges[k] - ENVELOPE_TOL_M
-                or not (in_beams(q, t, s.axes[s.loci.tx[k]], s.cut_sin2)
+        (t0, t1), (a0, a1) = s.pos[s.loci.tx[k]].tolist(), s.axes[s.loci.tx[k]].tolist()
+        if (np.hypot(q0 - t0, q1 - t1) < s.ranges[k] - ENVELOPE_TOL_M
+                or not (_in_beam(q0 - t0, q1 - t1, a0, a1, s.cut_sin2)
                         or (k == j and centred and straight))):
             return []
+    q = np.array([q0, q1])
     return [(k, centre, r, q) for k in ((i,) if centred else (i, j))]
 
 
@@ -348,7 +364,9 @@ def two_pose_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: 
 def _stretches(chains: list[Chain], step: float, bias: float) -> tuple[np.ndarray, np.ndarray]:
     """The samples (every ``step``) of the straight stretches between the consecutive
     points of each run in ``chains`` and past its ends (:func:`envelope_links`), and the
-    loci at both ends of the stretch each lies on."""
+    loci at both ends of the stretch each lies on. A run's stretches at once: the n
+    samples of each at ``np.linspace(0, 1, n)``'s fractions (j·(1/(n − 1)), the last 1),
+    the same arithmetic per sample as one stretch at a time."""
     points, ends = [], []
     for run, radius, _ in chains:
         q = np.array([p[3] for p in run])
@@ -357,12 +375,14 @@ def _stretches(chains: list[Chain], step: float, bias: float) -> tuple[np.ndarra
         ext = [min(math.sqrt(2.0 * end[2] * bias), curved) for end in (run[0], run[-1])]
         q = np.r_[q[:1] + first / np.hypot(*first) * ext[0], q,
                   q[-1:] + last / np.hypot(*last) * ext[1]]
-        run = [run[0], *run, run[-1]]
-        for k in range(len(run) - 1):
-            n = max(2, math.ceil(math.hypot(*(q[k + 1] - q[k])) / step) + 1)
-            t = np.linspace(0.0, 1.0, n)[:, None]
-            points.append(q[k] + t * (q[k + 1] - q[k]))
-            ends.append(np.tile([run[k][0], run[k + 1][0]], (n, 1)))
+        ids = np.array([run[0][0], *(p[0] for p in run), run[-1][0]], dtype=np.int64)
+        chord = q[1:] - q[:-1]
+        n = np.array([max(2, math.ceil(math.hypot(*c) / step) + 1) for c in chord.tolist()])
+        of = np.repeat(np.arange(len(n)), n)  # each sample's stretch
+        t = (np.arange(len(of)) - np.repeat(np.cumsum(n) - n, n)) * (1.0 / (n - 1))[of] + 0.0
+        t[np.cumsum(n) - 1] = 1.0
+        points.append(q[:-1][of] + t[:, None] * chord[of])
+        ends.append(np.stack([ids[:-1][of], ids[1:][of]], axis=1))
     if not points:
         return np.zeros((0, 2)), np.zeros((0, 2), np.int64)
     return np.concatenate(points), np.concatenate(ends).astype(np.int64)
