@@ -529,3 +529,63 @@ def test_the_stretches_are_one_at_a_time(seed, chains, step):
     got, want = _stretches(made, step, 0.001), _stretches_each(made, step, 0.001)
     assert all(g.dtype == w.dtype and g.tobytes() == w.tobytes()
                for g, w in zip(got, want, strict=True))
+
+
+def _chains_each(scan, two_poses=False):
+    """``envelope._chains`` before: each link computed where it is met."""
+    from clsonar.mapping.envelope import _link_radius
+
+    chains, run, loci, radius, last = [], [], set(), math.inf, 0
+
+    def close():
+        central = [place for _, o, place in run if not o]
+        if len(run) >= 2 and len(central) < 2 if two_poses else len(central) >= 2:
+            chains.append(([q for q, _, _ in run], radius, loci))
+
+    for place, points_, one_sided in scan:
+        p = points_[-1]
+        link = _link_radius(run[-1][0], p) if run and place - last <= 2 else None
+        if link is None:
+            close()
+            run, radius, loci = [], math.inf, set()
+        else:
+            radius = min(radius, link)
+        run.append((p, one_sided, place))
+        loci |= {q[0] for q in points_}
+        last = place
+    close()
+    return chains
+
+
+@pytest.mark.parametrize("name, noise", [("room.json", 0.0), ("room-obstacles.json", 0.6),
+                                         ("room-cylinder.json", 0.0)])
+def test_the_chains_with_their_links_once_are_the_loops(name, noise, monkeypatch):
+    """Both kinds of chains of every element's scan, links kept from the first (as
+    element_scans makes the scans) or not (a plain list): the loop's, to the bit."""
+    from clsonar.mapping import envelope
+    from clsonar.pipeline import run
+    from clsonar.tools.variants import with_seed
+
+    calls = []
+    mine = envelope.element_scans
+
+    def spy(*args):
+        calls.append(args)
+        return mine(*args)
+
+    monkeypatch.setattr("clsonar.mapping.tangents.element_scans", spy)
+    scene = load_scene(bundled_scenes() / name)
+    run(scene if noise == 0 else with_seed(scene, 1, noise))
+    found = 0
+    for scan in mine(*calls[0]):
+        for kinds in ((False, True), (True, False)):
+            for form in (scan, list(scan)) if kinds[0] else (scan,):
+                for two in kinds:
+                    got, want = envelope._chains(form, two), _chains_each(scan, two)
+                    assert len(got) == len(want)
+                    for (q, r, ids), (q0, r0, ids0) in zip(got, want, strict=True):
+                        assert r == r0 and ids == ids0 and len(q) == len(q0)
+                        assert all(a[3].tobytes() == b[3].tobytes()
+                                   for a, b in zip(q, q0, strict=True))
+                    found += len(got)
+    assert found > 10

@@ -189,6 +189,13 @@ def _pose_points(s: _Scan, i: int, before: int | None, after: int | None
 ElementScan = list[tuple[int, list[EnvelopePoint], bool]]
 
 
+class _LinkedScan(list):
+    """An :data:`ElementScan` as :func:`element_scans` makes it, keeping the links between
+    its consecutive points (:func:`_links`) for the second :func:`_chains` of it."""
+
+    links: list[float | None] | None = None
+
+
 def element_scans(scene: Scene, sensors: SensorArray, loci) -> list[ElementScan]:
     """Per element of the ring, its envelope points in scan order: ``(place, points,
     one_sided)`` with place 2·g at pose g and 2·g + 1 midway from pose g to g + 1 (a
@@ -206,7 +213,7 @@ def element_scans(scene: Scene, sensors: SensorArray, loci) -> list[ElementScan]
             at, midway, one_sided = _pose_points(
                 s, i, _partner(s, i, by_key.get((g - 1, e))),
                 _partner(s, i, by_key.get((g + 1, e))))
-            scan = scans.setdefault(e, [])
+            scan = scans.setdefault(e, _LinkedScan())
             scan += [(2 * g, at, one_sided)] if at else []
             scan += [(2 * g + 1, midway, False)] if midway else []
     return list(scans.values())
@@ -298,26 +305,39 @@ def _chains(scan: ElementScan, two_poses: bool = False) -> list[Chain]:
     chains: list[Chain] = []
     run: list[tuple[EnvelopePoint, bool, int]] = []
     loci: set[int] = set()
-    radius, last = math.inf, 0
+    radius = math.inf
 
     def close() -> None:
         central = [place for _, o, place in run if not o]
         if len(run) >= 2 and len(central) < 2 if two_poses else len(central) >= 2:
             chains.append(([q for q, _, _ in run], radius, loci))
 
-    for place, points, one_sided in scan:
-        p = points[-1]
-        link = _link_radius(run[-1][0], p) if run and place - last <= 2 else None
+    for (place, points, one_sided), link in zip(scan, _links(scan), strict=True):
         if link is None:
             close()
             run, radius, loci = [], math.inf, set()
         else:
             radius = min(radius, link)
-        run.append((p, one_sided, place))
+        run.append((points[-1], one_sided, place))
         loci |= {q[0] for q in points}
-        last = place
     close()
     return chains
+
+
+def _links(scan: ElementScan) -> list[float | None]:
+    """:func:`_link_radius` of each point of ``scan`` (its last, for a midway point's two)
+    and the one before it, None for the first and after a pose without one: the same for
+    both kinds of :func:`_chains`, computed once for a scan :func:`element_scans` made."""
+    links = getattr(scan, "links", None)
+    if links is None:
+        links, before, last = [], None, 0
+        for place, points, _ in scan:
+            links.append(_link_radius(before, points[-1])
+                         if before is not None and place - last <= 2 else None)
+            before, last = points[-1], place
+        if isinstance(scan, _LinkedScan):
+            scan.links = links
+    return links
 
 
 def envelope_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: float,
