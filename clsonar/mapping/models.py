@@ -299,10 +299,36 @@ CORNER_STEPS = np.array([1e-7, 1e-7])
 TURN_STEPS = np.array([1e-7, 1e-7, 1e-7])
 
 
+#: The curve fit's frame: its origin is X0 rounded to this many metres (0 for arrays
+#: within 50 m of the scene's origin), so that d stays within about 70 m of the apex
+#: distance A. Far from it φ and d are nearly collinear parameters (turning the line by
+#: δφ moves it by |X0|·δφ), and 300 m out the fit stopped millimetres from the surface.
+FRAME_M = 100.0
+
+
+def curve_frame(x0: np.ndarray) -> np.ndarray:
+    """The origin O of :func:`fit_curve`'s frame: ``x0`` rounded to :data:`FRAME_M`."""
+    return np.round(np.asarray(x0, dtype=np.float64) / FRAME_M) * FRAME_M
+
+
 def fit_curve(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
               start: np.ndarray, fix_psi: bool = False) -> Fit:
     """The curve model's least-squares ``(φ, d, ψ)`` from ``start``; ψ held at its start
-    value with ``fix_psi`` (ψ = 0: the best plane)."""
+    value with ``fix_psi`` (ψ = 0: the best plane). Fitted in the frame of
+    :func:`curve_frame` (d′ = d − n·O, the same φ and ψ), returned in the scene's."""
+    origin = curve_frame(x0)
+    if not origin.any():
+        return _fit_curve(x0, T, R, paths, start, fix_psi)
+    local = np.array(start, dtype=np.float64)
+    local[1] -= float(dot2(_normal(local[0]), origin))
+    fit = _fit_curve(x0 - origin, T - origin, R - origin, paths, local, fix_psi)
+    params = fit.params.copy()
+    params[1] += float(dot2(_normal(params[0]), origin))
+    return Fit(params, fit.rms, fit.converged)
+
+
+def _fit_curve(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
+               start: np.ndarray, fix_psi: bool) -> Fit:
     def model(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return curve_paths(p, x0, T, R)
 
@@ -349,8 +375,8 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
     return np.array([phis[best], float(np.median(support[:, best])), 0.0])
 
 
-__all__ = ["CORNER_STEPS", "CURVE_STEPS", "PSI_PLANE", "SPECULAR_STEPS", "Fit", "PathModel",
+__all__ = ["CORNER_STEPS", "CURVE_STEPS", "FRAME_M", "PSI_PLANE", "SPECULAR_STEPS", "Fit", "PathModel",
            "circle_points", "corner_images", "corner_paths", "curve_geometry", "curve_paths",
            "dot2",
-           "fit_corner", "fit_curve", "fit_point", "gram", "least_squares", "plane_points",
+           "curve_frame", "fit_corner", "fit_curve", "fit_point", "gram", "least_squares", "plane_points",
            "plane_start", "point_paths", "project_paths"]
