@@ -49,6 +49,12 @@ def dot2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
 
 
+def apart(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``|X − Y|`` over the last axis of 2-vectors (``np.hypot``), broadcast."""
+    d = X - Y
+    return np.hypot(d[..., 0], d[..., 1])
+
+
 def gram(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     """``Jᵀ·r`` (r a vector or a matrix) as NumPy sums, not BLAS: the same bits on every
     run, however many threads the BLAS would use."""
@@ -165,7 +171,8 @@ def corner_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
     pair hears it too, is a second family."""
     v = np.asarray(params[:2], dtype=np.float64)
     beta = float(params[2]) if len(params) > 2 else 0.0
-    turned = _rotate(R - v, -beta * _sides(v, T, R))
+    # turned by 0, R − V is itself to the bit (cos 0 = 1, sin 0 = 0)
+    turned = _rotate(R - v, -beta * _sides(v, T, R)) if beta != 0.0 else R - v
     return np.hypot(*(T - v + turned).T), np.broadcast_to(v, T.shape).copy()
 
 
@@ -209,13 +216,16 @@ class Fit:
     converged: bool
 
 
-def _jacobian(model: PathModel, p: np.ndarray, steps: np.ndarray,
+def _jacobian(model: PathModel, p: np.ndarray, steps: np.ndarray, free: np.ndarray,
               linear: LinearModel | None = None, q: np.ndarray | None = None,
               exact: np.ndarray | None = None) -> np.ndarray:
     """Central differences of ``model``'s paths, or of ``linear(p, q)`` (the model near the
-    reflection points ``q``) for the parameters not marked ``exact``."""
+    reflection points ``q``) for the parameters not marked ``exact``: the columns of the
+    ``free`` parameters (a held one's column would be thrown away)."""
     cols = []
     for k, h in enumerate(steps):
+        if not free[k]:
+            continue
         dp = np.zeros_like(p)
         dp[k] = h
         if linear is None or q is None or (exact is not None and exact[k]):
@@ -255,7 +265,9 @@ def least_squares(model: PathModel, paths: np.ndarray, start: np.ndarray,
     fresh = True
     for _ in range(iterations):
         if fresh:  # the Jacobian changes only when p does
-            J = _jacobian(model, p, steps, linear, q, exact)[:, free]
+            # laid out as the whole Jacobian's free columns were (Fortran order): gram's
+            # sums then add in the same order, to the bit
+            J = np.asfortranarray(_jacobian(model, p, steps, free, linear, q, exact))
             g, H = gram(J, r), gram(J, J)
             gain = float(np.sum(g * _damped_step(H, g, 0.0)))  # a Gauss–Newton step's gain
             if gain <= STOP_COST_SHARE * cost or cost <= len(paths) * STOP_RMS**2:
@@ -375,8 +387,8 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
     return np.array([phis[best], float(np.median(support[:, best])), 0.0])
 
 
-__all__ = ["CORNER_STEPS", "CURVE_STEPS", "FRAME_M", "PSI_PLANE", "SPECULAR_STEPS", "Fit", "PathModel",
-           "circle_points", "corner_images", "corner_paths", "curve_geometry", "curve_paths",
-           "dot2",
-           "curve_frame", "fit_corner", "fit_curve", "fit_point", "gram", "least_squares", "plane_points",
-           "plane_start", "point_paths", "project_paths"]
+__all__ = ["CORNER_STEPS", "CURVE_STEPS", "FRAME_M", "PSI_PLANE", "SPECULAR_STEPS", "Fit",
+           "PathModel", "apart", "circle_points", "corner_images", "corner_paths",
+           "curve_frame", "curve_geometry", "curve_paths", "dot2", "fit_corner", "fit_curve",
+           "fit_point", "gram", "least_squares", "plane_points", "plane_start", "point_paths",
+           "project_paths"]

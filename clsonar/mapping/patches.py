@@ -325,20 +325,20 @@ def _beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
 
 def _echo_share(p: Patch, beams: Beams) -> np.ndarray | None:
     """A flat surface's echo over a mirror's at the pairs' ``beams`` (its convex
-    divergence, :func:`~.strength.convex_share`; 1 for a plane); None for a circle more
-    bent than its range."""
+    divergence, :func:`~.strength.convex_share`; 1 for a plane); None for a concave
+    circle more bent than its range."""
     return convex_share(p.params, p.x0, beams[0], beams[1], beams[3], p.paths)
 
 
 def _least_echo(p: Patch, scene: Scene, beams: Beams, ka: float
                 ) -> np.ndarray:
     """The least amplitude at which pairs with the two-way ``beams`` (q, T, axT, R, axR)
-    hear ``p``: a plane's a mirror's floor (:func:`~.strength.mirror_floor`), a circle at
-    least as flat as its range the same with the mirror weakened by its convex divergence
-    (:func:`_echo_share`; a face's last echoes, shifted by its edge's diffraction, fit
-    such a circle, and that diffraction past the face's end, half a mirror's on the
-    reflection boundary, is not its echo); anything for a circle more bent (a post's echo
-    may be as weak as an edge's)."""
+    hear ``p``: a plane's a mirror's floor (:func:`~.strength.mirror_floor`), a convex
+    circle, or a concave one as flat as its range, the same with the mirror weakened by
+    its convex divergence (:func:`_echo_share`; a face's last echoes, shifted by its
+    edge's diffraction, fit such a circle, and that diffraction past the face's end, half
+    a mirror's on the reflection boundary, is not its echo); anything for a concave
+    circle more bent (its focusing may be left out of a scene)."""
     share = _echo_share(p, beams)
     if share is None:
         return np.full(len(beams[0]), -np.inf)
