@@ -162,10 +162,10 @@ POINT_SPREAD = 10.0
 def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray,
             params: np.ndarray) -> np.ndarray:
     """Whether the detections ``rows`` are as strong as a ``kind`` reflector's echoes can
-    be (planes: :func:`mirror_strong`; convex curves, or concave ones as flat as their
-    range: the same, the mirror weakened by the convex divergence, :func:`~.strength.
-    convex_share`; a point's, within :data:`POINT_SPREAD` of each other over their beams);
-    all, for corners and concave curves more bent than their range, or a window without a
+    be (planes: :func:`mirror_strong`; curves: the same, the mirror weakened by their
+    divergence, :func:`~.strength.convex_share`; a point's, within :data:`POINT_SPREAD` of
+    each other over their beams); all, for corners (a post's echo may be as weak as an
+    edge's: it is a tight circle or a point, not a corner), or a window without a
     mirror."""
     beams = (q, w.T[rows], w.axT[rows], w.R[rows], w.axR[rows])
     if kind in ("plane", "curve") and w.mirror > 0:

@@ -88,21 +88,19 @@ def circle_points(centre: np.ndarray, rho: float, sign: float, T: np.ndarray,
     the directions to T and R (``sign`` = sign of ψ: which side of the centre faces the
     transducers) by :data:`SPECULAR_STEPS` Newton steps on its angle."""
     cx, cy = float(centre[0]), float(centre[1])
-    n = len(T)
-    px = np.concatenate([T[:, 0], R[:, 0]])  # T's and R's rows side by side
-    py = np.concatenate([T[:, 1], R[:, 1]])
+    px = np.stack([T[:, 0], R[:, 0]])  # [2, n]: T's and R's rows, one per line
+    py = np.stack([T[:, 1], R[:, 1]])
     ax, ay = sign * (cx - px), sign * (cy - py)
     la = np.maximum(np.hypot(ax, ay), 1e-300)
     ux, uy = ax / la, ay / la
-    alpha = np.arctan2(uy[:n] + uy[n:], ux[:n] + ux[n:])
+    alpha = np.arctan2(uy[0] + uy[1], ux[0] + ux[1])
     for _ in range(SPECULAR_STEPS):
-        c, s = np.cos(alpha), np.sin(alpha)
-        c2, s2 = np.concatenate([c, c]), np.concatenate([s, s])
-        dx, dy = cx - rho * c2 - px, cy - rho * s2 - py  # q − T, q − R
+        c, s = np.cos(alpha), np.sin(alpha)  # [n], each used for both lines
+        dx, dy = (cx - rho * c) - px, (cy - rho * s) - py  # q − T, q − R
         lu = np.maximum(np.hypot(dx, dy), 1e-300)
-        proj = rho * (dx * s2 - dy * c2) / lu  # (q − X)·dq/dα / |q − X|
-        curv = (rho * rho - proj * proj + rho * (dx * c2 + dy * s2)) / lu
-        grad, total = proj[:n] + proj[n:], curv[:n] + curv[n:]
+        proj = rho * (dx * s - dy * c) / lu  # (q − X)·dq/dα / |q − X|
+        curv = (rho * rho - proj * proj + rho * (dx * c + dy * s)) / lu
+        grad, total = proj[0] + proj[1], curv[0] + curv[1]
         alpha = alpha - np.where(total != 0, grad / np.where(total != 0, total, 1.0), 0.0)
     qx, qy = cx - rho * np.cos(alpha), cy - rho * np.sin(alpha)
     path = np.hypot(T[:, 0] - qx, T[:, 1] - qy) + np.hypot(R[:, 0] - qx, R[:, 1] - qy)
