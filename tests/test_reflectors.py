@@ -207,7 +207,7 @@ def test_a_circle_is_fitted_as_well_kilometres_from_the_origin(far, bearing, fac
     n = np.array([math.cos(turned), math.sin(turned)])
     start = np.array([turned, dist + 0.003 + float(n @ x0), 0.9 / (dist + radius)])
     fit = models.fit_curve(x0, T, R, paths, start)
-    found, rho, A = models.curve_geometry(fit.params, x0)
+    _, rho, A = models.curve_geometry(fit.params, x0)
     apex = x0 + A * np.array([math.cos(fit.params[0]), math.sin(fit.params[0])])
     assert np.hypot(*(apex - (centre - radius * u))) < 1e-4  # 1.7-4.7 mm 0.3-5 km out before
     assert abs(rho - radius) < 1e-3  # a 2 m circle's radius from a 0.2 m array
