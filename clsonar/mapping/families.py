@@ -26,6 +26,7 @@ from .models import (
     CURVE_STEPS,
     Fit,
     _jacobian,
+    apart,
     corner_images,
     corner_paths,
     curve_paths,
@@ -161,11 +162,11 @@ POINT_SPREAD = 10.0
 def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray,
             params: np.ndarray) -> np.ndarray:
     """Whether the detections ``rows`` are as strong as a ``kind`` reflector's echoes can
-    be (planes: :func:`mirror_strong`; curves at least as flat as their range: the same,
-    the mirror weakened by the curve's convex divergence, :func:`~.strength.convex_share`; a
-    point's, within :data:`POINT_SPREAD` of each other over their beams); all, for
-    corners and more bent curves (a post's echo may be as weak as an edge's), or a window
-    without a mirror."""
+    be (planes: :func:`mirror_strong`; curves: the same, the mirror weakened by their
+    divergence, :func:`~.strength.convex_share`; a point's, within :data:`POINT_SPREAD` of
+    each other over their beams); all, for corners (a post's echo may be as weak as an
+    edge's: it is a tight circle or a point, not a corner), or a window without a
+    mirror."""
     beams = (q, w.T[rows], w.axT[rows], w.R[rows], w.axR[rows])
     if kind in ("plane", "curve") and w.mirror > 0:
         share = (convex_share(params, w.x0, q, w.T[rows], w.R[rows], w.paths[rows])
@@ -291,12 +292,12 @@ def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
     return (members, fit) if len(members) >= least else None
 
 
-def _moved(w: Window, a: int, rows: np.ndarray) -> np.ndarray:
+def _moved(w: Window, a: int | np.ndarray, rows: np.ndarray) -> np.ndarray:
     """How far the transducers of each of ``rows`` lie from row ``a``'s (T to T and R to R,
-    or crossed: a pair and its reciprocal are one path)."""
-    straight = np.hypot(*(w.T[rows] - w.T[a]).T) + np.hypot(*(w.R[rows] - w.R[a]).T)
-    crossed = np.hypot(*(w.T[rows] - w.R[a]).T) + np.hypot(*(w.R[rows] - w.T[a]).T)
-    return np.minimum(straight, crossed)
+    or crossed: a pair and its reciprocal are one path); ``a`` a column of rows: each
+    against each, [len(a), len(rows)]."""
+    T, R, Ta, Ra = w.T[rows], w.R[rows], w.T[a], w.R[a]
+    return np.minimum(apart(T, Ta) + apart(R, Ra), apart(T, Ra) + apart(R, Ta))
 
 
 def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
@@ -312,12 +313,11 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
     ratio = w.amplitude[free] / max(float(w.amplitude[seed]), 1e-300)
     left = free[(free != seed) & (ratio <= SEED_SPREAD) & (ratio >= 1.0 / SEED_SPREAD)]
     while frontier and len(members) < 4 * SEED_SIZE and len(left):
-        reached = np.zeros(len(left), dtype=bool)
-        for a in frontier:
-            moved = _moved(w, a, left)
-            reached |= (moved <= step) & (np.abs(w.paths[left] - w.paths[a])
-                                          <= MAX_PATH_SLOPE * moved + w.tolerance[left]
-                                          + w.tolerance[a])
+        a = np.asarray(frontier)[:, None]  # every frontier row against every left one
+        moved = _moved(w, a, left)
+        reached = np.any((moved <= step) & (np.abs(w.paths[left] - w.paths[a])
+                                            <= MAX_PATH_SLOPE * moved + w.tolerance[left]
+                                            + w.tolerance[a]), axis=0)
         frontier = left[reached].tolist()
         members += frontier
         left = left[~reached]
@@ -445,7 +445,7 @@ def _bend(w: Window, members: np.ndarray, fit: Fit | None, noise: float) -> floa
     if fit is None:
         return math.inf
     J = _jacobian(lambda p: curve_paths(p, w.x0, w.T[members], w.R[members]), fit.params,
-                  CURVE_STEPS)
+                  CURVE_STEPS, np.ones(3, dtype=bool))
     sigma = max(fit.rms, noise, DETECTION_FLOOR_M)
     try:
         cov = np.linalg.inv(gram(J, J)) * sigma**2

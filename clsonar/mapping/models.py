@@ -49,6 +49,12 @@ def dot2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1]
 
 
+def apart(X: np.ndarray, Y: np.ndarray) -> np.ndarray:
+    """``|X − Y|`` over the last axis of 2-vectors (``np.hypot``), broadcast."""
+    d = X - Y
+    return np.hypot(d[..., 0], d[..., 1])
+
+
 def gram(J: np.ndarray, r: np.ndarray) -> np.ndarray:
     """``Jᵀ·r`` (r a vector or a matrix) as NumPy sums, not BLAS: the same bits on every
     run, however many threads the BLAS would use."""
@@ -82,21 +88,19 @@ def circle_points(centre: np.ndarray, rho: float, sign: float, T: np.ndarray,
     the directions to T and R (``sign`` = sign of ψ: which side of the centre faces the
     transducers) by :data:`SPECULAR_STEPS` Newton steps on its angle."""
     cx, cy = float(centre[0]), float(centre[1])
-    n = len(T)
-    px = np.concatenate([T[:, 0], R[:, 0]])  # T's and R's rows side by side
-    py = np.concatenate([T[:, 1], R[:, 1]])
+    px = np.stack([T[:, 0], R[:, 0]])  # [2, n]: T's and R's rows, one per line
+    py = np.stack([T[:, 1], R[:, 1]])
     ax, ay = sign * (cx - px), sign * (cy - py)
     la = np.maximum(np.hypot(ax, ay), 1e-300)
     ux, uy = ax / la, ay / la
-    alpha = np.arctan2(uy[:n] + uy[n:], ux[:n] + ux[n:])
+    alpha = np.arctan2(uy[0] + uy[1], ux[0] + ux[1])
     for _ in range(SPECULAR_STEPS):
-        c, s = np.cos(alpha), np.sin(alpha)
-        c2, s2 = np.concatenate([c, c]), np.concatenate([s, s])
-        dx, dy = cx - rho * c2 - px, cy - rho * s2 - py  # q − T, q − R
+        c, s = np.cos(alpha), np.sin(alpha)  # [n], each used for both lines
+        dx, dy = (cx - rho * c) - px, (cy - rho * s) - py  # q − T, q − R
         lu = np.maximum(np.hypot(dx, dy), 1e-300)
-        proj = rho * (dx * s2 - dy * c2) / lu  # (q − X)·dq/dα / |q − X|
-        curv = (rho * rho - proj * proj + rho * (dx * c2 + dy * s2)) / lu
-        grad, total = proj[:n] + proj[n:], curv[:n] + curv[n:]
+        proj = rho * (dx * s - dy * c) / lu  # (q − X)·dq/dα / |q − X|
+        curv = (rho * rho - proj * proj + rho * (dx * c + dy * s)) / lu
+        grad, total = proj[0] + proj[1], curv[0] + curv[1]
         alpha = alpha - np.where(total != 0, grad / np.where(total != 0, total, 1.0), 0.0)
     qx, qy = cx - rho * np.cos(alpha), cy - rho * np.sin(alpha)
     path = np.hypot(T[:, 0] - qx, T[:, 1] - qy) + np.hypot(R[:, 0] - qx, R[:, 1] - qy)
@@ -165,7 +169,8 @@ def corner_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
     pair hears it too, is a second family."""
     v = np.asarray(params[:2], dtype=np.float64)
     beta = float(params[2]) if len(params) > 2 else 0.0
-    turned = _rotate(R - v, -beta * _sides(v, T, R))
+    # turned by 0, R − V is itself to the bit (cos 0 = 1, sin 0 = 0)
+    turned = _rotate(R - v, -beta * _sides(v, T, R)) if beta != 0.0 else R - v
     return np.hypot(*(T - v + turned).T), np.broadcast_to(v, T.shape).copy()
 
 
@@ -209,13 +214,16 @@ class Fit:
     converged: bool
 
 
-def _jacobian(model: PathModel, p: np.ndarray, steps: np.ndarray,
+def _jacobian(model: PathModel, p: np.ndarray, steps: np.ndarray, free: np.ndarray,
               linear: LinearModel | None = None, q: np.ndarray | None = None,
               exact: np.ndarray | None = None) -> np.ndarray:
     """Central differences of ``model``'s paths, or of ``linear(p, q)`` (the model near the
-    reflection points ``q``) for the parameters not marked ``exact``."""
+    reflection points ``q``) for the parameters not marked ``exact``: the columns of the
+    ``free`` parameters (a held one's column would be thrown away)."""
     cols = []
     for k, h in enumerate(steps):
+        if not free[k]:
+            continue
         dp = np.zeros_like(p)
         dp[k] = h
         if linear is None or q is None or (exact is not None and exact[k]):
@@ -255,7 +263,9 @@ def least_squares(model: PathModel, paths: np.ndarray, start: np.ndarray,
     fresh = True
     for _ in range(iterations):
         if fresh:  # the Jacobian changes only when p does
-            J = _jacobian(model, p, steps, linear, q, exact)[:, free]
+            # laid out as the whole Jacobian's free columns were (Fortran order): gram's
+            # sums then add in the same order, to the bit
+            J = np.asfortranarray(_jacobian(model, p, steps, free, linear, q, exact))
             g, H = gram(J, r), gram(J, J)
             gain = float(np.sum(g * _damped_step(H, g, 0.0)))  # a Gauss–Newton step's gain
             if gain <= STOP_COST_SHARE * cost or cost <= len(paths) * STOP_RMS**2:
@@ -299,10 +309,36 @@ CORNER_STEPS = np.array([1e-7, 1e-7])
 TURN_STEPS = np.array([1e-7, 1e-7, 1e-7])
 
 
+#: The curve fit's frame: its origin is X0 rounded to this many metres (0 for arrays
+#: within 50 m of the scene's origin), so that d stays within about 70 m of the apex
+#: distance A. Far from it φ and d are nearly collinear parameters (turning the line by
+#: δφ moves it by |X0|·δφ), and 300 m out the fit stopped millimetres from the surface.
+FRAME_M = 100.0
+
+
+def curve_frame(x0: np.ndarray) -> np.ndarray:
+    """The origin O of :func:`fit_curve`'s frame: ``x0`` rounded to :data:`FRAME_M`."""
+    return np.round(np.asarray(x0, dtype=np.float64) / FRAME_M) * FRAME_M
+
+
 def fit_curve(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
               start: np.ndarray, fix_psi: bool = False) -> Fit:
     """The curve model's least-squares ``(φ, d, ψ)`` from ``start``; ψ held at its start
-    value with ``fix_psi`` (ψ = 0: the best plane)."""
+    value with ``fix_psi`` (ψ = 0: the best plane). Fitted in the frame of
+    :func:`curve_frame` (d′ = d − n·O, the same φ and ψ), returned in the scene's."""
+    origin = curve_frame(x0)
+    if not origin.any():
+        return _fit_curve(x0, T, R, paths, start, fix_psi)
+    local = np.array(start, dtype=np.float64)
+    local[1] -= float(dot2(_normal(local[0]), origin))
+    fit = _fit_curve(x0 - origin, T - origin, R - origin, paths, local, fix_psi)
+    params = fit.params.copy()
+    params[1] += float(dot2(_normal(params[0]), origin))
+    return Fit(params, fit.rms, fit.converged)
+
+
+def _fit_curve(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
+               start: np.ndarray, fix_psi: bool) -> Fit:
     def model(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return curve_paths(p, x0, T, R)
 
@@ -349,8 +385,8 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
     return np.array([phis[best], float(np.median(support[:, best])), 0.0])
 
 
-__all__ = ["CORNER_STEPS", "CURVE_STEPS", "PSI_PLANE", "SPECULAR_STEPS", "Fit", "PathModel",
-           "circle_points", "corner_images", "corner_paths", "curve_geometry", "curve_paths",
-           "dot2",
-           "fit_corner", "fit_curve", "fit_point", "gram", "least_squares", "plane_points",
-           "plane_start", "point_paths", "project_paths"]
+__all__ = ["CORNER_STEPS", "CURVE_STEPS", "FRAME_M", "PSI_PLANE", "SPECULAR_STEPS", "Fit",
+           "PathModel", "apart", "circle_points", "corner_images", "corner_paths",
+           "curve_frame", "curve_geometry", "curve_paths", "dot2", "fit_corner", "fit_curve",
+           "fit_point", "gram", "least_squares", "plane_points", "plane_start", "point_paths",
+           "project_paths"]

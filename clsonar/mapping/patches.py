@@ -292,10 +292,14 @@ def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.
     mirror's there (0: none; :func:`_echo_share`), and whether it is as strong as the
     surface's echo (:func:`_least_echo`)."""
     amplitude, near = loudest(heard, pairs, path)
-    share = _echo_share(p, beams)
-    mirror = mirror_echo(scene) * (1.0 if share is None else share) * two_way(*beams, ka)
+    mirror = _surface_echo(p, scene, beams, ka)
     ratio = np.where(near, amplitude / np.maximum(mirror, 1e-300), 0.0)
     return ratio, near & (amplitude >= _least_echo(p, scene, beams, ka))
+
+
+def _surface_echo(p: Patch, scene: Scene, beams: Beams, ka: float) -> np.ndarray:
+    """``p``'s echo at the two-way ``beams``: a mirror's times :func:`_echo_share`."""
+    return mirror_echo(scene) * _echo_share(p, beams) * two_way(*beams, ka)
 
 
 def _beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
@@ -323,26 +327,22 @@ def _beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     return (u, *_strength(p, scene, heard, pairs[ok], path[ok], beams, ka), T[ok], R[ok])
 
 
-def _echo_share(p: Patch, beams: Beams) -> np.ndarray | None:
-    """A flat surface's echo over a mirror's at the pairs' ``beams`` (its convex
-    divergence, :func:`~.strength.convex_share`; 1 for a plane); None for a circle more
-    bent than its range."""
-    return convex_share(p.params, p.x0, beams[0], beams[1], beams[3], p.paths)
+def _echo_share(p: Patch, beams: Beams) -> np.ndarray:
+    """``p``'s echo over a mirror's at the pairs' ``beams`` (1 for a plane; a circle's
+    divergence, :func:`~.strength.convex_share`)."""
+    share = convex_share(p.params, p.x0, beams[0], beams[1], beams[3], p.paths)
+    return np.ones(len(beams[0])) if share is None else share
 
 
 def _least_echo(p: Patch, scene: Scene, beams: Beams, ka: float
                 ) -> np.ndarray:
     """The least amplitude at which pairs with the two-way ``beams`` (q, T, axT, R, axR)
-    hear ``p``: a plane's a mirror's floor (:func:`~.strength.mirror_floor`), a circle at
-    least as flat as its range the same with the mirror weakened by its convex divergence
-    (:func:`_echo_share`; a face's last echoes, shifted by its edge's diffraction, fit
-    such a circle, and that diffraction past the face's end, half a mirror's on the
-    reflection boundary, is not its echo); anything for a circle more bent (a post's echo
-    may be as weak as an edge's)."""
-    share = _echo_share(p, beams)
-    if share is None:
-        return np.full(len(beams[0]), -np.inf)
-    return mirror_floor(*beams, mirror_echo(scene) * share, ka, amplitude_noise(scene))
+    hear ``p``: a plane's a mirror's floor (:func:`~.strength.mirror_floor`), a circle
+    the same with the mirror weakened by its divergence (:func:`_echo_share`; a face's
+    last echoes, shifted by its edge's diffraction, fit a circle, and that diffraction
+    past the face's end, half a mirror's on the reflection boundary, is not its echo)."""
+    return mirror_floor(*beams, mirror_echo(scene) * _echo_share(p, beams), ka,
+                        amplitude_noise(scene))
 
 
 def flat(p: Patch) -> bool:
@@ -451,17 +451,42 @@ def loudest(heard: Heard, pairs: np.ndarray, path: np.ndarray
 def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
                  amplitude: np.ndarray) -> Patch:
     """``p`` over its regions of constant depth, cut where the array heard nothing (the
-    detections ``heard``, :func:`heard_index`), as far as its curvature is known
+    detections ``heard``, :func:`heard_index`) or, where nothing beyond could tell, at an
+    end its echoes say is near (:func:`weakened_ends`), as far as its curvature is known
     (:func:`trusted_reach`, by its paths or by its echoes' strength ``amplitude``:
     :func:`strength_bend`)."""
-    c = scene.medium.c
-    cut_sin2, _ = scene.transducer.beam(c)
-    resolution = c * scene.transducer.pulse_sigma_s
-    lo, hi = extents(p, sensors, cut_sin2, resolution)
-    lo, hi = clamp_to_silence(p, scene, sensors, heard, lo, hi)
+    cut_sin2, _ = scene.transducer.beam(scene.medium.c)
+    span = extents(p, sensors, cut_sin2, scene.medium.c * scene.transducer.pulse_sigma_s)
+    lo, hi = clamp_to_silence(p, scene, sensors, heard, *span)
+    first, last = weakened_ends(p, scene, sensors, amplitude)
+    lo = p.lo if first and lo == span[0] else lo
+    hi = p.hi if last and hi == span[1] else hi
     reach = trusted_reach(replace(p, bend=min(p.bend, strength_bend(p, scene, sensors,
                                                                      amplitude))))
     return replace(p, lo=min(max(lo, p.lo - reach), p.lo), hi=max(min(hi, p.hi + reach), p.hi))
+
+
+#: A face's outermost echo under this share of its median one (over a mirror's, less
+#: three noise σ) has its end within about a Fresnel zone (:func:`weakened_ends`).
+END_WEAKENING = 0.9
+
+
+def weakened_ends(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.ndarray
+                  ) -> tuple[bool, bool]:
+    """Whether the echo (``amplitude``) of ``p``'s first and last reflection points over
+    the surface's there (:func:`_surface_echo`) is under :data:`END_WEAKENING` of its
+    median: a face's echo falls to half a mirror's as its reflection point nears its edge
+    over about a Fresnel zone, √(λ·r/2) (8 cm at 1.5 m; Kouyoumjian & Pathak 1974), so it
+    ends near there. Neither with threshold detection (a sample) or no mirror."""
+    if scene.detection.mode != "envelope" or mirror_echo(scene) <= 0 or len(amplitude) < 3:
+        return False, False
+    beams = own_beams(p, sensors)
+    echo = _surface_echo(p, scene, beams, scene.transducer.beam(scene.medium.c)[1])
+    ratio = amplitude / np.maximum(echo, 1e-300)
+    ceiling = ratio + 3.0 * amplitude_noise(scene) / np.maximum(echo, 1e-300)
+    middle = END_WEAKENING * float(np.median(ratio))
+    return (bool(ceiling[int(np.argmin(p.u))] < middle),
+            bool(ceiling[int(np.argmax(p.u))] < middle))
 
 
 def strength_bend(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.ndarray
