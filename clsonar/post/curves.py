@@ -15,6 +15,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from ..mapping.points import nonzero_cells
 from .filters import voted_box
 
 #: Linked curves shorter than this many cells are dropped as specks.
@@ -36,7 +37,7 @@ def trace_curves(thin_map: np.ndarray, min_cells: int = MIN_CURVE_CELLS) -> list
     t = np.asarray(thin_map, dtype=bool)
     rows, cols = voted_box(t, margin=1)  # only the set cells' box is looked at
     part = t[rows, cols]
-    iy, ix = np.nonzero(part)
+    iy, ix = nonzero_cells(part)
     codes = _codes(part, iy, ix)
     cells = dict(zip(zip((iy + rows.start).tolist(), (ix + cols.start).tolist(), strict=True),
                      codes.tolist(), strict=True))

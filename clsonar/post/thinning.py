@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..mapping.points import nonzero_cells
 from ..scene import PostSettings
 
 #: Correlation weights giving each pixel an 8-bit code of its neighbours: bit k−1 is
@@ -164,7 +165,7 @@ def thin(binary: np.ndarray, max_iterations: int = 10_000) -> np.ndarray:
     the set pixels (their indices kept as pixels are deleted, the map padded once).
     """
     p = np.pad(np.asarray(binary, dtype=bool), 1)
-    iy, ix = np.nonzero(p)
+    iy, ix = nonzero_cells(p)
     for _ in range(max_iterations):
         before = len(iy)
         iy, ix = _guo_hall(p, iy, ix, max_iterations)
@@ -204,7 +205,7 @@ def along_x(occupied: np.ndarray) -> np.ndarray:
     from scipy import ndimage  # only here: its import costs a plain run 0.2 s
 
     b = np.asarray(occupied, dtype=bool)
-    iy, ix = np.nonzero(b)
+    iy, ix = nonzero_cells(b)
     if len(iy) == 0 or np.var(iy) >= np.var(ix):
         return np.zeros_like(b)
     o = b.astype(np.float64)
