@@ -152,13 +152,18 @@ def test_a_faces_echo_and_its_edges_are_no_bent_circle():
     (1.0, math.sqrt(8.6 / (8.6 + 2 * 4.3**2))),  # convex: its divergence
     (-1.0, math.sqrt(8.6 / (2 * 4.3**2 - 8.6))),  # concave, past its caustic: less
     (-4.0, 1.0),  # concave, before its caustic: focusing, not counted above a mirror's
+    (0.2, None),  # point-like (under a tenth of its range): as a post's or an edge's
+    (-0.2, None),
 ])
 def test_a_bent_circles_echo_is_its_divergence_share_of_a_mirrors(radius, share):
     """strength.convex_share of circles more bent than their range at 4.3 m (they were
     held to no floor): the mirror's echo times sqrt(2r / |2r + 2r²/ρ|) square on
-    (physics.curved_gain), at most 1."""
+    (physics.curved_gain), at most 1; none for a point-like one (strength.POINT_LIKE)."""
     A = 4.3
     params = np.array([0.0, A, 1.0 / (A + radius)])  # apex (4.3, 0), facing +x, x0 = 0
     q, T = np.array([[A, 0.0]]), np.zeros((1, 2))
     got = convex_share(params, np.zeros(2), q, T, T, np.array([2 * A]))
-    assert got is not None and got[0] == pytest.approx(share, rel=1e-12)
+    if share is None:
+        assert got is None
+    else:
+        assert got is not None and got[0] == pytest.approx(share, rel=1e-12)

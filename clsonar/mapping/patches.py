@@ -288,9 +288,8 @@ def _end(along: np.ndarray, ratio: np.ndarray, loud: np.ndarray, gauged: bool,
 def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.ndarray,
               beams: Beams, ka: float) -> tuple[np.ndarray, np.ndarray]:
     """``(ratio, loud)`` of ``pairs`` for ``p`` along ``path`` with the two-way ``beams``
-    (q, T, axT, R, axR): the strongest echo within :data:`HEARD_TOL_M` of the path over a
-    mirror's there (0: none; :func:`_echo_share`), and whether it is as strong as the
-    surface's echo (:func:`_least_echo`)."""
+    (q, T, axT, R, axR): the strongest echo within :data:`HEARD_TOL_M` of the path over
+    :func:`_surface_echo` (0: none), and whether it is as strong as :func:`_least_echo`."""
     amplitude, near = loudest(heard, pairs, path)
     mirror = _surface_echo(p, scene, beams, ka)
     ratio = np.where(near, amplitude / np.maximum(mirror, 1e-300), 0.0)
@@ -299,7 +298,8 @@ def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.
 
 def _surface_echo(p: Patch, scene: Scene, beams: Beams, ka: float) -> np.ndarray:
     """``p``'s echo at the two-way ``beams``: a mirror's times :func:`_echo_share`."""
-    return mirror_echo(scene) * _echo_share(p, beams) * two_way(*beams, ka)
+    share = _echo_share(p, beams)
+    return mirror_echo(scene) * (1.0 if share is None else share) * two_way(*beams, ka)
 
 
 def _beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
@@ -327,22 +327,22 @@ def _beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     return (u, *_strength(p, scene, heard, pairs[ok], path[ok], beams, ka), T[ok], R[ok])
 
 
-def _echo_share(p: Patch, beams: Beams) -> np.ndarray:
+def _echo_share(p: Patch, beams: Beams) -> np.ndarray | None:
     """``p``'s echo over a mirror's at the pairs' ``beams`` (1 for a plane; a circle's
-    divergence, :func:`~.strength.convex_share`)."""
-    share = convex_share(p.params, p.x0, beams[0], beams[1], beams[3], p.paths)
-    return np.ones(len(beams[0])) if share is None else share
+    divergence, :func:`~.strength.convex_share`; None for a point-like circle)."""
+    return convex_share(p.params, p.x0, beams[0], beams[1], beams[3], p.paths)
 
 
-def _least_echo(p: Patch, scene: Scene, beams: Beams, ka: float
-                ) -> np.ndarray:
+def _least_echo(p: Patch, scene: Scene, beams: Beams, ka: float) -> np.ndarray:
     """The least amplitude at which pairs with the two-way ``beams`` (q, T, axT, R, axR)
     hear ``p``: a plane's a mirror's floor (:func:`~.strength.mirror_floor`), a circle
-    the same with the mirror weakened by its divergence (:func:`_echo_share`; a face's
+    the same with the mirror weakened by its divergence (:func:`_echo_share`: a face's
     last echoes, shifted by its edge's diffraction, fit a circle, and that diffraction
-    past the face's end, half a mirror's on the reflection boundary, is not its echo)."""
-    return mirror_floor(*beams, mirror_echo(scene) * _echo_share(p, beams), ka,
-                        amplitude_noise(scene))
+    past its end is not its echo); anything for a point-like one."""
+    share = _echo_share(p, beams)
+    if share is None:  # a point-like circle's echo may be as weak as an edge's
+        return np.full(len(beams[0]), -np.inf)
+    return mirror_floor(*beams, mirror_echo(scene) * share, ka, amplitude_noise(scene))
 
 
 def flat(p: Patch) -> bool:
