@@ -182,6 +182,8 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
             for f in found:
                 explained[f.loci] = True
         left[-len(windows):] = [r[~explained[r]] for r in left[-len(windows):]]
+        # pairs farther apart than a stretch (an off-square corner's double bounce)
+        left.append(np.setdiff1d(rows, np.concatenate([w.rows for w in windows] + [rows[:0]])))
     rest = np.unique(np.concatenate(left)) if left else np.zeros(0, np.int64)
     if len(rest) >= MIN_FAMILY:
         x0 = sensors.positions[loci.tx[rest]].mean(axis=0)
