@@ -182,8 +182,9 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
             for f in found:
                 explained[f.loci] = True
         left[-len(windows):] = [r[~explained[r]] for r in left[-len(windows):]]
-        # pairs farther apart than a stretch (an off-square corner's double bounce)
-        left.append(np.setdiff1d(rows, np.concatenate([w.rows for w in windows] + [rows[:0]])))
+        # pairs farther apart than any stretch (an off-square corner's double bounce)
+        covered = np.concatenate([w.rows for w in windows]) if windows else rows[:0]
+        left.append(np.setdiff1d(rows, covered))
     rest = np.unique(np.concatenate(left)) if left else np.zeros(0, np.int64)
     if len(rest) >= MIN_FAMILY:
         x0 = sensors.positions[loci.tx[rest]].mean(axis=0)
@@ -351,11 +352,18 @@ def near_vertex(w: Window, vertex: Family, rows: np.ndarray, resolution: float
     edge is 20–40 dB stronger than the edge's diffraction, and the diffraction barely
     shifts it — that echo is the face's."""
     path, q = _predict(w, vertex.kind, vertex.params, rows)
-    near = np.abs(path - w.paths[rows]) <= resolution
-    near &= _valid(w, vertex.kind, vertex.params, rows, q)
-    return near & (_seen(w, vertex.kind, vertex.params, rows)
-                   <= POINT_SPREAD * float(np.median(_seen(vertex.window, vertex.kind,
-                                                            vertex.params, vertex.rows))))
+    return (np.abs(path - w.paths[rows]) <= resolution) & _as_its_echoes(w, vertex, rows, q)
+
+
+def _as_its_echoes(w: Window, vertex: Family, rows: np.ndarray, q: np.ndarray
+                   ) -> np.ndarray:
+    """Whether the located ``vertex`` (reflection points ``q`` for ``rows``) lies inside
+    both beams of each of ``rows`` and their echoes are no stronger than its own over
+    their beams (within :data:`POINT_SPREAD` of its detections' median)."""
+    return _valid(w, vertex.kind, vertex.params, rows, q) & (
+        _seen(w, vertex.kind, vertex.params, rows)
+        <= POINT_SPREAD * float(np.median(_seen(vertex.window, vertex.kind, vertex.params,
+                                                 vertex.rows))))
 
 
 def _seen(w: Window, kind: str, params: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -470,16 +478,17 @@ def turned_about(w: Window, vertex: Family, rows: np.ndarray, resolution: float
     plus what a turn by β up to :data:`MAX_TURN` moves it, β·|a × b|/|a + b| to first
     order (a = T − V, b = R − V: nothing for T = R, about β·L/2 for elements L apart), and
     as :func:`near_vertex` asks, inside both beams and as strong as the vertex's echoes
-    over their beams. A right angle explains the double bounces of an 88° corner's close
-    pairs to a few µm, not its far pairs' (the zoo's unseen seed 20 corner-06: 2 cm off,
-    their tangent points drawn across the corner's mouth, 21 cm RMS)."""
+    over their beams (:func:`_as_its_echoes`). A right angle explains the double bounces
+    of an 88° corner's close pairs to a few µm, not its far pairs' (the zoo's unseen seed
+    20 corner-06: 2 cm off, their tangent points drawn across the corner's mouth, 21 cm
+    RMS)."""
     v = np.asarray(vertex.params[:2], dtype=np.float64)
     a, b = w.T[rows] - v, w.R[rows] - v
     first = np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) / np.maximum(
         np.hypot(*(a + b).T), 1e-12)
-    path = _predict(w, "corner", vertex.params, rows)[0]
+    path, q = _predict(w, "corner", vertex.params, rows)
     return ((np.abs(path - w.paths[rows]) <= resolution + MAX_TURN * first)
-            & near_vertex(replace(w, paths=path), vertex, rows, resolution))
+            & _as_its_echoes(w, vertex, rows, q))
 
 
 def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
