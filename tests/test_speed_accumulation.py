@@ -487,17 +487,13 @@ def test_one_point_beam_test_is_in_beams(seed, cut_sin2):
 
 
 def _stretches_each(chains, step, bias):
-    """``envelope._stretches`` before: one stretch at a time through ``np.linspace``."""
-    from clsonar.mapping.envelope import LINK_SAGITTA_M
+    """``envelope._stretches`` before: one stretch at a time through ``np.linspace``
+    (the run's ends extended as it still does, ``envelope.extended_run``)."""
+    from clsonar.mapping.envelope import extended_run
 
     points, ends = [], []
     for run, radius, _ in chains:
-        q = np.array([p[3] for p in run])
-        first, last = q[0] - q[1], q[-1] - q[-2]
-        curved = math.sqrt(2.0 * radius * LINK_SAGITTA_M)
-        ext = [min(math.sqrt(2.0 * end[2] * bias), curved) for end in (run[0], run[-1])]
-        q = np.r_[q[:1] + first / np.hypot(*first) * ext[0], q,
-                  q[-1:] + last / np.hypot(*last) * ext[1]]
+        q = extended_run(run, radius, bias)
         run = [run[0], *run, run[-1]]
         for k in range(len(run) - 1):
             n = max(2, math.ceil(math.hypot(*(q[k + 1] - q[k])) / step) + 1)

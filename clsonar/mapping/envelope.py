@@ -381,6 +381,18 @@ def two_pose_links(scene: Scene, sensors: SensorArray, loci, step: float, bias: 
     return _stretches(chains, step, bias)
 
 
+def extended_run(run: list, radius: float, bias: float) -> np.ndarray:
+    """The points of ``run`` (a chain of :func:`envelope_links`) and one past each end,
+    along its last stretch, by √(2·r·bias) (r that end's range) but at most the sagitta's
+    √(2·radius·:data:`LINK_SAGITTA_M`)."""
+    q = np.array([p[3] for p in run])
+    first, last = q[0] - q[1], q[-1] - q[-2]
+    curved = math.sqrt(2.0 * radius * LINK_SAGITTA_M)
+    ext = [min(math.sqrt(2.0 * end[2] * bias), curved) for end in (run[0], run[-1])]
+    return np.r_[q[:1] + first / np.hypot(*first) * ext[0], q,
+                 q[-1:] + last / np.hypot(*last) * ext[1]]
+
+
 def _stretches(chains: list[Chain], step: float, bias: float) -> tuple[np.ndarray, np.ndarray]:
     """The samples (every ``step``) of the straight stretches between the consecutive
     points of each run in ``chains`` and past its ends (:func:`envelope_links`), and the
@@ -389,12 +401,7 @@ def _stretches(chains: list[Chain], step: float, bias: float) -> tuple[np.ndarra
     the same arithmetic per sample as one stretch at a time."""
     points, ends = [], []
     for run, radius, _ in chains:
-        q = np.array([p[3] for p in run])
-        first, last = q[0] - q[1], q[-1] - q[-2]
-        curved = math.sqrt(2.0 * radius * LINK_SAGITTA_M)
-        ext = [min(math.sqrt(2.0 * end[2] * bias), curved) for end in (run[0], run[-1])]
-        q = np.r_[q[:1] + first / np.hypot(*first) * ext[0], q,
-                  q[-1:] + last / np.hypot(*last) * ext[1]]
+        q = extended_run(run, radius, bias)
         ids = np.array([run[0][0], *(p[0] for p in run), run[-1][0]], dtype=np.int64)
         chord = q[1:] - q[:-1]
         n = np.array([max(2, math.ceil(math.hypot(*c) / step) + 1) for c in chord.tolist()])
