@@ -17,6 +17,7 @@ from test_speed_sight import _cases as _sight_cases
 from clsonar import sight
 from clsonar.files import bundled_scenes
 from clsonar.mapping import pillars, points
+from clsonar.mapping.models import ellipse_axes
 from clsonar.mapping.pillars import CLUSTER_M, GN_ITERATIONS, GN_STEP_M, SEED_M
 from clsonar.mapping.points import nonzero_cells
 from clsonar.scene import load_scene
@@ -329,10 +330,7 @@ def _locus_samples_before(scene, sensors, loci):
     pos, axes = sensors.positions, sensors.axes
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
     T, R = pos[loci.tx], pos[loci.rx]
-    a = 0.5 * scene.medium.c * loci.tof_s
-    f = 0.5 * np.hypot(*(R - T).T)
-    b = np.sqrt(np.maximum(a * a - f * f, 0.0))
-    u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
+    a, f, b, u = ellipse_axes(T, R, scene.medium.c * loci.tof_s)
     v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
     phi = 2 * np.pi * np.arange(LOCUS_SAMPLES) / LOCUS_SAMPLES
     centre = 0.5 * (T + R)

@@ -365,6 +365,18 @@ def fit_point(T: np.ndarray, R: np.ndarray, paths: np.ndarray, start: np.ndarray
     return least_squares(lambda p: point_paths(p, T, R), paths, start, CORNER_STEPS)
 
 
+def ellipse_axes(T: np.ndarray, R: np.ndarray, paths: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(a, f, b, u)`` of the loci of ``paths`` with foci T and R (eq. 2.2's ellipses):
+    half the major axis, half the foci's distance, half the minor axis, and the unit major
+    axis from T to R (x where T = R: a circle)."""
+    a = 0.5 * paths
+    f = 0.5 * np.hypot(*(R - T).T)
+    b = np.sqrt(np.maximum(a * a - f * f, 0.0))
+    u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
+    return a, f, b, u
+
+
 def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
                 phis: np.ndarray) -> np.ndarray:
     """A starting ``(φ, d, 0)``: of the normals ``phis`` tried, the one whose tangent lines
@@ -372,10 +384,7 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
     agree best; d their median."""
     n = np.stack([np.cos(phis), np.sin(phis)], axis=-1)  # [k, 2]
     centre = 0.5 * (T + R)
-    f = 0.5 * np.hypot(*(R - T).T)
-    a = 0.5 * paths
-    b = np.sqrt(np.maximum(a * a - f * f, 0.0))
-    u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
+    a, _, b, u = ellipse_axes(T, R, paths)
     along = (n[:, None, 0] * u[None, :, 0] + n[:, None, 1] * u[None, :, 1])  # [k, m]
     support = (n[:, None, 0] * centre[None, :, 0] + n[:, None, 1] * centre[None, :, 1]).T \
         + np.sqrt((a[:, None] * along.T) ** 2
@@ -387,6 +396,7 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
 
 __all__ = ["CORNER_STEPS", "CURVE_STEPS", "FRAME_M", "PSI_PLANE", "SPECULAR_STEPS", "Fit",
            "PathModel", "apart", "circle_points", "corner_images", "corner_paths",
-           "curve_frame", "curve_geometry", "curve_paths", "dot2", "fit_corner", "fit_curve",
+           "curve_frame", "curve_geometry", "curve_paths", "dot2", "ellipse_axes", "fit_corner",
+           "fit_curve",
            "fit_point", "gram", "least_squares", "plane_points", "plane_start", "point_paths",
            "project_paths"]

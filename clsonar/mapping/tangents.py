@@ -24,6 +24,7 @@ from .envelope import (
 )
 from .families import two_way, window_tolerance
 from .loci import Loci, as_loci
+from .models import ellipse_axes
 from .patches import mirror_echo
 from .pillars import (
     MIN_PILLAR_LOCI,
@@ -72,10 +73,7 @@ def _locus_samples(scene: Scene, sensors: SensorArray, loci: Loci):
     pos, axes = sensors.positions, sensors.axes
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
     T, R = pos[loci.tx], pos[loci.rx]
-    a = 0.5 * scene.medium.c * loci.tof_s
-    f = 0.5 * np.hypot(*(R - T).T)
-    b = np.sqrt(np.maximum(a * a - f * f, 0.0))
-    u = np.where((f > 0)[:, None], (R - T) / np.maximum(2 * f, 1e-300)[:, None], [1.0, 0.0])
+    a, f, b, u = ellipse_axes(T, R, scene.medium.c * loci.tof_s)
     v = np.stack([-u[:, 1], u[:, 0]], axis=-1)
     phi = 2 * np.pi * np.arange(LOCUS_SAMPLES) / LOCUS_SAMPLES
     centre = 0.5 * (T + R)
