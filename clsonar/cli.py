@@ -7,9 +7,8 @@
   ``clsonar: warning: SCENE.json: TEXT``; the exit status stays 0.
 - ``clsonar reproduce``, ``bench``, ``zoo``, ``sweep``, ``plot`` and ``stress`` run the tools
   of :mod:`clsonar.tools`.
-- ``clsonar echoes SCENE.json`` prints the echo table as CSV:
-  ``tx,rx,tof_s,amplitude,kind,order``.
-- ``clsonar devices`` lists the OpenCL devices, whether each can build kernels, and which one
+- ``clsonar echoes SCENE.json`` prints the echo table as CSV (``tx,rx,tof_s,amplitude,kind,
+  order``); ``clsonar devices`` lists the OpenCL devices, which can build kernels, which one
   would be used.
 
 Errors a user can fix (a bad scene file, an --out that cannot be written, a full disk, no
@@ -244,9 +243,8 @@ def _add_devices(sub: Subparsers) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``clsonar`` parser: one subcommand per ``_add_*`` function, in this order."""
-    parser = argparse.ArgumentParser(
-        prog="clsonar",
-        description="Ultrasonic sonar simulator and map builder for 2-D indoor scenes (OpenCL).")
+    parser = argparse.ArgumentParser(prog="clsonar", description=(
+        "Ultrasonic sonar simulator and map builder for 2-D indoor scenes (OpenCL)."))
     parser.add_argument("--version", action="version", version=f"clsonar {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add in (_add_run, _add_reproduce, _add_bench, _add_zoo, _add_sweep, _add_plot,
@@ -302,16 +300,20 @@ def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
                         for line in cost.lines(cost.estimate(scene, args.preset))))
         return 0
     outputs.check_out(args.out)  # and so does an --out that cannot be written
-    with outputs.plot_worker(args.png) or contextlib.nullcontext() as worker:  # no OpenCL yet
+    worker = outputs.run_worker(args.png, scene, args.preset, skips)  # no OpenCL yet
+    with worker or contextlib.nullcontext(), outputs.EarlyFiles(args.png) as early:
         line = ProgressLine(not args.quiet)
         try:
             with steps.watching(line.step):
                 result = pipeline.run(scene, device=args.device, preset=args.preset,
                                       progress=line.stage, skips=skips,
-                                      cache=outputs.early_plots(worker, scene, args.preset))
+                                      cache=outputs.early_plots(worker, scene, args.preset),
+                                      placement=None if worker is None else worker.first,
+                                      maps_done=early.maps_done)
         finally:
             line.done()
-        paths = outputs.write_outputs(result, args.out, png=args.png, worker=worker, extra={
+        paths = outputs.write_outputs(result, args.out, png=args.png, worker=worker,
+                                      early=early, extra={
             "cost": cost.record(cost.of_run(result), cost.peak_bytes())})
     if args.png == "all" and not outputs.plots_available():
         print(f"clsonar: warning: {outputs.PLOTS_MISSING}", file=sys.stderr)

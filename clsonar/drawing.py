@@ -9,6 +9,13 @@ idle. :func:`start` forks a worker process before the OpenCL context exists: it 
 files and the map pictures), and sends back their PNG bytes (:meth:`PlotWorker.collect`),
 which the main process writes with every other file, as one folder.
 
+Where there are no plots to draw (``--png none`` or ``stages``), a worker does other work of
+the run that needs no OpenCL (:func:`clsonar.outputs.run_worker`): its ``first`` job, the
+placement of the transducers, while the main process imports pyopencl and sets up the device
+(:meth:`PlotWorker.first`), then each function it is sent, the truth the metrics score
+against (:meth:`PlotWorker.call`, :meth:`PlotWorker.value`); the same code on a copy of the
+same process, its answers pickled back: the same bits.
+
 A plot is a :data:`Job`: the name of a :mod:`clsonar.plots` function and its arguments,
 drawn by :func:`draw` in either process, so the worker's bytes are the in-process ones
 (matplotlib's Agg output depends only on its inputs, which are pickled exactly).
@@ -36,7 +43,7 @@ import struct
 import sys
 import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 #: One plot to draw: the name of a :mod:`clsonar.plots` function and its arguments.
@@ -115,15 +122,20 @@ def core_free() -> bool:
     return running < _cores()
 
 
-def start(*, if_busy: bool = False) -> PlotWorker | None:
-    """A worker process importing :mod:`clsonar.plots`, or None where none can help
-    (:func:`fork_is_safe`, a core free now unless ``if_busy``: :func:`core_free`,
-    matplotlib installed)."""
+def start(*, if_busy: bool = False, plots: bool = True,
+          first: Callable[[], object] | None = None) -> PlotWorker | None:
+    """A worker process importing :mod:`clsonar.plots` (``plots``, where matplotlib is
+    installed), or None where none can help (:func:`fork_is_safe`, a core free now unless
+    ``if_busy``: :func:`core_free`). ``first``: a job the worker runs before anything else,
+    on its copy of this process (the fork's), whose value :meth:`PlotWorker.first` answers
+    (pickled back): the run's placement while this process sets up the device."""
     import importlib.util
 
     if not fork_is_safe() or not (if_busy or core_free()):
         return None
-    if importlib.util.find_spec("matplotlib") is None:
+    if plots and importlib.util.find_spec("matplotlib") is None:
+        plots = False
+    if not plots and first is None:
         return None
     jobs_r, jobs_w = os.pipe()
     done_r, done_w = os.pipe()
@@ -137,7 +149,7 @@ def start(*, if_busy: bool = False) -> PlotWorker | None:
         if pid == 0:  # pragma: no cover - the child (its coverage is not collected)
             os.close(jobs_w)
             os.close(done_r)
-            _serve(jobs_r, done_w)
+            _serve(jobs_r, done_w, plots, first)
     except OSError:  # no fork: drawn in process
         for fd in (jobs_r, jobs_w, done_r, done_w):
             os.close(fd)
@@ -148,16 +160,39 @@ def start(*, if_busy: bool = False) -> PlotWorker | None:
     os.close(jobs_r)
     os.close(done_w)
     os.set_blocking(jobs_w, False)  # a send waits no longer than the time limit
-    return PlotWorker(pid, jobs_w, done_r)
+    return PlotWorker(pid, jobs_w, done_r, plots=plots, first=first is not None)
 
 
-def _serve(jobs_fd: int, done_fd: int) -> None:  # pragma: no cover - runs in the child
-    """The worker: import the plots, say so (with the seconds it took); draw each batch of
-    jobs it is sent as it comes; on ``collect`` send every PNG drawn since the last one
-    (a send only when asked: the main process never waits on a full pipe while it sends).
-    Then exit, whatever happens (``os._exit``: none of the parent's clean-up runs twice)."""
+def _serve(jobs_fd: int, done_fd: int, with_plots: bool = True,
+           first: Callable[[], object] | None = None
+           ) -> None:  # pragma: no cover - runs in the child
+    """The worker: run ``first`` and send its value (None where it raised: the main
+    process then runs it itself, and meets the error there); import the plots, say so
+    (with the seconds it took); draw each batch of jobs it is sent as it comes; on
+    ``collect`` send every PNG drawn since the last one (a send only when asked: the main
+    process never waits on a full pipe while it sends). Without ``with_plots``, answer each
+    ``call`` it is sent (a function and its arguments, :meth:`PlotWorker.call`) with the
+    function's value (None where it raised) until the main process closes the pipe. Then
+    exit, whatever happens (``os._exit``: none of the parent's clean-up runs twice)."""
     code = 0
     try:
+        if first is not None:
+            start = time.perf_counter()
+            try:
+                value = first()
+            except Exception:  # raised again by the main process's own run
+                value = None
+            _send(done_fd, ("first", value, time.perf_counter() - start))
+        if not with_plots:
+            while (message := _receive(jobs_fd, None)) is not None:
+                start = time.perf_counter()
+                try:
+                    function, args = message[1]
+                    value = function(*args)
+                except Exception:  # computed again by the main process
+                    value = None
+                _send(done_fd, ("value", value, time.perf_counter() - start))
+            return
         start = time.perf_counter()
         try:
             from . import plots  # noqa: F401
@@ -247,11 +282,16 @@ class PlotWorker:
     """The main process's side of a worker (:func:`start`); a context manager that closes
     it. ``seconds``: the worker's own, importing the plots and drawing each PNG."""
 
-    def __init__(self, pid: int, jobs_fd: int, done_fd: int) -> None:
+    def __init__(self, pid: int, jobs_fd: int, done_fd: int, *, plots: bool = True,
+                 first: bool = False) -> None:
         self.pid = pid
+        self.plots = plots
         self._jobs_fd: int | None = jobs_fd
         self._done_fd: int | None = done_fd
         self._ready = False
+        self._first: tuple[object] | None = None if first else (None,)
+        self._calls: list[str] = []  # the functions sent to the worker, not yet answered
+        self._values: list[object] = []
         self._held: list[tuple[str, Mapping[str, Job] | None]] = []
         self._sent: dict[str, Job] = {}
         self._deadline = 0.0
@@ -263,19 +303,77 @@ class PlotWorker:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    def _take(self, deadline: float | None) -> bool:
+        """Read the worker's next message (``first``'s value, or that the plots are
+        imported), waiting until ``deadline`` (None: not at all); False where none came,
+        or it failed (then stopped)."""
+        if self._done_fd is None:
+            return False
+        wait = 0.0 if deadline is None else max(0.0, deadline - time.monotonic())
+        if not select.select([self._done_fd], [], [], wait)[0]:
+            return False
+        message = _receive(self._done_fd, time.monotonic() + 5.0)
+        if isinstance(message, tuple) and message[0] == "first" and self._first is None:
+            self._first = (message[1],)
+            self.seconds["first job"] = message[2]
+        elif isinstance(message, tuple) and message[0] == "ready" and self.plots:
+            self._ready = True
+            self.seconds["matplotlib import"] = message[1]
+        elif isinstance(message, tuple) and message[0] == "value" and self._calls:
+            self._values.append(message[1])
+            self.seconds[self._calls[len(self._values) - 1]] = message[2]
+        else:
+            self.close()
+            return False
+        return True
+
     def _check_ready(self, deadline: float | None) -> bool:
         """Whether the worker has imported the plots (waiting until ``deadline``; None:
         not at all); False for good once it failed."""
-        if not self._ready and self._done_fd is not None:
-            wait = 0.0 if deadline is None else max(0.0, deadline - time.monotonic())
-            if select.select([self._done_fd], [], [], wait)[0]:
-                message = _receive(self._done_fd, time.monotonic() + 5.0)
-                self._ready = isinstance(message, tuple) and message[0] == "ready"
-                if not self._ready:
-                    self.close()
-                    return False
-                self.seconds["matplotlib import"] = message[1]
+        while not self._ready and self._take(deadline):
+            pass
         return self._ready
+
+    def first(self, limit: float = TIME_LIMIT_S) -> Any:
+        """The value of the worker's ``first`` job (waiting for it, ``limit`` seconds at
+        most); None where it raised, or the worker failed, died or ran past the limit
+        (then stopped)."""
+        deadline = time.monotonic() + limit
+        while self._first is None and self._take(deadline):
+            pass
+        if self._first is None:
+            self.close()
+            return None
+        return self._first[0]
+
+    def call(self, function: Callable[..., object], *args: object) -> bool:
+        """Have a worker without plots compute ``function(*args)`` (a module's function:
+        pickled by name, with its arguments), answered by :meth:`value`, while this process
+        goes on; False where it cannot be sent (a worker that draws, or stopped)."""
+        if self.plots or self._jobs_fd is None:
+            return False
+        self._calls.append(f"{function.__module__}.{function.__qualname__}")
+        try:
+            sent = _send(self._jobs_fd, ("call", (function, args)),
+                         time.monotonic() + TIME_LIMIT_S)
+        except (OSError, pickle.PicklingError):
+            sent = False
+        if not sent:
+            self.close()
+        return sent
+
+    def value(self, limit: float = TIME_LIMIT_S) -> Any:
+        """The value of the oldest :meth:`call` not yet answered (waiting for it,
+        ``limit`` seconds at most); None where it raised, or the worker failed, died or
+        ran past the limit (then stopped)."""
+        deadline = time.monotonic() + limit
+        while not self._values and self._take(deadline):
+            pass
+        if not self._values:
+            self.close()
+            return None
+        self._calls.pop(0)
+        return self._values.pop(0)
 
     def submit(self, jobs: Mapping[str, Job]) -> None:
         """Have the worker draw ``jobs`` but those it was already sent with the same

@@ -23,6 +23,7 @@ import importlib.util
 import io
 import json
 import os
+import threading
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -33,7 +34,8 @@ from . import drawing
 from .drawing import Job, PlotWorker, draw
 from .errors import ClsonarError
 from .files import write_folder
-from .pipeline import RunResult, StageCache, apply_preset
+from .pipeline import RunResult, Skips, StageCache, apply_preset, check_work, placed_sensors
+from .pipeline import metrics as run_metrics  # the module whose lit_truth the run scores by
 
 if TYPE_CHECKING:  # the pipeline's own imports of them
     from .pipeline import EchoTable, Geometry, Scene, SensorArray
@@ -117,20 +119,28 @@ def chosen_settings(result: RunResult) -> str:
     return f"settings chosen for {kinds}: " + ", ".join(values)
 
 
-def data_files(result: RunResult, extra: Mapping[str, object] | None = None
-               ) -> dict[str, bytes]:
-    """Every output file of ``result`` but the PNGs, as bytes, by file name (``extra``:
-    more keys of report.json)."""
-    s = result.scene
+def stages_npz(scene: Scene, raw: np.ndarray, filtered: np.ndarray, thin: np.ndarray
+               ) -> bytes:
+    """``stages.npz``: the three maps with ``scene``'s extent and cell (zlib's deflate)."""
     npz = io.BytesIO()
-    np.savez_compressed(npz, raw=result.raw, filtered=result.filtered, thin=result.thin,
-                        extent=np.asarray(s.extent), cell=np.asarray(s.cell))
+    np.savez_compressed(npz, raw=raw, filtered=filtered, thin=thin,
+                        extent=np.asarray(scene.extent), cell=np.asarray(scene.cell))
+    return npz.getvalue()
+
+
+def data_files(result: RunResult, extra: Mapping[str, object] | None = None,
+               early: Mapping[str, bytes] | None = None) -> dict[str, bytes]:
+    """Every output file of ``result`` but the PNGs, as bytes, by file name (``extra``:
+    more keys of report.json; ``early``: stages.npz already built, :class:`EarlyFiles`)."""
+    early = early or {}
+    npz = early.get("stages.npz") or stages_npz(result.scene, result.raw, result.filtered,
+                                                result.thin)
     echoes = io.StringIO()
     result.echoes.write_csv(echoes)
     return {
         "report.json": (json.dumps({**result.report(), **(extra or {})}, indent=2,
                                    default=_json_default) + "\n").encode(),
-        "stages.npz": npz.getvalue(),
+        "stages.npz": npz,
         "profile.csv": profile_csv(result.profile.points).encode(),
         "echoes.csv": echoes.getvalue().encode(),
     }
@@ -171,45 +181,146 @@ def plot_worker(png: str, *, if_busy: bool = False) -> PlotWorker | None:
     return drawing.start(if_busy=if_busy) if png == "all" else None
 
 
+def run_worker(png: str, scene: Scene, preset: str | None, skips: Skips, *,
+               if_busy: bool = False) -> PlotWorker | None:
+    """The worker of one ``clsonar run`` of ``scene`` (:mod:`clsonar.drawing`), where one
+    can help (a core free now, unless ``if_busy``): where ``png`` asks for scene.png and
+    profile.png, the plots' worker (:func:`plot_worker`); else one that places the
+    transducers (the sensors stage, :func:`placement`: ``pipeline.run``'s ``placement`` is
+    its :meth:`~clsonar.drawing.PlotWorker.first`) while this process imports pyopencl
+    and sets up the device. (Not both: the plots' worker, importing matplotlib and drawing
+    0.5 s, is the longer of the two processes already.) Start it before the run's OpenCL
+    context exists, close it on every exit path (a context manager)."""
+    if png == "all":
+        return plot_worker(png, if_busy=if_busy)
+    return drawing.start(if_busy=if_busy, plots=False,
+                         first=lambda: placement(scene, preset, skips))
+
+
+def placement(scene: Scene, preset: str | None = None, skips: Skips | None = None
+              ) -> tuple[Geometry, SensorArray] | None:
+    """The sensors stage of ``pipeline.run(scene, preset=preset, skips=skips)``
+    (:func:`~clsonar.pipeline.placed_sensors` of the scene with the preset applied); None
+    where the scene is mapped room by room, whose rooms are placed apart."""
+    scene = apply_preset(scene, preset)
+    if check_work(scene, skips or Skips()) is not None:
+        return None
+    return placed_sensors(scene)
+
+
 class EarlyPlots(StageCache):
-    """A stage cache that keeps nothing (every stage is computed, the same results) and
-    sends scene.png to ``worker`` as soon as the pipeline puts the echoes it draws: the
-    worker draws it while the later stages run. ``scene``: the scene as asked for (preset
-    applied), which the pipeline's ``RunResult.asked`` equals."""
+    """A stage cache that keeps nothing (every stage is computed, the same results) and,
+    as soon as the pipeline puts the echoes, sends ``worker`` what needs only them and the
+    placement: scene.png where it draws, else the truth the metrics score against
+    (``metrics.lit_truth``, which reads the echoes and the cell, no setting the pipeline
+    chooses; :meth:`get` answers the pipeline's ask for it with the worker's, or None:
+    computed there). The worker does it while the later stages run. ``scene``: the scene as
+    asked for (preset applied), which the pipeline's ``RunResult.asked`` equals."""
 
     def __init__(self, worker: PlotWorker, scene: Scene) -> None:
         super().__init__()
         self.worker, self.scene = worker, scene
         self._placed: tuple[Geometry, SensorArray] | None = None
+        self._truth = False  # sent to the worker, not yet asked for
 
     def get(self, stage: str, key: str) -> object | None:
-        return None
+        if stage != "truth" or not self._truth:
+            return None
+        self._truth = False
+        return self.worker.value()
 
     def put(self, stage: str, key: str, value: object) -> None:
         found: Any = value[0] if isinstance(value, tuple) and value else None
         if stage == "sensors" and isinstance(found, tuple) and len(found) == 2:
             self._placed = found
         elif stage == "echoes" and hasattr(found, "point") and self._placed:
-            self.worker.submit({"scene.png": scene_job(self.scene, *self._placed, found)})
+            if self.worker.plots:
+                self.worker.submit({"scene.png": scene_job(self.scene, *self._placed, found)})
+            else:
+                self._truth = self.worker.call(run_metrics.lit_truth, self.scene,
+                                               *self._placed, found)
 
 
 def early_plots(worker: PlotWorker | None, scene: Scene, preset: str | None = None
                 ) -> EarlyPlots | None:
     """The ``cache`` of a run of ``scene`` with ``preset`` whose ``worker`` draws
-    scene.png as soon as it can (:class:`EarlyPlots`; None without a worker)."""
+    scene.png, or scores the truth, as soon as it can (:class:`EarlyPlots`; None without a
+    worker)."""
     return None if worker is None else EarlyPlots(worker, apply_preset(scene, preset))
 
 
 def map_pngs(result: RunResult, png: str = "all") -> dict[str, bytes]:
     """raw.png, filtered.png and thin.png of ``result`` unless ``png`` is ``none``."""
+    return _map_pngs(result.scene, result.geometry, result.raw, result.filtered,
+                     result.thin, png)
+
+
+def _map_pngs(s: Scene, g: Geometry, raw: np.ndarray, filtered: np.ndarray,
+              thin: np.ndarray, png: str) -> dict[str, bytes]:
     from . import pictures
 
     if png == "none":
         return {}
-    s, g = result.scene, result.geometry
-    return {"raw.png": pictures.map_picture(s, g, result.raw),
-            "filtered.png": pictures.map_picture(s, g, result.filtered),
-            "thin.png": pictures.map_picture(s, g, result.thin, binary=True)}
+    return {"raw.png": pictures.map_picture(s, g, raw),
+            "filtered.png": pictures.map_picture(s, g, filtered),
+            "thin.png": pictures.map_picture(s, g, thin, binary=True)}
+
+
+class EarlyFiles:
+    """stages.npz and the map pictures ``png`` asks for, built in a thread from the moment
+    the pipeline has its maps (:meth:`maps_done`, ``pipeline.run``'s) while this one
+    computes the profile and the metrics (issue 16): zlib, most of their time, and NumPy's
+    larger operations release the GIL, so a free core takes that work. The thread calls
+    the functions :func:`data_files` and :func:`map_pngs` call, on the same arrays: the
+    same bytes. :meth:`files` waits for it; its files are used only for the run whose
+    maps it was told (:meth:`files` answers {} otherwise, or if the thread failed: the
+    files are then built in order). Nothing is written here: the folder is still written
+    whole by :func:`write_outputs`, or not at all. A context manager: a run that fails
+    waits for the thread, so none outlives the command."""
+
+    def __init__(self, png: str = "none") -> None:
+        self.png = png
+        self._thread: threading.Thread | None = None
+        self._told: tuple[Scene, Geometry, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._built: dict[str, bytes] = {}
+
+    def __enter__(self) -> EarlyFiles:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._thread is not None:
+            self._thread.join()
+
+    def maps_done(self, scene: Scene, geometry: Geometry, raw: np.ndarray,
+                  filtered: np.ndarray, thin: np.ndarray) -> None:
+        """Start building the files of these maps (once a run: a second call is ignored)."""
+        if self._thread is not None:
+            return
+        self._told = (scene, geometry, raw, filtered, thin)
+        self._thread = threading.Thread(target=self._build, name="clsonar-files",
+                                        daemon=True)
+        self._thread.start()
+
+    def _build(self) -> None:
+        assert self._told is not None
+        scene, geometry, raw, filtered, thin = self._told
+        try:
+            built = {"stages.npz": stages_npz(scene, raw, filtered, thin)}
+            built.update(_map_pngs(scene, geometry, raw, filtered, thin, self.png))
+        except Exception:  # built again in order, where it raises as before
+            return
+        self._built = built
+
+    def files(self, result: RunResult) -> dict[str, bytes]:
+        """The files built for ``result`` (waiting for the thread); {} where it was not
+        told ``result``'s own maps, or failed."""
+        if self._thread is None:
+            return {}
+        self._thread.join()
+        told = (result.scene, result.geometry, result.raw, result.filtered, result.thin)
+        if self._told is None or any(a is not b for a, b in zip(self._told, told, strict=True)):
+            return {}
+        return dict(self._built)
 
 
 def stage_pngs(result: RunResult, png: str = "all") -> dict[str, bytes]:
@@ -238,12 +349,14 @@ def check_out(out: str | os.PathLike[str]) -> Path:
 
 def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
                   png: str = "all", extra: Mapping[str, object] | None = None,
-                  worker: PlotWorker | None = None) -> list[Path]:
+                  worker: PlotWorker | None = None,
+                  early: EarlyFiles | None = None) -> list[Path]:
     """Write every output of ``result`` into folder ``out``, with the PNGs ``png`` asks
     for (:func:`stage_pngs`) and ``extra`` keys in report.json; returns the paths
     written. A ``worker`` (:func:`plot_worker`) draws scene.png and profile.png while
     this process builds the other files (a map above :data:`~clsonar.drawing.MAX_CELLS`
-    is drawn here); where it fails they are drawn here, the same bytes.
+    is drawn here); where it fails they are drawn here, the same bytes. ``early``: the
+    files :class:`EarlyFiles` built during the run (the same bytes as building them here).
 
     The folder is written whole or not at all (:func:`clsonar.files.write_folder`): a new
     one, or one holding only an earlier run's outputs, is replaced in one step; in a folder
@@ -253,11 +366,14 @@ def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
     """
     path = check_out(out)
     jobs = plot_jobs(result) if png == "all" and plots_available() else {}
+    worker = worker if worker is not None and worker.plots else None
     if worker is not None:
         worker.submit({name: job for name, job in jobs.items()
                        if drawing.cells({name: job}) <= drawing.MAX_CELLS})
-    files = data_files(result, extra)
-    files.update(map_pngs(result, png))
+    built = early.files(result) if early is not None and early.png == png else {}
+    files = data_files(result, extra, built)
+    files.update({name: built[name] for name in PNG_NAMES if name in built}
+                 if png != "none" and "raw.png" in built else map_pngs(result, png))
     if jobs:
         drawn = (worker.collect() if worker is not None else None) or {}
         drawn.update(draw({name: job for name, job in jobs.items() if name not in drawn}))

@@ -114,15 +114,26 @@ class RunResult:
         }
 
 
+#: :func:`run`'s ``placement`` (:func:`placed_sensors`' answer, or None) and ``maps_done``.
+Placement = Callable[[], "tuple[Geometry, SensorArray] | None"]
+MapsDone = Callable[[Scene, Geometry, np.ndarray, np.ndarray, np.ndarray], None]
+
+
 def run(scene: Scene, *, device: str | None = None, context=None, preset: str | None = None,
         progress: Progress | None = None, skips: Skips = Skips(),
-        cache: StageCache | None = None) -> RunResult:
+        cache: StageCache | None = None, placement: Placement | None = None,
+        maps_done: MapsDone | None = None) -> RunResult:
     """Run the whole pipeline on ``scene`` and return every stage (:class:`RunResult`).
 
     ``device``/``context`` choose the OpenCL device (:func:`clsonar.opencl.get_context`);
     ``preset`` applies :data:`PRESETS` first; ``progress(stage, i, n)`` is called as each
     stage starts. ``skips`` (:class:`Skips`) says which unneeded work to leave out;
     ``cache`` (:class:`StageCache`) reuses the front stages whose inputs are unchanged.
+
+    For a scene mapped as one map (not room by room; issue 16's overlapped work):
+    ``placement()`` gives the sensors stage's geometry and transducers computed elsewhere
+    (another process, the same code and bits; None: computed here); ``maps_done(scene,
+    geometry, raw, filtered, thin)`` is told the result's once thinning is done (read-only).
     """
     scene = apply_preset(scene, preset)
     given = "file" if preset is None else f"preset {preset}"
@@ -130,7 +141,8 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
     rooms = check_work(scene, skips)
     if rooms is not None:
         return _run_rooms(scene, rooms, ctx, skips, progress, given)
-    return _run_whole(scene, ctx, skips, cache, progress, given)
+    return _run_whole(scene, ctx, skips, cache, progress, given, placement=placement,
+                      maps_done=maps_done)
 
 
 def check_work(scene: Scene, skips: Skips = Skips()) -> list[regions.Region] | None:
@@ -145,15 +157,17 @@ def check_work(scene: Scene, skips: Skips = Skips()) -> list[regions.Region] | N
 
 def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
                progress: Progress | None, given: str,
-               placed: tuple[Geometry, SensorArray] | None = None) -> RunResult:
+               placed: tuple[Geometry, SensorArray] | None = None, *,
+               placement: Placement | None = None,
+               maps_done: MapsDone | None = None) -> RunResult:
     """Every stage on ``scene`` as one map (a grid that cannot be held is refused before
-    any work, with one clear message)."""
+    any work, with one clear message); ``placement``, ``maps_done``: :func:`run`'s."""
     mapping.check_map_memory(scene, scene.mapping.precision, ctx.devices[0],
                              host_bytes_per_cell=PIPELINE_BYTES_PER_CELL)
     keys = stage_keys(scene, device_name(ctx), skips) if cache is not None else {}
-    front = _run_front(scene, ctx, skips, cache, keys, progress, given, placed)
+    front = _run_front(scene, ctx, skips, cache, keys, progress, given, placed, placement)
     if cache is None:
-        return post_process(front, progress=progress, skips=skips)
+        return post_process(front, progress=progress, skips=skips, maps_done=maps_done)
     done = cache.get("post", keys["post"])
     if isinstance(done, RunResult):
         return _post_reused(front, done)
@@ -169,7 +183,8 @@ def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
             cache.put("truth", truth_key, found)
         return cast(tuple[np.ndarray, np.ndarray], found)
 
-    done = post_process(front, progress=progress, skips=skips, truth=truth)
+    done = post_process(front, progress=progress, skips=skips, truth=truth,
+                        maps_done=maps_done)
     cache.put("post", keys["post"], done)
     return done
 
@@ -187,10 +202,12 @@ def _post_reused(front: RunResult, done: RunResult) -> RunResult:
 
 def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
                keys: dict[str, str], progress: Progress | None, given: str = "file",
-               placed: tuple[Geometry, SensorArray] | None = None) -> RunResult:
+               placed: tuple[Geometry, SensorArray] | None = None,
+               placement: Placement | None = None) -> RunResult:
     """The front stages (sensors → echoes → detection → votes), each reused from ``cache``
     when its key (``keys``: :func:`~clsonar.cache.stage_keys`) is there; the result's maps
-    and profile are still empty. After the
+    and profile are still empty. The sensors are ``placed``, else ``placement()``'s, else
+    computed here. After the
     sensors, the settings the scene leaves out are chosen from what it is
     (:mod:`clsonar.survey`; ``given`` names where the others come from)."""
     device = device_name(ctx)
@@ -212,7 +229,8 @@ def _run_front(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
         counts.update(stage_counts)
         return value
 
-    geom, sensors = stage("sensors", lambda: (placed or _sensors(scene), {}))
+    geom, sensors = stage("sensors", lambda: (
+        placed or (placement and placement()) or placed_sensors(scene), {}))
     mapping.check_pair_memory(scene, sensors)  # refused in one line before any echo
     asked = scene
     found = survey(scene, sensors, geom)
@@ -324,15 +342,16 @@ def _map_room(ctx, job: _Job, progress: Progress | None = None
     return roomwork.without_maps(r), roomwork.sparse_maps(r)
 
 
-def _sensors(scene: Scene) -> tuple[Geometry, SensorArray]:
+def placed_sensors(scene: Scene) -> tuple[Geometry, SensorArray]:
+    """The sensors stage of ``scene`` as one map: its geometry and its transducers."""
     geom = build_geometry(scene)
     return geom, place_sensors(scene, geom)
 
 
 def _sensors_together(scenes: list[Scene], pool: roomwork.Workers | None = None
                       ) -> list[tuple[Geometry, SensorArray]]:
-    """:func:`_sensors` of every scene (the rooms of a floor), their wall-following traces
-    run side by side (:func:`_placed_together`), in ``pool``'s workers a run of rooms
+    """:func:`placed_sensors` of every scene (the rooms of a floor), their wall-following
+    traces side by side (:func:`_placed_together`), in ``pool``'s workers a run of rooms
     each; the first scene's error, if any, raised before any room is mapped."""
     if pool is None:
         return _placed_together(None, scenes)
@@ -341,7 +360,7 @@ def _sensors_together(scenes: list[Scene], pool: roomwork.Workers | None = None
 
 
 def _placed_together(ctx, scenes: list[Scene]) -> list[tuple[Geometry, SensorArray]]:
-    """:func:`_sensors` of every scene, their wall-following traces run side by side
+    """:func:`placed_sensors` of every scene, their wall-following traces run side by side
     (:func:`clsonar.sensors.place_sensors_together`, the same to the bit as one by one);
     the first scene's error, if any, raised (``ctx``: unused, as a worker's job)."""
     geoms = [build_geometry(scene) for scene in scenes]
@@ -401,11 +420,12 @@ def rerun_post(result: RunResult, settings: PostSettings | None = None, *,
 
 def post_process(front: RunResult, *, progress: Progress | None = None,
                  skips: Skips = Skips(),
-                 truth: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None
-                 ) -> RunResult:
+                 truth: Callable[[], tuple[np.ndarray, np.ndarray]] | None = None,
+                 maps_done: MapsDone | None = None) -> RunResult:
     """Every stage after the votes, on ``front`` (a result whose front stages are done):
     the line of sight and the raw map (``sight``), then filter → thinning → profile →
-    metrics (``truth()``: :func:`clsonar.metrics.lit_truth` of ``front``, from a cache).
+    metrics (``truth()``: :func:`clsonar.metrics.lit_truth` of ``front``, from a cache;
+    ``maps_done``: :func:`run`'s).
     Reads ``front.scene.post``; nothing it computes feeds an earlier stage."""
     assert front.votes is not None
     scene = front.scene
@@ -416,7 +436,9 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
     ends = front.votes.patch_ends
     only_patches = (ends is not None and len(ends) > 0 and front.votes.points is not None
                     and int(ends[-1]) == len(front.votes.points))
-    maps = _post_maps(scene, drawn, skips, clock, trace=not only_patches)
+    tell = None if maps_done is None else (
+        lambda *maps: maps_done(scene, front.geometry, *maps))
+    maps = _post_maps(scene, drawn, skips, clock, trace=not only_patches, maps_done=tell)
     profile = _reflectors_in(maps.profile, front.votes, drawn.seen, scene)
     clock.start("metrics")
     result_metrics = metrics.evaluate(scene, front.geometry, front.sensors, front.echoes,
@@ -503,10 +525,11 @@ class _PostMaps:
 
 
 def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch,
-               trace: bool = True) -> _PostMaps:
+               trace: bool = True, maps_done: Callable[..., None] | None = None) -> _PostMaps:
     """Filter (eq. 2.4), threshold, thinning and profile of ``drawn``, within the cells
     that can hold anything (the points' window, then the voted box when
-    ``skips.empty_cells``); the maps come back on the whole grid. Without ``trace`` the
+    ``skips.empty_cells``); the maps come back on the whole grid, told to ``maps_done``
+    before the profile (which reads, never writes, them). Without ``trace`` the
     thin cells are not traced into a profile (every point is a fitted patch's, which is
     the profile as it is)."""
     raw, point_sums, outer = drawn.raw, drawn.point_sums, drawn.window
@@ -520,6 +543,10 @@ def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch,
     clock.start("thinning")
     thin = post.embed(part.shape, window, post.thin_map(occupied, scene.post))
     filtered = post.embed(part.shape, window, filtered)
+    whole_thin = post.embed(raw.shape, _slices(outer), thin)
+    whole_filtered = post.embed(raw.shape, _slices(outer), filtered)
+    if maps_done is not None:
+        maps_done(raw, whole_filtered, whole_thin)
     clock.start("profile")
     inner = (outer[0] + window[0].start, outer[1] + window[1].start,
              window[0].stop - window[0].start, window[1].stop - window[1].start)
@@ -528,10 +555,8 @@ def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch,
                                     occupied=occupied, origin=inner[:2])
                if trace else post.Profile(()))
     occupied = post.embed(raw.shape, _slices(inner), occupied)
-    thin = post.embed(raw.shape, _slices(outer), thin)
     return _PostMaps(
-        filtered=post.embed(raw.shape, _slices(outer), filtered), occupied=occupied,
-        thin=thin, profile=profile,
+        filtered=whole_filtered, occupied=occupied, thin=whole_thin, profile=profile,
         counts={"cells_post_processed": int(inner[2]) * int(inner[3]),
                 "occupied_cells": int(np.count_nonzero(occupied)),
                 "thin_cells": int(np.count_nonzero(thin)),

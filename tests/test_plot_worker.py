@@ -196,6 +196,8 @@ def test_the_time_limit_grows_with_the_maps():
 class _Worker:
     """A stand-in for a worker process: records what it is sent, answers ``drawn``."""
 
+    plots = True  # it draws (not only the placement)
+
     def __init__(self, drawn):
         self.sent, self.drawn = [], drawn
 

@@ -66,40 +66,49 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
 
     gc.freeze()  # as the command's cli.main does once its line is read
     clock.mark("command line imports")
-    from .. import outputs, pipeline  # noqa: F401  (imported by the command line's run)
+    from .. import outputs, pipeline  # (imported by the command line's run)
     from ..files import write_folder
     from ..scene import load_scene
 
     clock.mark("pipeline imports (scipy)")
     scene = load_scene(scene_path)
-    plotter = outputs.plot_worker(png, if_busy=True) if worker else None
-    if plotter is not None:
-        clock.mark("scene file read, plots' worker forked")
-    with plotter or contextlib.nullcontext():
-        files = _run_and_write(scene, png, out, plotter, clock)
+    helper = outputs.run_worker(png, scene, None, pipeline.Skips(),
+                                if_busy=True) if worker else None
+    if helper is not None:
+        clock.mark("scene file read, worker forked")
+    with helper or contextlib.nullcontext():
+        files = _run_and_write(scene, png, out, helper, clock)
     write_folder(outputs.check_out(out), files, outputs.OUTPUT_NAMES)
     clock.mark("writing the files")
     return {**clock.phases,
-            **{f"{WORKER}{k}": v for k, v in (plotter.seconds if plotter else {}).items()}}
+            **{f"{WORKER}{k}": v for k, v in (helper.seconds if helper else {}).items()}}
 
 
-def _run_and_write(scene, png: str, out: str, plotter, clock: _Clock) -> dict[str, bytes]:
-    """The pipeline and every file of :func:`measure`, each step a phase."""
+def _run_and_write(scene, png: str, out: str, helper, clock: _Clock) -> dict[str, bytes]:
+    """The pipeline and every file of :func:`measure`, each step a phase (``helper``: the
+    run's worker, :func:`clsonar.outputs.run_worker`, or None)."""
     from .. import outputs, pipeline
     from ..opencl import get_context
 
     context = get_context()
     clock.mark("pyopencl, device")
-    result = pipeline.run(scene, context=context, cache=outputs.early_plots(plotter, scene))
+    early = outputs.EarlyFiles(png)  # stages.npz and the map PNGs built beside the run
+    plotter = helper if helper is not None and helper.plots else None
+    result = pipeline.run(scene, context=context, cache=outputs.early_plots(helper, scene),
+                          placement=None if helper is None else helper.first,
+                          maps_done=early.maps_done)
     clock.since += sum(result.seconds.values())  # each stage is a phase of its own
     clock.phases.update({f"stage {k}": v for k, v in result.seconds.items()})
     clock.mark("pipeline, outside the stages")
     jobs = outputs.plot_jobs(result) if png == "all" else {}
     if plotter is not None:
         plotter.submit(jobs)
-    files = outputs.data_files(result)
+    built = early.files(result)
+    clock.mark("waiting for stages.npz, raw, filtered, thin.png")
+    files = outputs.data_files(result, None, built)
     clock.mark("report.json, stages.npz, csv")
-    files.update(outputs.map_pngs(result, png))
+    files.update({n: built[n] for n in ("raw.png", "filtered.png", "thin.png") if n in built}
+                 or outputs.map_pngs(result, png))
     clock.mark("raw, filtered, thin.png")
     drawn = plotter.collect() if plotter is not None else None
     if drawn is not None:
