@@ -337,11 +337,12 @@ class PlotWorker:
     def first(self, limit: float = TIME_LIMIT_S) -> Any:
         """The value of the worker's ``first`` job (waiting for it, ``limit`` seconds at
         most); None where it raised, or the worker failed, died or ran past the limit
-        (then stopped)."""
+        (then stopped). A worker without plots whose answer is None has nothing left to
+        do: it is stopped too (a floor's rooms are placed apart, in the run)."""
         deadline = time.monotonic() + limit
         while self._first is None and self._take(deadline):
             pass
-        if self._first is None:
+        if self._first is None or (self._first[0] is None and not self.plots):
             self.close()
             return None
         return self._first[0]
