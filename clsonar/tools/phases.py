@@ -13,8 +13,12 @@ first), and the collector freezes what exists as ``cli.main`` does. With ``--png
 profile.png are drawn as the command draws them where a core is free, by a worker process
 on the other core (:mod:`clsonar.drawing`; here even on a busy machine), whose own
 seconds are listed after the table: they overlap its phases; ``--no-worker`` draws them
-in the process, each a phase. Compare tables taken in one session: the machine's load
-moves every number.
+in the process, each a phase. With ``--png none`` or ``stages`` the worker places the
+transducers and scores the truth (:func:`clsonar.outputs.run_worker`; the sensors stage
+and part of the metrics are then waits for it), and stages.npz and the map pictures are
+built in a thread (:class:`clsonar.outputs.EarlyFiles`, waited for as a phase) whatever
+``--no-worker`` says. Compare tables taken in one session: the machine's load moves every
+number.
 """
 
 from __future__ import annotations
@@ -55,10 +59,10 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
     """The phases of one ``clsonar run scene_path --out out --png png``, in this process
     (which must not have imported the pipeline, the outputs or pyopencl yet).
 
-    With ``--png all`` the plots are drawn as the command draws them on an idle machine,
-    by a worker process on the other core (:mod:`clsonar.drawing`, started even where the
-    machine is busy; ``worker=False`` or none available: here, as before issue 16's
-    worker): its fork is a phase, and so is the wait for its PNGs
+    The worker runs as the command's does on an idle machine (:mod:`clsonar.drawing`,
+    started even where the machine is busy; ``worker=False`` or none available: its work
+    done here): with ``--png all`` it draws the plots, else it places the transducers and
+    scores the truth. Its fork is a phase, and so is the wait for its PNGs
     once every other file is built; its own seconds (importing matplotlib, drawing each
     plot, while the phases run) are returned too, named ``worker: ...``, not phases."""
     clock = _Clock()
