@@ -13,7 +13,6 @@ from ..physics import absorption_factor, curved_gain, piston_pattern
 from ..scene import Scene
 from ..sensors import SensorArray
 from ..signals import envelope_noise_scale, signal_model
-from .edges import heard_edges
 from .envelope import (
     ENVELOPE_ARC_BIAS_M,
     beam_arc_samples,
@@ -455,16 +454,16 @@ def _two_pose_faces(scene: Scene, sensors: SensorArray, s: SampledLoci, points: 
 
 def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: np.ndarray,
                   bias: float, found: list[np.ndarray], source: list[np.ndarray],
-                  vertices: list[np.ndarray]) -> np.ndarray:
-    """Append to ``found`` and ``source`` what the ``isolated`` loci give (return those a
-    pillar or point explains): the scan envelope's links between them, and each one's
+                  vertices: list[np.ndarray]) -> None:
+    """Append to ``found`` and ``source`` what the ``isolated`` loci give: the scan
+    envelope's links between them (:func:`~.envelope.envelope_links`), and each one's
     points (:func:`_isolated_points`), a pillar's stretch for those a pillar explains
     (:func:`_pillars`), the point where they cross for those a point reflector explains
     (:func:`_points`; the point also to ``vertices``); a middle of arc that neither
     explains and whose echo is too weak for it (:func:`_facing_too_weak`) is dropped;
     and the faces heard from two poses only (:func:`_two_pose_faces`)."""
     if len(isolated) == 0:
-        return isolated
+        return
     scans = element_scans(scene, sensors, s.loci)
     points, ends = envelope_links(scene, sensors, s.loci, LINK_STEP_M,
                                   min(bias, ENVELOPE_ARC_BIAS_M), scans)
@@ -493,15 +492,13 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
             arcs[k] = np.zeros((0, 2))
         elif vouched and s.loci.tx[isolated[k]] == s.loci.rx[isolated[k]]:  # a facing surface
             arcs[k] = densified(arcs[k], LINK_STEP_M, 3 * np.pi * s.a[isolated[k]] / LOCUS_SAMPLES)
-    explained = isolated[[*pillars, *corners]]
-    points, ends = _two_pose_faces(scene, sensors, s, explained, scans, isolated,
-                                   min(bias, ENVELOPE_ARC_BIAS_M))
+    points, ends = _two_pose_faces(scene, sensors, s, isolated[[*pillars, *corners]], scans,
+                                   isolated, min(bias, ENVELOPE_ARC_BIAS_M))
     found.append(points)
     source.append(ends[:, 0])
     for locus, arc in zip(isolated, arcs, strict=True):
         found.append(arc)
         source.append(np.full(len(arc), locus))
-    return explained
 
 
 def tangent_points(scene: Scene, sensors: SensorArray, loci, max_bias_m: float = TANGENT_BIAS_M,
@@ -559,13 +556,7 @@ def tangent_map(scene: Scene, sensors: SensorArray, loci,
                 source.append(np.full(len(segment), i))
     isolated = np.flatnonzero(~crossed & s.inside.any(axis=1) & (isolated_bias_m > 0))
     vertices: list[np.ndarray] = []
-    known = _add_isolated(scene, sensors, s, isolated, isolated_bias_m, found, source, vertices)
-    weak = isolated[_facing_too_weak(scene, s, isolated, isolated_bias_m)]
-    if len(weak) and found:  # an edge's diffraction heard once (edges.heard_edges)
-        for part, more in zip((found, source, vertices), heard_edges(
-                scene, sensors, s.loci, s.a, weak, np.concatenate(found),
-                np.concatenate(source), LINK_STEP_M, known), strict=True):
-            part += more
+    _add_isolated(scene, sensors, s, isolated, isolated_bias_m, found, source, vertices)
     if not found:
         return none
     return (np.concatenate(found), np.concatenate(source).astype(np.int64),
