@@ -17,7 +17,7 @@ family. A plane takes the detections no family explained that it predicts (:func
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -37,23 +37,17 @@ from .models import (
     gram,
     point_paths,
 )
-from .starts import MIN_CURVE, START_TOLERANCE_M, family_starts, starts
+from .starts import MIN_CURVE, START_TOLERANCE_M, family_starts, starts, turned_start
 from .strength import convex_share, mirror_strong, two_way
-
-#: Path residual every detection may have (m): planes, points and corners are exact models
-#: and noise-free detections are good to a few µm, but an echo distorted by an overlapping
-#: one is off by 0.5–9 mm and must not join.
-BASE_TOLERANCE_M = 0.0002
-
-#: Path residual a free curve's detections may have: a circle is a curved wall's local
-#: approximation (a sinusoid's crest leaves its osculating circle by about 1 mm 0.1 m
-#: from the apex).
-CURVE_TOLERANCE_M = 0.001
-
-#: Path noise per unit of signal noise over the echo's amplitude, in units of the pulse's
-#: c·σ (measured: 0.1; a detection's tolerance is 3.5 of these).
-NOISE_PATH_FACTOR = 0.1
-NOISE_SIGMAS = 3.5
+from .window import (
+    BASE_TOLERANCE_M,
+    CURVE_TOLERANCE_M,
+    KINDS,
+    Family,
+    Window,
+    detection_noise,
+    window_tolerance,
+)
 
 #: A family needs this many detections (fewer and every model fits them; three are the
 #: T₁ = R₁, T₂ = R₂, T₁ → R₂ triple of Kleeman & Kuc).
@@ -91,68 +85,9 @@ NOISY_OUTSIDE_SHARE = 0.1
 #: Path precision of a noise-free detection (measured: a few µm), metres.
 DETECTION_FLOOR_M = 2e-5
 
-#: Kinds of family.
-KINDS = ("plane", "point", "corner", "curve")
-
-
-@dataclass(frozen=True, eq=False)
-class Window:
-    """The detections of one stretch of a linear array (float64 rows)."""
-
-    rows: np.ndarray  # [m] indices into the loci
-    T: np.ndarray  # [m, 2]
-    R: np.ndarray  # [m, 2]
-    axT: np.ndarray  # [m, 2] unit axes
-    axR: np.ndarray  # [m, 2]
-    paths: np.ndarray  # [m] c·τ
-    amplitude: np.ndarray  # [m]
-    tolerance: np.ndarray  # [m] path residual allowed
-    x0: np.ndarray  # [2] reference point (the stretch's middle)
-    cut_sin2: float
-    neighbour_m: float  # pairs whose transducers moved this far (or less) are neighbours
-    curve_tolerance: float = 0.0  # least path residual a free curve's rows may have
-    max_failed: int = 24  # seeds in a row that grow nothing before the search stops
-    #: detections a free curve needs (:func:`_least`): :data:`~.starts.MIN_CURVE`, one
-    #: fewer for the detections of scattered elements (:func:`~.reflectors._families`)
-    least_curve: int = MIN_CURVE
-    #: a flat mirror's echo on both axes (A0·ρ), the beam's k·a and the noise σ of a
-    #: detection's amplitude (:func:`~.patches.amplitude_noise`), for the amplitude a
-    #: plane's echo has (:func:`mirror_floor`); mirror 0: not checked
-    mirror: float = 0.0
-    ka: float = 0.0
-    noise_std: float = 0.0
-
-
-@dataclass(frozen=True, eq=False)
-class Family:
-    """One reflector: its kind (:data:`KINDS`), model parameters (curve ``(φ, d, ψ)``
-    about ``x0``, point F, corner V), the window rows it explains and their reflection
-    points, and the RMS path residual."""
-
-    kind: str
-    params: np.ndarray
-    x0: np.ndarray
-    rows: np.ndarray  # indices into the window
-    q: np.ndarray  # [k, 2] reflection points
-    rms: float
-    window: Window
-    #: how far (1/m) the surface's curvature may be from the model's (3σ; inf when the
-    #: rows cannot tell: fewer than a free curve needs)
-    bend: float = math.inf
-
-    @property
-    def loci(self) -> np.ndarray:
-        """The loci (rows of the whole table) the family explains."""
-        return self.window.rows[self.rows]
-
-
-def window_tolerance(amplitude: np.ndarray, noise_std: float, c: float,
-                     pulse_sigma_s: float) -> np.ndarray:
-    """Path residual each detection may have: :data:`BASE_TOLERANCE_M` plus
-    :data:`NOISE_SIGMAS` times its expected path noise, :data:`NOISE_PATH_FACTOR`·c·σ·
-    (noise / amplitude)."""
-    sigma = NOISE_PATH_FACTOR * c * pulse_sigma_s * noise_std / np.maximum(amplitude, 1e-6)
-    return BASE_TOLERANCE_M + NOISE_SIGMAS * sigma
+#: The order in which :func:`_simplest` names a family, among models of as many parameters
+#: (a turned corner, of three, after the point).
+SIMPLEST = ("plane", "corner", "point", "curve")
 
 
 #: The echoes of one point reflector, each over its two-way beam, agree within this factor.
@@ -237,7 +172,9 @@ def _fit_corner(w: Window, idx: np.ndarray, start: np.ndarray) -> Fit:
     if len(idx) < MIN_CURVE:
         return right
     turned = fit_corner(T, R, P, right.params)
-    noise = float(np.median(w.tolerance[idx] - BASE_TOLERANCE_M)) / NOISE_SIGMAS
+    if len(start) > 2 and start[2] != 0:  # and from a turned start (starts.turned_start)
+        turned = min(turned, fit_corner(T, R, P, start), key=lambda f: f.rms)
+    noise = detection_noise(w.tolerance[idx])
     if right.rms <= SIMPLER_RMS_FACTOR * turned.rms + noise + DETECTION_FLOOR_M:
         return right
     return turned
@@ -276,6 +213,11 @@ def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
     close = seed_rows[np.abs(path - w.paths[seed_rows])
                       <= START_TOLERANCE_M + w.tolerance[seed_rows]]
     least = _least(w, kind)
+    if kind == "corner" and len(close) < least:  # a corner off the right angle?
+        turned = turned_start(w, start, seed_rows, w.tolerance[seed_rows])
+        start, close = (start, close) if turned is None else (turned, seed_rows[np.abs(
+            _predict(w, kind, turned, seed_rows)[0] - w.paths[seed_rows])
+            <= START_TOLERANCE_M + w.tolerance[seed_rows]])
     if len(close) < least and kind != "curve":
         return None  # the start explains too few: another model's seed
     members = close if len(close) >= least else seed_rows
@@ -364,8 +306,9 @@ def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
 
 def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
     """The family of ``members``: the free curve refitted, and the simplest of plane, point
-    and corner whose RMS is within :data:`SIMPLER_RMS_FACTOR` of the best fit's and that
-    still explains every member — with noise, all but the share a best fit may leave
+    and corner (fewest parameters first, then in :data:`SIMPLEST`'s order) whose RMS is
+    within :data:`SIMPLER_RMS_FACTOR` of the best fit's and that still explains every
+    member — with noise, all but the share a best fit may leave
     outside their tolerance (:func:`outside_allowed`) where it fits best, or where it and
     the best fit are both of two parameters (:func:`_parameters`: plane, point,
     right-angled corner): at noise above what tells those apart (a plane's and a corner's
@@ -383,12 +326,12 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
         if np.sqrt(np.mean((path - w.paths[members]) ** 2)) <= HOPELESS_START_M:
             fits[other] = _fit(w, other, members, start)
     floor = min(f.rms for f in fits.values())
-    noise = float(np.median(w.tolerance[members] - BASE_TOLERANCE_M)) / NOISE_SIGMAS
+    noise = detection_noise(w.tolerance[members])
     limit = SIMPLER_RMS_FACTOR * floor + noise + DETECTION_FLOOR_M
     bend = _measured_bend(w, members, fits, first, noise)
     best = max(_parameters(name, f) for name, f in fits.items() if f.rms <= floor * (1 + 1e-9))
-    for name in ("plane", "corner", "point", "curve"):
-        f = fits.get(name)
+    for name in sorted(fits, key=lambda n: (_parameters(n, fits[n]), SIMPLEST.index(n))):
+        f = fits[name]
         if f is None or (f.rms > limit and name != "curve"):
             continue
         path, q = _predict(w, name, f.params, members)
@@ -487,7 +430,7 @@ def widened(f: Family, w: Window, free: np.ndarray) -> tuple[Family, np.ndarray]
     fit = _fit(both, "plane", every, f.params)
     if len(_inliers(both, "plane", fit.params, every)) < len(every):
         return f, found[:0]
-    noise = float(np.median(both.tolerance - BASE_TOLERANCE_M)) / NOISE_SIGMAS
+    noise = detection_noise(both.tolerance)
     bend = _measured_bend(both, every, {}, {"curve": fit.params}, noise)
     q = _predict(both, "plane", fit.params, every)[1]
     return Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend), found
@@ -596,5 +539,6 @@ def find_families(w: Window, resolution: float) -> tuple[list[Family], np.ndarra
     return families, np.flatnonzero(~taken)
 
 
-__all__ = ["BASE_TOLERANCE_M", "KINDS", "MIN_FAMILY", "Family", "Window", "a_corners_echoes",
-           "find_families", "predict", "shadowed", "widened", "window_tolerance"]
+__all__ = ["BASE_TOLERANCE_M", "CURVE_TOLERANCE_M", "KINDS", "MIN_FAMILY", "Family", "Window",
+           "a_corners_echoes", "detection_noise", "find_families", "predict", "shadowed",
+           "widened", "window_tolerance"]

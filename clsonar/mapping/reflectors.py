@@ -33,10 +33,8 @@ from ..scene.settings import chosen
 from ..sensors import SensorArray
 from ..survey import DEFAULT_MIN_ENVELOPE, in_a_room
 from .families import (
-    BASE_TOLERANCE_M,
     DETECTION_FLOOR_M,
     MIN_FAMILY,
-    NOISE_SIGMAS,
     POINT_SPREAD,
     SIMPLER_RMS_FACTOR,
     Family,
@@ -59,6 +57,7 @@ from .patches import Patches, amplitude_noise, group_pairs, heard_index, loudest
 from .starts import MIN_CURVE, family_starts
 from .strength import two_way
 from .tangents import tangent_map
+from .window import detection_noise
 
 #: Longest stretch of an array whose detections are fitted together, metres.
 WINDOW_M = 1.0
@@ -311,7 +310,7 @@ def _fits_as_well(f: Family, corner: Family) -> bool:
     path, q = _predict(w, "corner", corner.params, f.rows)
     if not np.all(_valid(w, "corner", corner.params, f.rows, q)):
         return False
-    noise = float(np.median(w.tolerance[f.rows] - BASE_TOLERANCE_M)) / NOISE_SIGMAS
+    noise = detection_noise(w.tolerance[f.rows])
     rms = math.sqrt(float(np.mean((path - w.paths[f.rows]) ** 2)))
     return rms <= SIMPLER_RMS_FACTOR * f.rms + noise + DETECTION_FLOOR_M
 
