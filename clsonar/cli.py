@@ -301,7 +301,7 @@ def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
         return 0
     outputs.check_out(args.out)  # and so does an --out that cannot be written
     worker = outputs.run_worker(args.png, scene, args.preset, skips)  # no OpenCL yet
-    with worker or contextlib.nullcontext(), outputs.EarlyFiles(args.png) as early:
+    with worker or contextlib.nullcontext(), outputs.EarlyFiles(args.png, worker) as early:
         line = ProgressLine(not args.quiet)
         try:
             with steps.watching(line.step):

@@ -276,10 +276,16 @@ class EarlyFiles:
     maps it was told (:meth:`files` answers {} otherwise, or if the thread failed: the
     files are then built in order). Nothing is written here: the folder is still written
     whole by :func:`write_outputs`, or not at all. A context manager: a run that fails
-    waits for the thread, so none outlives the command."""
+    waits for the thread, so none outlives the command.
 
-    def __init__(self, png: str = "none") -> None:
+    Not beside a ``worker`` that draws the plots (:func:`plot_worker`): there the files
+    are built after the run, while that worker draws profile.png, which keeps both cores
+    busy; during the run the thread would take a core from this process or the worker,
+    and one would idle at the end."""
+
+    def __init__(self, png: str = "none", worker: PlotWorker | None = None) -> None:
         self.png = png
+        self.off = worker is not None and worker.plots
         self._thread: threading.Thread | None = None
         self._told: tuple[Scene, Geometry, np.ndarray, np.ndarray, np.ndarray] | None = None
         self._built: dict[str, bytes] = {}
@@ -294,7 +300,7 @@ class EarlyFiles:
     def maps_done(self, scene: Scene, geometry: Geometry, raw: np.ndarray,
                   filtered: np.ndarray, thin: np.ndarray) -> None:
         """Start building the files of these maps (once a run: a second call is ignored)."""
-        if self._thread is not None:
+        if self._thread is not None or self.off:
             return
         self._told = (scene, geometry, raw, filtered, thin)
         self._thread = threading.Thread(target=self._build, name="clsonar-files",

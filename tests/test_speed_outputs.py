@@ -80,6 +80,25 @@ def test_files_are_used_only_for_the_run_whose_maps_they_were_told(room, tmp_pat
     _same_files(tmp_path / "early", tmp_path / "order")
 
 
+def test_no_thread_beside_a_worker_that_draws_the_plots(room):
+    """With a worker drawing scene.png and profile.png the files are built after the run
+    (while it draws profile.png): told the maps, no thread starts and nothing is built;
+    a worker without plots (the placement's) leaves the thread on."""
+
+    class Worker:
+        def __init__(self, plots):
+            self.plots = plots
+
+    result, _, told = room
+    args = told[0][1]
+    drawing, placing = (outputs.EarlyFiles("all", Worker(p)) for p in (True, False))
+    for early in (drawing, placing):
+        early.maps_done(*args)
+    assert drawing.off and drawing.files(result) == {}
+    assert not placing.off and sorted(placing.files(result)) == [
+        "filtered.png", "raw.png", "stages.npz", "thin.png"]
+
+
 def test_a_thread_that_fails_leaves_the_files_to_the_run(monkeypatch, tmp_path):
     """stages.npz failing in the thread: no traceback, nothing built there, and
     write_outputs builds every file itself, the same bytes."""

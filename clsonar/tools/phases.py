@@ -96,7 +96,7 @@ def _run_and_write(scene, png: str, out: str, helper, clock: _Clock) -> dict[str
 
     context = get_context()
     clock.mark("pyopencl, device")
-    early = outputs.EarlyFiles(png)  # stages.npz and the map PNGs built beside the run
+    early = outputs.EarlyFiles(png, helper)  # stages.npz, map PNGs built beside the run
     plotter = helper if helper is not None and helper.plots else None
     result = pipeline.run(scene, context=context, cache=outputs.early_plots(helper, scene),
                           placement=None if helper is None else helper.first,
