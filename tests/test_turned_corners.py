@@ -31,7 +31,7 @@ def _arrays(V: np.ndarray, distance: float, bearings: list[float], n: int,
     return np.concatenate(T), np.concatenate(R)
 
 
-@settings(max_examples=20, deadline=None)
+@settings(max_examples=40, deadline=None)
 @given(gamma=st.floats(min_value=80.0, max_value=100.0).filter(lambda g: abs(g - 90) > 2),
        distance=st.floats(min_value=2.0, max_value=8.0),
        stray=st.floats(min_value=0.1, max_value=1.0),
@@ -39,17 +39,17 @@ def _arrays(V: np.ndarray, distance: float, bearings: list[float], n: int,
 def test_a_turned_start_is_the_corner_without_another_reflectors_echo(gamma, distance, stray,
                                                                       seed):
     """A seed's rows: the double bounces of a corner of 80–100° (not within 2° of square)
-    heard by two arrays of three elements 2–8 m away, and one echo of something else
-    0.1–1 m nearer. The right angle misses the double bounces by more than a start's
-    tolerance; the turned corner fitted without the stray echo explains every double
-    bounce within a start's tolerance and lies near the corner (V within 1 cm, β within
-    1°: a start, which the family's fit then refines), and with fewer rows than a turned
-    corner needs there is none."""
+    heard by three arrays of five elements 8 cm apart, 2–8 m away 15° apart, and one
+    echo of something else 0.1–1 m nearer. The right angle misses the double bounces by
+    more than a start's tolerance; the turned corner fitted without the stray echo
+    explains every double bounce within a start's tolerance and lies near the corner (V
+    within 1 cm, β within 1°: a start, which the family's fit then refines), and with
+    fewer rows than a turned corner needs there is none."""
     rng = np.random.default_rng(seed)
     V = rng.uniform(-50, 50, 2)
     beta = math.pi - 2 * math.radians(gamma)
     open_to = float(rng.uniform(0, 360))
-    T, R = _arrays(V, distance, [open_to - 10, open_to + 10], 3, 0.1)
+    T, R = _arrays(V, distance, [open_to - 15, open_to, open_to + 15], 5, 0.08)
     heard, _ = models.corner_paths(np.array([*V, beta]), T, R)
     right, _ = models.corner_paths(V, T, R)
     paths = np.r_[heard, heard[0] - stray]
