@@ -27,13 +27,11 @@ import dataclasses
 import os
 import pickle
 import signal
-import subprocess
 import sys
 import traceback
 from collections.abc import Callable, Iterator, Sequence
-from multiprocessing.connection import Connection, wait
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
@@ -42,6 +40,10 @@ from .echoes import EchoTable
 from .errors import ClsonarError, SceneError
 from .sensors import SensorArray
 from .signals import Detections
+
+if TYPE_CHECKING:  # imported where workers start: a room's run does without them (8 ms)
+    import subprocess
+    from multiprocessing.connection import Connection
 
 T = TypeVar("T")
 
@@ -127,6 +129,9 @@ class Workers:
     whether by the end, an error or a cancel): every worker is killed."""
 
     def __init__(self, n: int, init: Callable[..., Any], *args: object) -> None:
+        import subprocess
+        from multiprocessing.connection import Connection
+
         root = str(Path(__file__).resolve().parents[1])
         self.procs: list[subprocess.Popen] = []
         self.conns: list[tuple[Connection, Connection]] = []
@@ -162,6 +167,8 @@ class Workers:
         ``ahead`` results per worker wait to be handed over. A worker's error is raised
         here when its item's turn comes; :func:`clsonar.steps.poll` is called while
         waiting."""
+        from multiprocessing.connection import wait
+
         busy: dict[int, int | None] = dict.fromkeys(self.starting)  # None: init
         free = [w for w in range(len(self.conns)) if w not in self.starting]
         found: dict[int, Any] = {}
@@ -226,6 +233,8 @@ def serve() -> None:
     """A worker's loop: read ``(init, args)`` and keep ``init(*args)``, then answer each
     ``(job, (item,))`` with ``job(state, item)`` until the parent closes the pipe (or is
     gone); each reply is ``(True, value)`` or ``(False, error)``."""
+    from multiprocessing.connection import Connection
+
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C: the parent decides
     inbox = Connection(os.dup(0), writable=False)
     outbox = Connection(os.dup(1), readable=False)

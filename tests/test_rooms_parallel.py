@@ -4,6 +4,7 @@ run and leaves no process behind; a worker's error comes back as the same one li
 
 import dataclasses
 import os
+import subprocess
 import threading
 from pathlib import Path
 
@@ -96,7 +97,7 @@ def test_without_processes_the_rooms_are_mapped_here_the_same(small, monkeypatch
     def refused(*args, **kwargs):
         raise OSError(11, "Resource temporarily unavailable")
 
-    monkeypatch.setattr(rooms.subprocess, "Popen", refused)
+    monkeypatch.setattr(subprocess, "Popen", refused)  # rooms.Workers imports it to start
     _same(small, run(floor_scene(size_m=10.0)))
 
 
