@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_plot_worker import CHILDREN  # the child processes a fresh process has
 
 from clsonar import outputs, pipeline
 from clsonar.files import bundled_scenes
@@ -144,23 +145,6 @@ def test_a_placement_made_elsewhere_gives_the_same_run():
         assert r.metrics == plain.metrics and r.counts == plain.counts
     assert asked == [1]
     assert outputs.placement(floor_scene(size_m=10.0)) is None
-
-
-#: Helpers for the fresh processes: the child processes this one has (from /proc).
-CHILDREN = """
-import os
-def children():
-    found = []
-    for pid in os.listdir('/proc'):
-        if pid.isdigit():
-            try:
-                stat = open(f'/proc/{pid}/stat').read()
-            except OSError:
-                continue
-            if int(stat.rsplit(')', 1)[1].split()[1]) == os.getpid():
-                found.append(int(pid))
-    return found
-"""
 
 
 def _python(code: str) -> dict:
