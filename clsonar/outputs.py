@@ -42,7 +42,8 @@ if TYPE_CHECKING:  # the pipeline's own imports of them
 
 #: The data files of a run, and every picture it may draw (:func:`stage_pngs`).
 DATA_NAMES = ("report.json", "stages.npz", "profile.csv", "echoes.csv")
-PNG_NAMES = ("raw.png", "filtered.png", "thin.png", "scene.png", "profile.png")
+MAP_PNG_NAMES = ("raw.png", "filtered.png", "thin.png")  # the maps' (:func:`map_pngs`)
+PNG_NAMES = (*MAP_PNG_NAMES, "scene.png", "profile.png")
 #: Every file ``clsonar run`` may write: a folder holding only these is a run's outputs,
 #: replaced whole by the next run's.
 OUTPUT_NAMES = frozenset(DATA_NAMES + PNG_NAMES)
@@ -249,8 +250,12 @@ def early_plots(worker: PlotWorker | None, scene: Scene, preset: str | None = No
     return None if worker is None else EarlyPlots(worker, apply_preset(scene, preset))
 
 
-def map_pngs(result: RunResult, png: str = "all") -> dict[str, bytes]:
-    """raw.png, filtered.png and thin.png of ``result`` unless ``png`` is ``none``."""
+def map_pngs(result: RunResult, png: str = "all",
+             built: Mapping[str, bytes] | None = None) -> dict[str, bytes]:
+    """raw.png, filtered.png and thin.png of ``result`` unless ``png`` is ``none``: those
+    in ``built`` (:meth:`EarlyFiles.files`, of the same ``png``) where it has them."""
+    if built and "raw.png" in built:
+        return {name: built[name] for name in MAP_PNG_NAMES}
     return _map_pngs(result.scene, result.geometry, result.raw, result.filtered,
                      result.thin, png)
 
@@ -378,8 +383,7 @@ def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
                        if drawing.cells({name: job}) <= drawing.MAX_CELLS})
     built = early.files(result) if early is not None and early.png == png else {}
     files = data_files(result, extra, built)
-    files.update({name: built[name] for name in PNG_NAMES if name in built}
-                 if png != "none" and "raw.png" in built else map_pngs(result, png))
+    files.update(map_pngs(result, png, built))
     if jobs:
         drawn = (worker.collect() if worker is not None else None) or {}
         drawn.update(draw({name: job for name, job in jobs.items() if name not in drawn}))

@@ -257,19 +257,27 @@ def test_nonzero_cells_is_nonzero():
                        for g, w in zip(got, want, strict=True))
 
 
+def _recorded(monkeypatch, function, *places) -> list:
+    """The arguments of every call of ``function``, set in each of ``places`` (a module
+    and a name) as a spy that records them and calls it."""
+    calls: list = []
+
+    def spy(*args):
+        calls.append(args)
+        return function(*args)
+
+    for module, name in places:
+        monkeypatch.setattr(module, name, spy)
+    return calls
+
+
 def test_the_room_line_of_sight_is_one_transducer_at_a_time(monkeypatch):
     """The room's own points, pairs and map (1,622 ghosts of its 37,666 points): the
     wanted bins' z-buffers give what one z-buffer per transducer gives."""
     from clsonar.pipeline import run
 
-    calls = []
     whole = sight.line_of_sight
-
-    def kept(*args):
-        calls.append(args)
-        return whole(*args)
-
-    monkeypatch.setattr(sight, "line_of_sight", kept)
+    calls = _recorded(monkeypatch, whole, (sight, "line_of_sight"))
     result = run(_ROOM)
     assert result.counts["ghost_points"] == 1622 and len(calls) == 1
     points_, tx, rx, positions, occluders, cell = calls[0]
@@ -436,19 +444,13 @@ def test_the_envelope_points_are_the_array_forms(name, noise, monkeypatch):
     """The rooms' element scans (every envelope point, its locus, circle and place) with
     the 2-vectors and the partners' ranges in floats are those with numpy arrays, to the
     bit."""
-    from clsonar.mapping import envelope
+    from clsonar.mapping import envelope, tangents
     from clsonar.pipeline import run
     from clsonar.tools.variants import with_seed
 
-    calls = []
     mine = envelope.element_scans
-
-    def spy(*args):
-        calls.append(args)
-        return mine(*args)
-
-    monkeypatch.setattr(envelope, "element_scans", spy)
-    monkeypatch.setattr("clsonar.mapping.tangents.element_scans", spy)
+    calls = _recorded(monkeypatch, mine, (envelope, "element_scans"),
+                      (tangents, "element_scans"))
     scene = load_scene(bundled_scenes() / name)
     run(scene if noise == 0 else with_seed(scene, 1, noise))
     assert calls

@@ -207,6 +207,13 @@ def _least(w: Window, kind: str) -> int:
     return w.least_curve if kind == "curve" else MIN_FAMILY
 
 
+def _close(w: Window, kind: str, start: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """The ``rows`` the start of ``kind`` explains to within :data:`START_TOLERANCE_M`
+    plus their tolerance."""
+    path, _ = _predict(w, kind, start, rows)
+    return rows[np.abs(path - w.paths[rows]) <= START_TOLERANCE_M + w.tolerance[rows]]
+
+
 def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
           free: np.ndarray) -> tuple[np.ndarray, Fit] | None:
     """Fit ``kind`` to the seed's rows that its ``start`` explains to within
@@ -215,15 +222,12 @@ def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
     fit again, until they no longer change (at most :data:`GROW_ROUNDS` rounds); the
     members are those the last fit explains. None if the start of a plane, point or corner
     explains fewer rows than it needs (:func:`_least`), or the last fit does."""
-    path, _ = _predict(w, kind, start, seed_rows)
-    close = seed_rows[np.abs(path - w.paths[seed_rows])
-                      <= START_TOLERANCE_M + w.tolerance[seed_rows]]
+    close = _close(w, kind, start, seed_rows)
     least = _least(w, kind)
     if kind == "corner" and len(close) < least:  # a corner off the right angle?
         turned = turned_start(w, start, seed_rows, w.tolerance[seed_rows])
-        start, close = (start, close) if turned is None else (turned, seed_rows[np.abs(
-            _predict(w, kind, turned, seed_rows)[0] - w.paths[seed_rows])
-            <= START_TOLERANCE_M + w.tolerance[seed_rows]])
+        if turned is not None:
+            start, close = turned, _close(w, kind, turned, seed_rows)
     if len(close) < least and kind != "curve":
         return None  # the start explains too few: another model's seed
     members = close if len(close) >= least else seed_rows
@@ -338,7 +342,7 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
     best = max(_parameters(name, f) for name, f in fits.items() if f.rms <= floor * (1 + 1e-9))
     for name in sorted(fits, key=lambda n: (_parameters(n, fits[n]), SIMPLEST.index(n))):
         f = fits[name]
-        if f is None or (f.rms > limit and name != "curve"):
+        if f.rms > limit and name != "curve":
             continue
         path, q = _predict(w, name, f.params, members)
         within = np.abs(path - w.paths[members]) <= _tolerance(w, name, members)
@@ -408,7 +412,7 @@ def outside_allowed(w: Window, rows: np.ndarray) -> float:
     :data:`NOISY_OUTSIDE_SHARE` of them where the detections are noisy (a detection's
     noise exceeds its tolerance now and then), :data:`DISTORTED_SHARE` where they are not
     (an echo an overlapping one distorted)."""
-    noisy = float(np.median(w.tolerance[rows] - BASE_TOLERANCE_M)) > 0
+    noisy = detection_noise(w.tolerance[rows]) > 0
     return (NOISY_OUTSIDE_SHARE if noisy else DISTORTED_SHARE) * len(rows)
 
 

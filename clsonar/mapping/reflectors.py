@@ -460,8 +460,9 @@ def _unshadowed(scene: Scene, sensors: SensorArray, loci: Loci, families: list[F
     every = np.arange(len(rest))
     near = np.zeros(len(rest), dtype=bool)
     for vertex in vertices:
-        near |= near_vertex(w, vertex, every, resolution) | turned_about(w, vertex, every,
-                                                                          resolution)
+        near |= turned_about(w, vertex, every, resolution)
+        if vertex.kind != "corner":  # a corner's: turned_about's rows with no turn, a subset
+            near |= near_vertex(w, vertex, every, resolution)
     return rest[~near]
 
 

@@ -30,6 +30,7 @@ NOISE_SIGMAS = 3.5
 #: Kinds of family.
 KINDS = ("plane", "point", "corner", "curve")
 
+
 @dataclass(frozen=True, eq=False)
 class Window:
     """The detections of one stretch of a linear array (float64 rows)."""

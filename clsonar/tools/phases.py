@@ -111,8 +111,7 @@ def _run_and_write(scene, png: str, out: str, helper, clock: _Clock) -> dict[str
     clock.mark("waiting for stages.npz, raw, filtered, thin.png")
     files = outputs.data_files(result, None, built)
     clock.mark("report.json, stages.npz, csv")
-    files.update({n: built[n] for n in ("raw.png", "filtered.png", "thin.png") if n in built}
-                 or outputs.map_pngs(result, png))
+    files.update(outputs.map_pngs(result, png, built))
     clock.mark("raw, filtered, thin.png")
     drawn = plotter.collect() if plotter is not None else None
     if drawn is not None:
