@@ -167,3 +167,26 @@ def test_a_bent_circles_echo_is_its_divergence_share_of_a_mirrors(radius, share)
         assert got is None
     else:
         assert got is not None and got[0] == pytest.approx(share, rel=1e-12)
+
+
+def test_a_post_heard_by_two_elements_is_drawn_where_their_loci_cross():
+    """Unseen seed 33 post-03: a 6 cm post 0.5 m from ten elements facing within 10° of
+    it, heard by two neighbours only (5-5, 5-6 and 6-6): three paths a point misses by
+    0.2 mm (the post's bistatic reflection point is not its monostatic ones) and a
+    circle fits exactly, so no family names them; their loci cross in three cells of
+    the map, fewer than a curve needs beside others. With no other curve they are the
+    profile, not an empty map."""
+    row = _row(33, "post", 3)
+    assert 0 < row["points"] <= 5 and row["passed"]
+    assert row["accuracy_m"] is not None and row["accuracy_m"] <= 0.005
+
+
+def test_short_curves_are_the_profile_only_where_the_map_has_no_other():
+    from clsonar.post.profile import LEAST_CURVE_CELLS, MIN_CURVE_CELLS, _traced
+
+    thin = np.zeros((20, 40), dtype=bool)
+    thin[5, 2:2 + LEAST_CURVE_CELLS + 1] = True  # a speck of three cells
+    thin[15, 30] = True  # a lone cell
+    assert [len(c) for c in _traced(thin)] == [LEAST_CURVE_CELLS + 1]
+    thin[10, 10:10 + MIN_CURVE_CELLS] = True  # a curve: the speck is left out
+    assert [len(c) for c in _traced(thin)] == [MIN_CURVE_CELLS]

@@ -91,6 +91,13 @@ class _Scan:
     pos: np.ndarray  # sensor positions
     axes: np.ndarray  # sensor unit axes
     cut_sin2: float
+    #: per locus, sin² of the widest angle off its axis its echo can come from (as loud as
+    #: it is: :func:`~.tangents.loud_beams`), or None: the beam's cut
+    beams: np.ndarray | None = None
+
+    def beam(self, k: int) -> float:
+        """sin² of the widest angle off the axis locus ``k``'s echo may come from."""
+        return self.cut_sin2 if self.beams is None else min(self.cut_sin2, float(self.beams[k]))
 
 
 #: An envelope point: (locus credited, locus circle's centre, its radius, the point).
@@ -155,7 +162,7 @@ def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: n
     for k in (i, j):
         (t0, t1), (a0, a1) = s.pos[s.loci.tx[k]].tolist(), s.axes[s.loci.tx[k]].tolist()
         if (np.hypot(q0 - t0, q1 - t1) < s.ranges[k] - ENVELOPE_TOL_M
-                or not (_in_beam(q0 - t0, q1 - t1, a0, a1, s.cut_sin2)
+                or not (_in_beam(q0 - t0, q1 - t1, a0, a1, s.beam(k))
                         or (k == j and centred and straight))):
             return []
     q = np.array([q0, q1])
@@ -196,17 +203,19 @@ class _LinkedScan(list):
     links: list[float | None] | None = None
 
 
-def element_scans(scene: Scene, sensors: SensorArray, loci) -> list[ElementScan]:
+def element_scans(scene: Scene, sensors: SensorArray, loci,
+                  beams: np.ndarray | None = None) -> list[ElementScan]:
     """Per element of the ring, its envelope points in scan order: ``(place, points,
     one_sided)`` with place 2·g at pose g and 2·g + 1 midway from pose g to g + 1 (a
     midway point credited to both of its loci; see :func:`_pose_points`): what
     :func:`scan_envelope` and :func:`envelope_links` are made of, computed once for both
-    where a caller needs both."""
+    where a caller needs both. ``beams``: per locus, sin² of the widest angle off its axis
+    its echo may come from (:func:`~.tangents.loud_beams`; None: the beam's cut)."""
     loci = as_loci(loci)
     ranges = 0.5 * scene.medium.c * loci.tof_s
     by_key = _first_echoes(sensors, loci, ranges)
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
-    s = _Scan(loci, ranges, sensors.positions, sensors.axes, cut_sin2)
+    s = _Scan(loci, ranges, sensors.positions, sensors.axes, cut_sin2, beams)
     scans: dict[int, ElementScan] = {}
     for (g, e), members in sorted(by_key.items()):
         for i in members:

@@ -397,8 +397,9 @@ def _bend(w: Window, members: np.ndarray, fit: Fit | None, noise: float) -> floa
     how far from the fitted curvature the surface may be. Inf without a free curve."""
     if fit is None:
         return math.inf
-    J = _jacobian(lambda p: curve_paths(p, w.x0, w.T[members], w.R[members]), fit.params,
-                  CURVE_STEPS, np.ones(3, dtype=bool))
+    J = np.ascontiguousarray(_jacobian(  # laid out by rows, as gram's sums always were here
+        lambda p: curve_paths(p, w.x0, w.T[members], w.R[members]), fit.params, CURVE_STEPS,
+        np.ones(3, dtype=bool), len(members)))
     sigma = max(fit.rms, noise, DETECTION_FLOOR_M)
     try:
         cov = np.linalg.inv(gram(J, J)) * sigma**2

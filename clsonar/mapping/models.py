@@ -151,7 +151,14 @@ def point_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
     """``(path [n], q [n, 2])`` of a point reflector F = ``params`` (an edge, a thin post):
     |T − F| + |F − R|, and F itself."""
     f = np.asarray(params, dtype=np.float64)
-    return np.hypot(*(T - f).T) + np.hypot(*(R - f).T), np.broadcast_to(f, T.shape).copy()
+    return np.hypot(*(T - f).T) + np.hypot(*(R - f).T), _repeated(f, len(T))
+
+
+def _repeated(v: np.ndarray, n: int) -> np.ndarray:
+    """[n, 2]: the point ``v`` in every row (a point's or a corner's reflection point)."""
+    out = np.empty((n, 2))
+    out[:] = v[:2]
+    return out
 
 
 def corner_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
@@ -171,7 +178,7 @@ def corner_paths(params: np.ndarray, T: np.ndarray, R: np.ndarray
     beta = float(params[2]) if len(params) > 2 else 0.0
     # turned by 0, R − V is itself to the bit (cos 0 = 1, sin 0 = 0)
     turned = _rotate(R - v, -beta * _sides(v, T, R)) if beta != 0.0 else R - v
-    return np.hypot(*(T - v + turned).T), np.broadcast_to(v, T.shape).copy()
+    return np.hypot(*(T - v + turned).T), _repeated(v, len(T))
 
 
 def corner_images(params: np.ndarray, T: np.ndarray, R: np.ndarray
@@ -214,23 +221,23 @@ class Fit:
     converged: bool
 
 
-def _jacobian(model: PathModel, p: np.ndarray, steps: np.ndarray, free: np.ndarray,
+def _jacobian(model: PathModel, p: np.ndarray, steps: np.ndarray, free: np.ndarray, rows: int,
               linear: LinearModel | None = None, q: np.ndarray | None = None,
               exact: np.ndarray | None = None) -> np.ndarray:
     """Central differences of ``model``'s paths, or of ``linear(p, q)`` (the model near the
     reflection points ``q``) for the parameters not marked ``exact``: the columns of the
     ``free`` parameters (a held one's column would be thrown away)."""
-    cols = []
-    for k, h in enumerate(steps):
-        if not free[k]:
-            continue
+    columns = np.flatnonzero(free).tolist()
+    J = np.empty((rows, len(columns)), order="F")  # gram's sums add down each column
+    for j, k in enumerate(columns):
+        h = steps[k]
         dp = np.zeros_like(p)
         dp[k] = h
         if linear is None or q is None or (exact is not None and exact[k]):
-            cols.append((model(p + dp)[0] - model(p - dp)[0]) / (2 * h))
+            J[:, j] = (model(p + dp)[0] - model(p - dp)[0]) / (2 * h)
         else:
-            cols.append((linear(p + dp, q) - linear(p - dp, q)) / (2 * h))
-    return np.stack(cols, axis=-1)
+            J[:, j] = (linear(p + dp, q) - linear(p - dp, q)) / (2 * h)
+    return J
 
 
 
@@ -265,7 +272,7 @@ def least_squares(model: PathModel, paths: np.ndarray, start: np.ndarray,
         if fresh:  # the Jacobian changes only when p does
             # laid out as the whole Jacobian's free columns were (Fortran order): gram's
             # sums then add in the same order, to the bit
-            J = np.asfortranarray(_jacobian(model, p, steps, free, linear, q, exact))
+            J = _jacobian(model, p, steps, free, len(paths), linear, q, exact)
             g, H = gram(J, r), gram(J, J)
             gain = float(np.sum(g * _damped_step(H, g, 0.0)))  # a Gauss–Newton step's gain
             if gain <= STOP_COST_SHARE * cost or cost <= len(paths) * STOP_RMS**2:
@@ -294,7 +301,9 @@ def least_squares(model: PathModel, paths: np.ndarray, start: np.ndarray,
 
 def _damped_step(H: np.ndarray, g: np.ndarray, lam: float) -> np.ndarray:
     """The Levenberg–Marquardt step (H + λ·diag H)⁻¹·g (Gauss–Newton for λ = 0)."""
-    A = H + lam * np.diag(np.maximum(np.diag(H), 1e-12))
+    d = H.diagonal()
+    A = H + 0.0  # off the diagonal H + λ·0, as the diagonal matrix's zeros add
+    A.flat[::len(d) + 1] = d + lam * np.maximum(d, 1e-12)
     try:
         return np.linalg.solve(A, g)
     except np.linalg.LinAlgError:

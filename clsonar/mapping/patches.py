@@ -13,12 +13,11 @@ somewhere between: where the pairs' echoes beyond fall to half a mirror's, as a 
 does with its reflection point on its edge, or, with nothing heard there, halfway to the
 first silent pair (:func:`clamp_to_silence`, :func:`_end`).
 
-Plane patches of the same line (from overlapping stretches of an array, or other arrays)
-join into one, fitted again to all their detections, across gaps up to :data:`JOIN_GAP_M`;
-two plane patches whose lines meet near both ends meet there, at a located corner or edge,
-and a patch whose line passes by a located vertex reaches it (:mod:`.corners`). The points
-are laid every :data:`STEP_CELLS` cells, each credited to the locus whose reflection point
-is nearest (the line-of-sight check asks which pair saw it).
+Plane patches of one line (overlapping stretches of an array, or other arrays) join into
+one, fitted again to all their detections, across gaps up to :data:`JOIN_GAP_M`; two plane
+patches whose lines meet near both ends meet there, at a located corner or edge, and a patch
+whose line passes by a located vertex reaches it (:mod:`.corners`). Points come every
+:data:`STEP_CELLS` cells, each credited to the locus whose reflection point is nearest.
 """
 
 from __future__ import annotations
@@ -38,6 +37,7 @@ from .families import Family
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2, plane_points
 from .strength import EDGE_SHARE, as_flat_as_its_range, convex_share, mirror_floor, two_way
+from .strength import mirror_echo as mirror_echo  # where the callers have found it
 
 #: The two-way beams of pairs towards points: (q, T, axT, R, axR).
 Beams = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
@@ -393,11 +393,6 @@ def _triangle_rows(n: int, i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
 #: A pair heard the surface where one of its detections lies within this of the
 #: predicted path, metres.
 HEARD_TOL_M = 0.003
-
-
-def mirror_echo(scene: Scene) -> float:
-    """A flat mirror's echo on both transducers' axes, A0·ρ (units)."""
-    return scene.transducer.amplitude * scene.echo.reflection_coefficient
 
 
 def amplitude_noise(scene: Scene) -> float:

@@ -27,7 +27,6 @@ from dataclasses import replace
 import numpy as np
 
 from .. import steps
-from ..physics import MAX_FOCUS_GAIN
 from ..scene import Scene
 from ..scene.settings import chosen
 from ..sensors import SensorArray
@@ -55,7 +54,7 @@ from .loci import Loci, _subset
 from .models import corner_images, corner_paths, dot2
 from .patches import Patches, amplitude_noise, group_pairs, heard_index, loudest, mirror_echo
 from .starts import MIN_CURVE, family_starts
-from .strength import two_way
+from .strength import strongest_echo, two_way
 from .tangents import tangent_map
 from .window import detection_noise
 
@@ -143,15 +142,6 @@ def _windows(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
             out.append(_window(scene, sensors, loci, rows[inside], mid,
                                NEIGHBOUR_PITCHES * pitch))
     return out
-
-
-def strongest_echo(scene: Scene) -> float:
-    """The largest amplitude one echo can have (the transmitted amplitude times the
-    reflection coefficient, on both axes, from a flat wall or, with ``echo.curvature_gain``,
-    a focusing one, physics.MAX_FOCUS_GAIN), with 5 % and three noise σ to spare: a
-    detection above it is two or more echoes overlapping."""
-    focus = MAX_FOCUS_GAIN if scene.echo.curvature_gain else 1.0
-    return 1.05 * mirror_echo(scene) * focus + 3.0 * scene.signal.noise_std
 
 
 def _families(scene: Scene, sensors: SensorArray, loci: Loci,

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..physics import curved_gain, piston_pattern
+from ..physics import J1_FIRST_ZERO, MAX_FOCUS_GAIN, curved_gain, piston_pattern
+from ..scene import Scene, Sinusoid
 from .models import curve_geometry, dot2
 
 #: A plane's echo is at least this share of a flat mirror's at its reflection point (less
@@ -20,6 +21,21 @@ MIRROR_SHARE = 0.6
 #: face's reflection boundary (the uniform theory, physics.edge_diffraction; Kouyoumjian
 #: & Pathak 1974). Noise never lowers a plane's floor below it.
 EDGE_SHARE = 0.5
+
+
+def mirror_echo(scene: Scene) -> float:
+    """A flat mirror's echo on both transducers' axes, A0·ρ (units)."""
+    return scene.transducer.amplitude * scene.echo.reflection_coefficient
+
+
+def strongest_echo(scene: Scene, concave: bool = True) -> float:
+    """The largest amplitude one echo can have (the transmitted amplitude times the
+    reflection coefficient, on both axes, from a flat wall or, with ``echo.curvature_gain``,
+    a focusing one, physics.MAX_FOCUS_GAIN, unless ``concave`` is False: the scene has no
+    concave surface), with 5 % and three noise σ to spare: a detection above it is two or
+    more echoes overlapping."""
+    focus = MAX_FOCUS_GAIN if scene.echo.curvature_gain and concave else 1.0
+    return 1.05 * mirror_echo(scene) * focus + 3.0 * scene.signal.noise_std
 
 
 def mirror_floor(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray,
@@ -56,6 +72,40 @@ def two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray, axR: n
         out = out * piston_pattern(ka * np.abs(axis[:, 0] * d[:, 1] - axis[:, 1] * d[:, 0])
                                    / dist)
     return out
+
+
+#: Two echoes arriving together are heard at most this many times as loud as the louder
+#: (in phase).
+OVERLAP_FACTOR = 2.0
+
+#: The piston's main lobe, k·a·sinθ from the axis to the first null, for its inverse.
+_LOBE_X = np.linspace(0.0, J1_FIRST_ZERO, 4001)
+_LOBE_B = piston_pattern(_LOBE_X)
+
+
+def loud_beams(scene: Scene, loci, spare: float) -> np.ndarray | None:
+    """[n] sin² of the widest angle θ off its transducer's axis the echo of each T = R locus
+    can come from, as loud as it was heard: a reflector there returns at most
+    :func:`strongest_echo` (focused only by a sinusoid's troughs: walls and solid discs
+    do not focus) times the two-way beam b(θ)², two echoes together
+    :data:`OVERLAP_FACTOR` times that (``spare``: the amplitude's noise). A Polaroid's
+    echo of a mirror's strength comes from within 5° of its axis (b(θ)² ≥ 0.5): a point
+    drawn 9.3° off it (b² = 0.06), where two loci of different reflectors touch one
+    tangent, is not where that echo came from (the zoo's unseen seed 31 room-19: a wall
+    heard at 4.5 units from one pose and, from the next, where a box hid the wall, a
+    corner's double bounce 7 cm of range later, put a stretch 10 cm in front of the
+    wall: 0.85 cm RMS). Loci of
+    T ≠ R pairs: 1 (any angle). None where the amplitude cannot tell the angle: threshold
+    detection (a sample, not the echo's peak) or a uniform beam
+    (``transducer.directivity``)."""
+    _, ka = scene.transducer.beam(scene.medium.c)
+    if scene.detection.mode != "envelope" or ka == 0:
+        return None
+    concave = any(isinstance(s, Sinusoid) for s in scene.surfaces)  # walls, solid discs: none
+    share = (loci.amplitude - spare) / (OVERLAP_FACTOR * strongest_echo(scene, concave))
+    b = np.sqrt(np.clip(share, 0.0, 1.0))  # the least b(θ) the echo needs
+    x = np.interp(b, _LOBE_B[::-1], _LOBE_X[::-1])  # b falls from 1 to 0 over the lobe
+    return np.where(loci.tx == loci.rx, (x / ka) ** 2, 1.0)
 
 
 def as_flat_as_its_range(params: np.ndarray, x0: np.ndarray, paths: np.ndarray) -> bool:
@@ -103,5 +153,17 @@ def convex_share(params: np.ndarray, x0: np.ndarray, q: np.ndarray, T: np.ndarra
     return np.minimum(curved_gain(d1, d2, kappa, cos_i), 1.0)
 
 
-__all__ = ["EDGE_SHARE", "MIRROR_SHARE", "POINT_LIKE", "as_flat_as_its_range", "convex_share",
-           "mirror_floor", "mirror_strong", "two_way"]
+__all__ = [
+    "EDGE_SHARE",
+    "MIRROR_SHARE",
+    "OVERLAP_FACTOR",
+    "POINT_LIKE",
+    "as_flat_as_its_range",
+    "convex_share",
+    "loud_beams",
+    "mirror_echo",
+    "mirror_floor",
+    "mirror_strong",
+    "strongest_echo",
+    "two_way",
+]

@@ -35,6 +35,7 @@ from .pillars import (
     point_reflectors,
 )
 from .points import densified, nonzero_cells
+from .strength import loud_beams
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
@@ -464,7 +465,8 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
     and the faces heard from two poses only (:func:`_two_pose_faces`)."""
     if len(isolated) == 0:
         return
-    scans = element_scans(scene, sensors, s.loci)
+    scans = element_scans(scene, sensors, s.loci,
+                          loud_beams(scene, s.loci, HEARD_NOISE_SCALES * envelope_noise(scene)))
     points, ends = envelope_links(scene, sensors, s.loci, LINK_STEP_M,
                                   min(bias, ENVELOPE_ARC_BIAS_M), scans)
     keep = np.isin(ends, isolated).all(axis=1)
