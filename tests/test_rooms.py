@@ -19,7 +19,7 @@ import clsonar
 from clsonar import sight as sight_module
 from clsonar.geometry import EDGE, build_geometry, true_vertices
 from clsonar.mapping import Loci, envelope_links, scan_envelope, tangent_points
-from clsonar.mapping.patches import mirror_echo
+from clsonar.mapping.strength import mirror_echo
 from clsonar.mapping.tangents import _facing_too_weak, sample_loci
 from clsonar.metrics import VERTEX_FOUND_M, cylinder_coverage, evaluate, vertex_errors
 from clsonar.physics import piston_pattern

@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from clsonar.mapping import Loci, tangent_points
-from clsonar.mapping.patches import mirror_echo
+from clsonar.mapping.strength import mirror_echo
 from clsonar.mapping.tangents import (
     CIRCLE_ECHO_FACTOR,
     HEARD_NOISE_SCALES,

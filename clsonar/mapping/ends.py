@@ -23,8 +23,8 @@ from .envelope import in_beams
 from .families import window_tolerance
 from .loci import Loci
 from .models import dot2
-from .patches import Patch, carrier_points, mirror_echo, outward
-from .strength import EDGE_SHARE, two_way
+from .patches import Patch, carrier_points, outward
+from .strength import EDGE_SHARE, mirror_echo, two_way
 
 
 def locus_crossings(T: np.ndarray, R: np.ndarray, path: np.ndarray, foot: np.ndarray,

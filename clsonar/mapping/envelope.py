@@ -90,14 +90,10 @@ class _Scan:
     ranges: np.ndarray  # c·τ/2 of each locus
     pos: np.ndarray  # sensor positions
     axes: np.ndarray  # sensor unit axes
-    cut_sin2: float
-    #: per locus, sin² of the widest angle off its axis its echo can come from (as loud as
-    #: it is: :func:`~.tangents.loud_beams`), or None: the beam's cut
-    beams: np.ndarray | None = None
-
-    def beam(self, k: int) -> float:
-        """sin² of the widest angle off the axis locus ``k``'s echo may come from."""
-        return self.cut_sin2 if self.beams is None else min(self.cut_sin2, float(self.beams[k]))
+    #: per locus, sin² of the widest angle off its transducer's axis its echo may come
+    #: from: the beam's cut, or less for an echo too loud to come from near it
+    #: (:func:`~.strength.loud_beams`)
+    beams: np.ndarray
 
 
 #: An envelope point: (locus credited, locus circle's centre, its radius, the point).
@@ -162,7 +158,7 @@ def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: n
     for k in (i, j):
         (t0, t1), (a0, a1) = s.pos[s.loci.tx[k]].tolist(), s.axes[s.loci.tx[k]].tolist()
         if (np.hypot(q0 - t0, q1 - t1) < s.ranges[k] - ENVELOPE_TOL_M
-                or not (_in_beam(q0 - t0, q1 - t1, a0, a1, s.beam(k))
+                or not (_in_beam(q0 - t0, q1 - t1, a0, a1, float(s.beams[k]))
                         or (k == j and centred and straight))):
             return []
     q = np.array([q0, q1])
@@ -210,12 +206,13 @@ def element_scans(scene: Scene, sensors: SensorArray, loci,
     midway point credited to both of its loci; see :func:`_pose_points`): what
     :func:`scan_envelope` and :func:`envelope_links` are made of, computed once for both
     where a caller needs both. ``beams``: per locus, sin² of the widest angle off its axis
-    its echo may come from (:func:`~.tangents.loud_beams`; None: the beam's cut)."""
+    its echo may come from (:func:`~.strength.loud_beams`; None: the beam's cut)."""
     loci = as_loci(loci)
     ranges = 0.5 * scene.medium.c * loci.tof_s
     by_key = _first_echoes(sensors, loci, ranges)
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
-    s = _Scan(loci, ranges, sensors.positions, sensors.axes, cut_sin2, beams)
+    widest = np.full(len(loci), cut_sin2) if beams is None else np.minimum(beams, cut_sin2)
+    s = _Scan(loci, ranges, sensors.positions, sensors.axes, widest)
     scans: dict[int, ElementScan] = {}
     for (g, e), members in sorted(by_key.items()):
         for i in members:

@@ -36,8 +36,14 @@ from .envelope import in_beams
 from .families import Family
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2, plane_points
-from .strength import EDGE_SHARE, as_flat_as_its_range, convex_share, mirror_floor, two_way
-from .strength import mirror_echo as mirror_echo  # where the callers have found it
+from .strength import (
+    EDGE_SHARE,
+    as_flat_as_its_range,
+    convex_share,
+    mirror_echo,
+    mirror_floor,
+    two_way,
+)
 
 #: The two-way beams of pairs towards points: (q, T, axT, R, axR).
 Beams = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]
@@ -571,25 +577,7 @@ def nearest_index(values: np.ndarray, queries: np.ndarray) -> np.ndarray:
     return np.where(take_left, order[left], order[right])
 
 
-__all__ = [
-    "BISECTIONS",
-    "HEARD_TOL_M",
-    "PATCH_BIAS_M",
-    "STEP_CELLS",
-    "Beams",
-    "Patch",
-    "Patches",
-    "amplitude_noise",
-    "carrier_points",
-    "clamp_to_silence",
-    "coordinates",
-    "draw_patch",
-    "extents",
-    "flat",
-    "nearest_index",
-    "outward",
-    "patch_of",
-    "spread_patch",
-    "strength_bend",
-    "trusted_reach",
-]
+__all__ = ["BISECTIONS", "HEARD_TOL_M", "PATCH_BIAS_M", "STEP_CELLS", "Beams", "Patch", "Patches",
+           "amplitude_noise", "carrier_points", "clamp_to_silence", "coordinates", "draw_patch",
+           "extents", "flat", "nearest_index", "outward", "patch_of", "spread_patch",
+           "strength_bend", "trusted_reach"]

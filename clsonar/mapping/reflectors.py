@@ -52,9 +52,9 @@ from .families import (
 from .joins import END_AT_VERTEX_M, draw_families
 from .loci import Loci, _subset
 from .models import corner_images, corner_paths, dot2
-from .patches import Patches, amplitude_noise, group_pairs, heard_index, loudest, mirror_echo
+from .patches import Patches, amplitude_noise, group_pairs, heard_index, loudest
 from .starts import MIN_CURVE, family_starts
-from .strength import strongest_echo, two_way
+from .strength import mirror_echo, strongest_echo, two_way
 from .tangents import tangent_map
 from .window import detection_noise
 

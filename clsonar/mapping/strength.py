@@ -94,10 +94,9 @@ def loud_beams(scene: Scene, loci, spare: float) -> np.ndarray | None:
     tangent, is not where that echo came from (the zoo's unseen seed 31 room-19: a wall
     heard at 4.5 units from one pose and, from the next, where a box hid the wall, a
     corner's double bounce 7 cm of range later, put a stretch 10 cm in front of the
-    wall: 0.85 cm RMS). Loci of
-    T ≠ R pairs: 1 (any angle). None where the amplitude cannot tell the angle: threshold
-    detection (a sample, not the echo's peak) or a uniform beam
-    (``transducer.directivity``)."""
+    wall: 0.85 cm RMS). Loci of T ≠ R pairs: 1 (any angle). None where the amplitude
+    cannot tell the angle: threshold detection (a sample, not the echo's peak) or a
+    uniform beam (``transducer.directivity``)."""
     _, ka = scene.transducer.beam(scene.medium.c)
     if scene.detection.mode != "envelope" or ka == 0:
         return None

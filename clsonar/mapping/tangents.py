@@ -25,7 +25,6 @@ from .envelope import (
 from .families import two_way, window_tolerance
 from .loci import Loci, as_loci
 from .models import ellipse_axes
-from .patches import mirror_echo
 from .pillars import (
     MIN_PILLAR_LOCI,
     PILLAR_TOL_M,
@@ -35,7 +34,7 @@ from .pillars import (
     point_reflectors,
 )
 from .points import densified, nonzero_cells
-from .strength import loud_beams
+from .strength import loud_beams, mirror_echo
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).

@@ -62,8 +62,8 @@ def _traced(thin_map: np.ndarray) -> list[np.ndarray]:
     array, the zoo's unseen seed 33 post-03: its loci cross in three cells) are what the
     map has, and a profile of them says more than an empty one. A lone cell (one locus, or
     noise) stays out."""
-    curves = trace_curves(thin_map, MIN_CURVE_CELLS)
-    return curves or trace_curves(thin_map, LEAST_CURVE_CELLS)
+    curves = trace_curves(thin_map, LEAST_CURVE_CELLS)
+    return [c for c in curves if len(c) >= MIN_CURVE_CELLS] or curves
 
 
 def bound_profile(profile: Profile, occupied: np.ndarray, extent: tuple[float, ...],
