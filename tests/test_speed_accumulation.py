@@ -420,7 +420,7 @@ def _envelope_point_arrays(s, i, j, centre, r, d, dr, centred):
     for k in (i, j):
         t = s.pos[s.loci.tx[k]]
         if (np.hypot(*(q - t)) < s.ranges[k] - ENVELOPE_TOL_M
-                or not (in_beams(q, t, s.axes[s.loci.tx[k]], s.cut_sin2)
+                or not (in_beams(q, t, s.axes[s.loci.tx[k]], s.beams[k])
                         or (k == j and centred and straight))):
             return []
     return [(k, centre, r, q) for k in ((i,) if centred else (i, j))]
