@@ -23,6 +23,11 @@ from .scene import Scene
 #: Largest side of a picture, pixels.
 MAX_SIDE = 1400
 
+#: zlib's level for the pictures: its fastest. A map is mostly one colour, so level 6
+#: makes a 1000 × 1000 picture half as large (12 against 25 kB) in three times the time
+#: (17 against 5 ms).
+PNG_LEVEL = 1
+
 #: viridis (matplotlib's default colour map) at 17 evenly spaced values, 8-bit RGB; values
 #: between are interpolated.
 VIRIDIS = np.array([
@@ -109,7 +114,7 @@ def png(rgb: np.ndarray) -> bytes:
 
     header = struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0)  # 8-bit RGB
     return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
-            + chunk(b"IDAT", zlib.compress(rows.tobytes(), 6)) + chunk(b"IEND", b""))
+            + chunk(b"IDAT", zlib.compress(rows.tobytes(), PNG_LEVEL)) + chunk(b"IEND", b""))
 
 
 def map_picture(scene: Scene, geom: Geometry, image: np.ndarray, *,
@@ -127,5 +132,5 @@ def map_picture(scene: Scene, geom: Geometry, image: np.ndarray, *,
     return png(rgb)
 
 
-__all__ = ["MAX_SIDE", "block_max", "colour", "coloured", "map_picture", "png",
+__all__ = ["MAX_SIDE", "PNG_LEVEL", "block_max", "colour", "coloured", "map_picture", "png",
            "to_bytes", "truth_pixels"]
