@@ -55,6 +55,24 @@ def test_a_plane_takes_other_elements_echoes_of_its_face():
     assert widened(dataclasses.replace(family, kind="point"), w, np.arange(3))[1].size == 0
 
 
+def test_a_widened_plane_takes_the_far_echoes_its_refit_predicts():
+    """A family whose own short stretch left its plane 0.1 mrad off: the lone echo 0.6 m
+    along the wall is 0.12 mm off that plane, inside its 0.2 mm tolerance, but those 2.5
+    and 3.1 m along are 0.5 and 0.6 mm off. Widened by the near echo, the plane is
+    refitted to the wall and takes the far ones too; with the near echo missing it takes
+    none."""
+    own = np.array([[0.0, 0.0], [0.0, 0.1], [0.0, 0.2], [0.0, 0.3]])
+    (family,), _ = find_families(_wall_window(own, 0.0, 3.0), 0.0185)
+    off = dataclasses.replace(family, params=np.array([1e-4, 3.0, 0.0]))
+    lone = np.array([[0.0, 0.9], [0.0, 2.8], [0.0, 3.4]])
+    w = dataclasses.replace(_wall_window(lone, 0.0, 3.0), rows=np.array([10, 11, 12]))
+    wide, taken = widened(off, w, np.arange(3))
+    assert taken.tolist() == [0, 1, 2] and len(wide.rows) == 7
+    assert wide.params[0] == pytest.approx(0.0, abs=1e-6)  # the wall, to the fit's steps
+    assert wide.params[1] == pytest.approx(3.0, abs=1e-6)
+    assert widened(off, w, np.array([1, 2]))[1].size == 0
+
+
 def test_a_patch_reaches_a_located_vertex_within_meet_m_of_its_drawn_end():
     """A face whose reflection points start 0.65 m from its located edge, drawn from
     0.47 m (its regions of constant depth), reaches the edge: within MEET_M (0.5 m) of

@@ -422,30 +422,46 @@ def widened(f: Family, w: Window, free: np.ndarray) -> tuple[Family, np.ndarray]
     detections no family explained, every array's) that its plane predicts within their
     tolerance, in front of it and inside both beams, as strong as a mirror's echo there
     (:func:`_inliers`): other elements' echoes of the same face, too few or too far apart
-    to be a family of their own. Refitted to all of its rows, with its bend measured
-    over all of them (:func:`_bend`); ``f`` itself (nothing taken) when it is no plane,
-    takes none, or the refitted plane no longer explains them all."""
-    found = _inliers(w, "plane", f.params, free) if f.kind == "plane" else free[:0]
-    if len(found) == 0:
-        return f, found
+    to be a family of their own. Refitted to all of its rows, then widened again by the
+    refitted plane, until it takes no more (at most :data:`GROW_ROUNDS` rounds, as
+    :func:`_grow`: an echo far along the face, which the family's own short stretch
+    predicts to 0.3 mm, fits once a nearer one has tilted the plane into place — the
+    zoo's seed 39 wall-07); its bend measured over all of them (:func:`_bend`). ``f``
+    itself (nothing taken) when it is no plane or takes none; a round that would give up
+    rows an earlier one took, or whose refitted plane no longer explains all its rows, is
+    not taken."""
+    if f.kind != "plane":
+        return f, free[:0]
+    taken, out = free[:0], f
+    for _ in range(GROW_ROUNDS):
+        found = _inliers(w, "plane", out.params, free)
+        if len(found) <= len(taken) or not np.isin(taken, found).all():
+            break  # nothing more, or it would give up rows it took
+        both = _joined(f, w, found)
+        every = np.arange(len(both.paths))
+        fit = _fit(both, "plane", every, out.params)
+        if len(_inliers(both, "plane", fit.params, every)) < len(every):
+            break
+        noise = detection_noise(both.tolerance)
+        bend = _measured_bend(both, every, {}, {"curve": fit.params}, noise)
+        q = _predict(both, "plane", fit.params, every)[1]
+        out = Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend)
+        taken = found
+    return out, taken
+
+
+def _joined(f: Family, w: Window, found: np.ndarray) -> Window:
+    """The window of ``f``'s rows and the rows ``found`` of ``w``, about their middle."""
     a, b = f.window, f.rows
 
     def cat(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         return np.concatenate([x[b], y[found]])
 
     T, R = cat(a.T, w.T), cat(a.R, w.R)
-    both = replace(w, rows=cat(a.rows, w.rows), T=T, R=R, axT=cat(a.axT, w.axT),
+    return replace(w, rows=cat(a.rows, w.rows), T=T, R=R, axT=cat(a.axT, w.axT),
                    axR=cat(a.axR, w.axR), paths=cat(a.paths, w.paths),
                    amplitude=cat(a.amplitude, w.amplitude),
                    tolerance=cat(a.tolerance, w.tolerance), x0=0.5 * (T + R).mean(axis=0))
-    every = np.arange(len(both.paths))
-    fit = _fit(both, "plane", every, f.params)
-    if len(_inliers(both, "plane", fit.params, every)) < len(every):
-        return f, found[:0]
-    noise = detection_noise(both.tolerance)
-    bend = _measured_bend(both, every, {}, {"curve": fit.params}, noise)
-    q = _predict(both, "plane", fit.params, every)[1]
-    return Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend), found
 
 
 def a_corners_echoes(f: Family, corner: Family) -> bool:
