@@ -476,9 +476,8 @@ def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     return replace(p, lo=min(max(lo, p.lo - reach), p.lo), hi=max(min(hi, p.hi + reach), p.hi))
 
 
-#: A face's outermost echo under this share of its median one, or over the median by
-#: as much, beyond three noise σ (over a mirror's there), has its end within about a
-#: Fresnel zone (:func:`weakened_ends`).
+#: A face's outermost echo under this share of its median one, or over it by as much,
+#: beyond three noise σ (over a mirror's), ends it within a Fresnel zone (:func:`weakened_ends`).
 END_WEAKENING = 0.9
 
 
@@ -490,9 +489,8 @@ def weakened_ends(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.nd
     about a Fresnel zone, √(λ·r/2) (8 cm at 1.5 m; Kouyoumjian & Pathak 1974), after
     rising to 1.17 of it a zone or so before (the edge's diffraction in phase: the zoo's
     seed 45 wall-04, a pair's echo 1.14 of the others' 2–5 cm from a free end, the face
-    drawn 9.7 cm past it; raised only where the surface echoes a mirror's within 5 %: a
-    curved wall's focusing or divergence is its own), so it ends near there. Neither
-    with threshold detection (a sample) or no mirror."""
+    drawn 9.7 cm past it; raised only where the surface echoes a mirror's, steadily),
+    so it ends near there. Neither with threshold detection (a sample) or no mirror."""
     if scene.detection.mode != "envelope" or mirror_echo(scene) <= 0 or len(amplitude) < 3:
         return False, False
     beams = own_beams(p, sensors)
@@ -501,8 +499,10 @@ def weakened_ends(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.nd
     ratio, spread = amplitude / echo, 3.0 * amplitude_noise(scene) / echo
     middle = float(np.median(ratio))
     off = ratio + spread < END_WEAKENING * middle
-    # raised: where a mirror's echo is the surface's within 5 %, either way (κ·r ≤ 0.1)
-    if 0.5 * float(np.median(p.paths)) <= 0.1 * abs(curve_geometry(p.params, p.x0)[1]):
+    # raised: where a mirror's echo is the surface's within 5 % (κ·r ≤ 0.1), and steady
+    low, high = np.percentile(ratio, [10, 90])  # (not a sinusoid's stretch named a plane)
+    if (0.5 * float(np.median(p.paths)) <= 0.1 * abs(curve_geometry(p.params, p.x0)[1])
+            and high - low <= 0.05 * middle + 2.0 * float(np.median(spread))):
         off |= ratio - spread > middle / END_WEAKENING
     return bool(off[int(np.argmin(p.u))]), bool(off[int(np.argmax(p.u))])
 
