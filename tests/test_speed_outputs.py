@@ -212,6 +212,8 @@ def fails(*a, **k):
     raise ValueError("metrics failed")
 if {fail!r}:
     metrics.evaluate = fails
+    import tempfile  # the traceback beside the outputs, not in the machine's /tmp
+    tempfile.tempdir = {os.path.dirname(out)!r}
 code = cli.main(['run', {ROOM!r}, '--out', {out!r}, '-q', '--png', {png!r}])
 print(json.dumps({{"code": code, "started": [w is not None for w in started],
                   "plots": [w.plots for w in started if w], "left": children(),
@@ -242,6 +244,7 @@ def test_a_run_that_fails_with_its_worker_leaves_no_folder_process_or_thread(tmp
     assert found["code"] == 1 and found["started"] == [True]
     assert found["left"] == [] and found["threads"] == 1
     assert not (tmp_path / "out").exists()
+    assert "metrics failed" in next(tmp_path.glob("clsonar-traceback-*.txt")).read_text()
 
 
 def _same_files(a: Path, b: Path) -> None:
