@@ -430,24 +430,28 @@ def widened(f: Family, w: Window, free: np.ndarray) -> tuple[Family, np.ndarray]
     itself (nothing taken) when it is no plane or takes none; a round that would give up
     rows an earlier one took, or whose refitted plane no longer explains all its rows, is
     not taken."""
+    taken = free[:0]
     if f.kind != "plane":
-        return f, free[:0]
-    taken, out = free[:0], f
+        return f, taken
+    kept: tuple[Window, Fit] | None = None  # the last round taken: its window and fit
+    params = f.params
     for _ in range(GROW_ROUNDS):
-        found = _inliers(w, "plane", out.params, free)
+        found = _inliers(w, "plane", params, free)
         if len(found) <= len(taken) or not np.isin(taken, found).all():
             break  # nothing more, or it would give up rows it took
         both = _joined(f, w, found)
         every = np.arange(len(both.paths))
-        fit = _fit(both, "plane", every, out.params)
+        fit = _fit(both, "plane", every, params)
         if len(_inliers(both, "plane", fit.params, every)) < len(every):
             break
-        noise = detection_noise(both.tolerance)
-        bend = _measured_bend(both, every, {}, {"curve": fit.params}, noise)
-        q = _predict(both, "plane", fit.params, every)[1]
-        out = Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend)
-        taken = found
-    return out, taken
+        taken, kept, params = found, (both, fit), fit.params
+    if kept is None:
+        return f, taken
+    both, fit = kept  # its bend and reflection points, of the last round only
+    every = np.arange(len(both.paths))
+    bend = _measured_bend(both, every, {}, {"curve": fit.params}, detection_noise(both.tolerance))
+    q = _predict(both, "plane", fit.params, every)[1]
+    return Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend), taken
 
 
 def _joined(f: Family, w: Window, found: np.ndarray) -> Window:

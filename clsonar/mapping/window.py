@@ -95,15 +95,21 @@ def window_tolerance(amplitude: np.ndarray, noise_std: float, c: float,
     """Path residual each detection may have: :data:`BASE_TOLERANCE_M` plus
     :data:`NOISE_SIGMAS` times its expected path noise, :data:`NOISE_PATH_FACTOR`·c·σ·
     (noise / amplitude)."""
-    sigma = NOISE_PATH_FACTOR * c * pulse_sigma_s * noise_std / np.maximum(amplitude, 1e-6)
-    return BASE_TOLERANCE_M + NOISE_SIGMAS * sigma
+    return _path_tolerance(NOISE_PATH_FACTOR, amplitude, noise_std, c, pulse_sigma_s)
 
 
 def heard_tolerance(amplitude: np.ndarray, noise_std: float, c: float,
                     pulse_sigma_s: float) -> np.ndarray:
     """How far from a path a detection of an echo of ``amplitude`` may be: as
     :func:`window_tolerance`, with the path noise :data:`MEASURED_PATH_FACTOR` measures."""
-    sigma = MEASURED_PATH_FACTOR * c * pulse_sigma_s * noise_std / np.maximum(amplitude, 1e-6)
+    return _path_tolerance(MEASURED_PATH_FACTOR, amplitude, noise_std, c, pulse_sigma_s)
+
+
+def _path_tolerance(factor: float, amplitude: np.ndarray, noise_std: float, c: float,
+                    pulse_sigma_s: float) -> np.ndarray:
+    """:data:`BASE_TOLERANCE_M` plus :data:`NOISE_SIGMAS` times the path noise
+    ``factor``·c·σ·(noise / amplitude)."""
+    sigma = factor * c * pulse_sigma_s * noise_std / np.maximum(amplitude, 1e-6)
     return BASE_TOLERANCE_M + NOISE_SIGMAS * sigma
 
 
