@@ -1,9 +1,8 @@
 """The ``clsonar`` command line (docs/design.md, "Command line — a contract").
 
 - ``clsonar run SCENE.json --out DIR`` runs the whole pipeline and writes report.json,
-  stages.npz, profile.csv, echoes.csv and one PNG per stage into DIR (outputs.py; without
-  matplotlib, everything but the PNGs and one warning line). Each of the run's warnings
-  (report.json's ``warnings``, :mod:`clsonar.checks`) is one line on stderr,
+  stages.npz, profile.csv, echoes.csv and one PNG per stage into DIR (outputs.py). Each of
+  the run's warnings (report.json's ``warnings``, :mod:`clsonar.checks`) is one line on stderr,
   ``clsonar: warning: SCENE.json: TEXT``; the exit status stays 0.
 - ``clsonar reproduce``, ``bench``, ``zoo``, ``sweep``, ``plot`` and ``stress`` run the tools
   of :mod:`clsonar.tools`.
@@ -106,8 +105,7 @@ def _add_run(sub: Subparsers) -> None:
                         "available)")
     p.add_argument("--png", choices=PNG_CHOICES, default="all",
                    help="pictures to write: none; stages (raw, filtered, thin, drawn from "
-                        "the maps); all (and scene.png, profile.png: needs matplotlib). "
-                        "Default: all")
+                        "the maps); all (and scene.png, profile.png). Default: all")
     _quiet_arg(p)
     p.set_defaults(func=_cmd_run)
 
@@ -315,8 +313,6 @@ def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
         paths = outputs.write_outputs(result, args.out, png=args.png, worker=worker,
                                       early=early, extra={
             "cost": cost.record(cost.of_run(result), cost.peak_bytes())})
-    if args.png == "all" and not outputs.plots_available():
-        print(f"clsonar: warning: {outputs.PLOTS_MISSING}", file=sys.stderr)
     for warning in result.warnings:  # report.json's "warnings", also with --quiet
         print(f"clsonar: warning: {args.scene}: {warning}", file=sys.stderr)
     if not args.quiet:

@@ -1,30 +1,29 @@
-"""scene.png and profile.png drawn on another core while the pipeline runs (issue 16).
+"""The run's work that needs no OpenCL done on another core while the pipeline runs
+(issue 16): the placement, scene.png and profile.png.
 
-matplotlib's import (about 0.25 s here) and the two plots (about 0.22 s) are the largest
-part of ``clsonar run --png all`` after the pipeline, which leaves the second core mostly
-idle. :func:`start` forks a worker process before the OpenCL context exists: it imports
-:mod:`clsonar.plots` while the pipeline runs, draws the plots as it is sent them
+The pipeline leaves the second core mostly idle. :func:`start` forks a worker process
+before the OpenCL context exists: it places the transducers (its ``first`` job, while the
+main process imports pyopencl and sets up the device, :meth:`PlotWorker.first`), then
+draws the plots as it is sent them
 (:meth:`PlotWorker.submit`: scene.png once the pipeline has the echoes,
 :class:`clsonar.outputs.EarlyPlots`; profile.png while the main process builds the data
 files and the map pictures), and sends back their PNG bytes (:meth:`PlotWorker.collect`),
 which the main process writes with every other file, as one folder.
 
-Where there are no plots to draw (``--png none`` or ``stages``), a worker does other work of
-the run that needs no OpenCL (:func:`clsonar.outputs.run_worker`): its ``first`` job, the
-placement of the transducers, while the main process imports pyopencl and sets up the device
-(:meth:`PlotWorker.first`), then each function it is sent, the truth the metrics score
-against (:meth:`PlotWorker.call`, :meth:`PlotWorker.value`); the same code on a copy of the
-same process, its answers pickled back: the same bits.
+Where there are no plots to draw (``--png none`` or ``stages``), the worker computes each
+function it is sent after its ``first`` job, the truth the metrics score against
+(:meth:`PlotWorker.call`, :meth:`PlotWorker.value`); the same code on a copy of the same
+process, its answers pickled back: the same bits.
 
-A plot is a :data:`Job`: the name of a :mod:`clsonar.plots` function and its arguments,
-drawn by :func:`draw` in either process, so the worker's bytes are the in-process ones
-(matplotlib's Agg output depends only on its inputs, which are pickled exactly).
+A plot is a :data:`Job`: the name of a :mod:`clsonar.pictures` function and its
+arguments, drawn by :func:`draw` in either process, so the worker's bytes are the
+in-process ones (the pictures depend only on their inputs, which are pickled exactly).
 
 When no worker can help, none is started and the caller draws in process as before: where
 no core is free at the start (:func:`core_free`: on a busy machine a worker takes its time
 from the run); where ``fork`` is not the platform's safe start method (Windows; macOS,
 whose system libraries are not fork-safe; spawning a fresh interpreter would import numpy
-and clsonar again); on one core; without matplotlib; once pyopencl is imported or a Python
+and clsonar again); on one core; once pyopencl is imported or a Python
 thread runs (an OpenCL context starts PoCL's threads: a fork after it could copy a held
 lock). A worker that fails, dies or is silent past its time limit is stopped, and
 ``collect`` answers None: the caller draws in process. The worker never outlives its
@@ -46,10 +45,10 @@ import warnings
 from collections.abc import Callable, Mapping
 from typing import Any
 
-#: One plot to draw: the name of a :mod:`clsonar.plots` function and its arguments.
+#: One plot to draw: the name of a :mod:`clsonar.pictures` function and its arguments.
 Job = tuple[str, tuple[Any, ...]]
 
-#: Seconds the worker is given to import matplotlib and draw, plus this many per million
+#: Seconds the worker is given to place the transducers and draw, plus this many per million
 #: map cells of the largest picture (a floor's profile.png resamples its thin map).
 TIME_LIMIT_S = 60.0
 TIME_PER_MEGACELL_S = 1.0
@@ -58,13 +57,13 @@ _HEADER = struct.Struct("<Q")
 
 
 def draw(jobs: Mapping[str, Job]) -> dict[str, bytes]:
-    """Each job's PNG bytes, drawn in this process, by file name (matplotlib imported
-    only where there is a job)."""
+    """Each job's PNG bytes, drawn in this process, by file name."""
     if not jobs:
         return {}
-    from . import plots
+    from . import pictures
 
-    return {name: getattr(plots, function)(*args) for name, (function, args) in jobs.items()}
+    return {name: getattr(pictures, function)(*args)
+            for name, (function, args) in jobs.items()}
 
 
 #: The largest map a worker is sent (cells; a 50 m square at 1 cm): a larger one is drawn
@@ -124,17 +123,13 @@ def core_free() -> bool:
 
 def start(*, if_busy: bool = False, plots: bool = True,
           first: Callable[[], object] | None = None) -> PlotWorker | None:
-    """A worker process importing :mod:`clsonar.plots` (``plots``, where matplotlib is
-    installed), or None where none can help (:func:`fork_is_safe`, a core free now unless
+    """A worker process drawing the plots (``plots``: :mod:`clsonar.pictures` imported),
+    or None where none can help (:func:`fork_is_safe`, a core free now unless
     ``if_busy``: :func:`core_free`). ``first``: a job the worker runs before anything else,
     on its copy of this process (the fork's), whose value :meth:`PlotWorker.first` answers
     (pickled back): the run's placement while this process sets up the device."""
-    import importlib.util
-
     if not fork_is_safe() or not (if_busy or core_free()):
         return None
-    if plots and importlib.util.find_spec("matplotlib") is None:
-        plots = False
     if not plots and first is None:
         return None
     jobs_r, jobs_w = os.pipe()
@@ -167,13 +162,14 @@ def _serve(jobs_fd: int, done_fd: int, with_plots: bool = True,
            first: Callable[[], object] | None = None
            ) -> None:  # pragma: no cover - runs in the child
     """The worker: run ``first`` and send its value (None where it raised: the main
-    process then runs it itself, and meets the error there); import the plots, say so
-    (with the seconds it took); draw each batch of jobs it is sent as it comes; on
-    ``collect`` send every PNG drawn since the last one (a send only when asked: the main
-    process never waits on a full pipe while it sends). Without ``with_plots``, answer each
-    ``call`` it is sent (a function and its arguments, :meth:`PlotWorker.call`) with the
-    function's value (None where it raised) until the main process closes the pipe. Then
-    exit, whatever happens (``os._exit``: none of the parent's clean-up runs twice)."""
+    process then runs it itself, and meets the error there); with ``with_plots``, import
+    the plots and say so (with the seconds it took). Then, until the main process closes
+    the pipe, answer each ``call`` it is sent (a function and its arguments,
+    :meth:`PlotWorker.call`) with the function's value (None where it raised), draw each
+    batch of jobs it is sent as it comes, and on ``collect`` send every PNG drawn since the
+    last one (a send only when asked: the main process never waits on a full pipe while it
+    sends). Then exit, whatever happens (``os._exit``: none of the parent's clean-up runs
+    twice)."""
     code = 0
     try:
         if first is not None:
@@ -183,28 +179,28 @@ def _serve(jobs_fd: int, done_fd: int, with_plots: bool = True,
             except Exception:  # raised again by the main process's own run
                 value = None
             _send(done_fd, ("first", value, time.perf_counter() - start))
-        if not with_plots:
-            while (message := _receive(jobs_fd, None)) is not None:
-                start = time.perf_counter()
-                try:
-                    function, args = message[1]
-                    value = function(*args)
-                except Exception:  # computed again by the main process
-                    value = None
-                _send(done_fd, ("value", value, time.perf_counter() - start))
-            return
-        start = time.perf_counter()
-        try:
-            from . import plots  # noqa: F401
-        except Exception as e:
-            _send(done_fd, ("error", f"{type(e).__name__}: {e}"))
-            return
-        _send(done_fd, ("ready", time.perf_counter() - start))
+        if with_plots:
+            start = time.perf_counter()
+            try:
+                from . import pictures  # noqa: F401
+            except Exception as e:
+                _send(done_fd, ("error", f"{type(e).__name__}: {e}"))
+                return
+            _send(done_fd, ("ready", time.perf_counter() - start))
         drawn: dict[str, bytes] = {}
         seconds: dict[str, float] = {}
         failed = ""
         while (message := _receive(jobs_fd, None)) is not None:
             what, jobs = message
+            if what == "call":
+                start = time.perf_counter()
+                try:
+                    function, args = jobs
+                    value = function(*args)
+                except Exception:  # computed again by the main process
+                    value = None
+                _send(done_fd, ("value", value, time.perf_counter() - start))
+                continue
             if what == "collect":
                 _send(done_fd, ("error", failed) if failed else ("done", drawn, seconds))
                 drawn, seconds, failed = {}, {}, ""
@@ -318,7 +314,7 @@ class PlotWorker:
             self.seconds["first job"] = message[2]
         elif isinstance(message, tuple) and message[0] == "ready" and self.plots:
             self._ready = True
-            self.seconds["matplotlib import"] = message[1]
+            self.seconds["pictures import"] = message[1]
         elif isinstance(message, tuple) and message[0] == "value" and self._calls:
             self._values.append(message[1])
             self.seconds[self._calls[len(self._values) - 1]] = message[2]
@@ -350,7 +346,9 @@ class PlotWorker:
     def call(self, function: Callable[..., object], *args: object) -> bool:
         """Have a worker without plots compute ``function(*args)`` (a module's function:
         pickled by name, with its arguments), answered by :meth:`value`, while this process
-        goes on; False where it cannot be sent (a worker that draws, or stopped)."""
+        goes on; False where it cannot be sent (a worker that draws, or stopped). Not
+        beside plots: its value, sent when computed, could fill the pipe while this process
+        sends a plot's job (both would wait, until the time limit)."""
         if self.plots or self._jobs_fd is None:
             return False
         self._calls.append(f"{function.__module__}.{function.__qualname__}")

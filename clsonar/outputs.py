@@ -9,12 +9,10 @@ per stage with the true geometry drawn over it (``--png``,
 is written as one folder (:func:`clsonar.files.write_folder`): a run's outputs appear whole
 or not at all, and two runs writing the same DIR leave one run's outputs, never a mix.
 
-The map stages' PNGs are drawn straight from the arrays (:mod:`clsonar.pictures`); the
-scene and profile plots need matplotlib (``clsonar[plots]``): :mod:`clsonar.plots` is
-imported only when they are drawn, so every other output is written without it
-(:func:`plots_available`). ``clsonar run`` has them drawn by a worker process on a free
-core while the pipeline runs (:func:`plot_worker`, :mod:`clsonar.drawing`): the same
-bytes.
+Every PNG is drawn straight from the arrays (:mod:`clsonar.pictures`, no matplotlib).
+``clsonar run`` has scene.png and profile.png drawn by a worker process on a free core
+while the pipeline runs (:func:`run_worker`, :mod:`clsonar.drawing`): the same bytes.
+matplotlib (``clsonar[plots]``) draws only the tools' figures (:func:`require_plots`).
 """
 
 from __future__ import annotations
@@ -49,15 +47,12 @@ PNG_NAMES = (*MAP_PNG_NAMES, "scene.png", "profile.png")
 #: replaced whole by the next run's.
 OUTPUT_NAMES = frozenset(DATA_NAMES + PNG_NAMES)
 
-#: How to install what the pictures need.
+#: How to install what the tools' figures need.
 PLOTS_INSTALL = "pip install 'clsonar[plots]'"
-#: ``clsonar run``'s warning where scene.png and profile.png cannot be drawn.
-PLOTS_MISSING = ("matplotlib is not installed: scene.png and profile.png not written "
-                 f"({PLOTS_INSTALL})")
 
 
 def plots_available() -> bool:
-    """Whether matplotlib, which every PNG needs, is installed."""
+    """Whether matplotlib, which the tools' figures need, is installed."""
     return importlib.util.find_spec("matplotlib") is not None
 
 
@@ -173,7 +168,7 @@ def scene_job(scene: Scene, geometry: Geometry, sensors: SensorArray,
 
 def plot_jobs(result: RunResult) -> dict[str, Job]:
     """scene.png and profile.png of ``result`` as :data:`~clsonar.drawing.Job` s (a
-    :mod:`clsonar.plots` function and its arguments), drawn in process or by a worker."""
+    :mod:`clsonar.pictures` function and its arguments), drawn in process or by a worker."""
     s, g = result.scene, result.geometry
     return {"scene.png": scene_job(result.asked or s, g, result.sensors, result.echoes),
             "profile.png": ("profile_png", (s, g, result.thin, profile_title(result),
@@ -186,27 +181,16 @@ def profile_png(result: RunResult) -> bytes:
     return draw({"profile.png": plot_jobs(result)["profile.png"]})["profile.png"]
 
 
-def plot_worker(png: str, *, if_busy: bool = False) -> PlotWorker | None:
-    """A worker drawing scene.png and profile.png on another core (:mod:`clsonar.drawing`)
-    where ``png`` asks for them and one can help (a core free now, unless ``if_busy``);
-    start it before the run's OpenCL context exists, close it on every exit path (a
-    context manager)."""
-    return drawing.start(if_busy=if_busy) if png == "all" else None
-
-
 def run_worker(png: str, scene: Scene, preset: str | None, skips: Skips, *,
                if_busy: bool = False) -> PlotWorker | None:
     """The worker of one ``clsonar run`` of ``scene`` (:mod:`clsonar.drawing`), where one
-    can help (a core free now, unless ``if_busy``): where ``png`` asks for scene.png and
-    profile.png, the plots' worker (:func:`plot_worker`); else one that places the
-    transducers (the sensors stage, :func:`placement`: ``pipeline.run``'s ``placement`` is
-    its :meth:`~clsonar.drawing.PlotWorker.first`) while this process imports pyopencl
-    and sets up the device. (Not both: the plots' worker, importing matplotlib and drawing
-    0.5 s, is the longer of the two processes already.) Start it before the run's OpenCL
+    can help (a core free now, unless ``if_busy``): it places the transducers (the sensors
+    stage, :func:`placement`: ``pipeline.run``'s ``placement`` is its
+    :meth:`~clsonar.drawing.PlotWorker.first`) while this process imports pyopencl and
+    sets up the device; then, where ``png`` asks for scene.png and profile.png, draws them
+    (``plots``), else scores the truth the metrics read. Start it before the run's OpenCL
     context exists, close it on every exit path (a context manager)."""
-    if png == "all":
-        return plot_worker(png, if_busy=if_busy)
-    return drawing.start(if_busy=if_busy, plots=False,
+    return drawing.start(if_busy=if_busy, plots=png == "all",
                          first=lambda: placement(scene, preset, skips))
 
 
@@ -295,7 +279,7 @@ class EarlyFiles:
     whole by :func:`write_outputs`, or not at all. A context manager: a run that fails
     waits for the thread, so none outlives the command.
 
-    Not beside a ``worker`` that draws the plots (:func:`plot_worker`): there the files
+    Not beside a ``worker`` that draws the plots (:func:`run_worker`): there the files
     are built after the run, while that worker draws profile.png, which keeps both cores
     busy; during the run the thread would take a core from this process or the worker,
     and one would idle at the end."""
@@ -348,9 +332,9 @@ class EarlyFiles:
 
 def stage_pngs(result: RunResult, png: str = "all") -> dict[str, bytes]:
     """The PNGs of ``result`` that ``png`` (:data:`~clsonar.files.PNG_CHOICES`) asks
-    for, by file name; scene.png and profile.png only where matplotlib is installed."""
+    for, by file name."""
     out = map_pngs(result, png)
-    if png == "all" and plots_available():
+    if png == "all":
         out.update(draw(plot_jobs(result)))
     return out
 
@@ -376,7 +360,7 @@ def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
                   early: EarlyFiles | None = None) -> list[Path]:
     """Write every output of ``result`` into folder ``out``, with the PNGs ``png`` asks
     for (:func:`stage_pngs`) and ``extra`` keys in report.json; returns the paths
-    written. A ``worker`` (:func:`plot_worker`) draws scene.png and profile.png while
+    written. A ``worker`` (:func:`run_worker`) draws scene.png and profile.png while
     this process builds the other files (a map above :data:`~clsonar.drawing.MAX_CELLS`
     is drawn here); where it fails they are drawn here, the same bytes. ``early``: the
     files :class:`EarlyFiles` built during the run (the same bytes as building them here).
@@ -388,7 +372,7 @@ def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
     half-written is left.
     """
     path = check_out(out)
-    jobs = plot_jobs(result) if png == "all" and plots_available() else {}
+    jobs = plot_jobs(result) if png == "all" else {}
     worker = worker if worker is not None and worker.plots else None
     if worker is not None:
         worker.submit({name: job for name, job in jobs.items()

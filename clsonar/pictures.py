@@ -1,11 +1,14 @@
-"""The map stages' pictures (raw.png, filtered.png, thin.png) drawn straight from the arrays:
-a colour map of the cells, the true surfaces in red over it, encoded as PNG with zlib —
-no figure, no axes, no matplotlib (issue 16: outputs that cost little).
+"""A run's pictures drawn straight from its arrays, encoded as PNG with zlib — no
+matplotlib (issue 16: outputs that cost little).
 
-A picture has one pixel per map cell, or per block of cells on a map wider than
-:data:`MAX_SIDE` (each block shows its largest value, so one-cell arcs stay visible). North
-is up: the map's row 0 (its lowest y) is the picture's last row. The plots where axes and
-legends matter (scene.png, profile.png) stay in :mod:`clsonar.plots`.
+The map stages (raw.png, filtered.png, thin.png): a colour map of the cells, the true
+surfaces in red over it. A picture has one pixel per map cell, or per block of cells on a
+map wider than :data:`MAX_SIDE` (each block shows its largest value, so one-cell arcs stay
+visible). North is up: the map's row 0 (its lowest y) is the picture's last row.
+
+The plots with axes (scene.png, profile.png, :func:`scene_png`, :func:`profile_png`): the
+extent in metres at equal scale, ticks, labels, a title and a legend, drawn by
+:mod:`clsonar.canvas` as matplotlib drew them before.
 """
 
 from __future__ import annotations
@@ -13,12 +16,18 @@ from __future__ import annotations
 import math
 import struct
 import zlib
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .geometry import Geometry
+from .canvas import DPI, Axes, Canvas, Entry, legend
+from .geometry import Geometry, curve_point, true_vertices
 from .metrics import truth_points
-from .scene import Scene
+from .scene import PerWall, Scene, WallFollowing
+
+if TYPE_CHECKING:
+    from .post import Profile
+    from .sensors import SensorArray
 
 #: Largest side of a picture, pixels.
 MAX_SIDE = 1400
@@ -132,5 +141,135 @@ def map_picture(scene: Scene, geom: Geometry, image: np.ndarray, *,
     return png(rgb)
 
 
-__all__ = ["MAX_SIDE", "PNG_LEVEL", "block_max", "colour", "coloured", "map_picture", "png",
-           "to_bytes", "truth_pixels"]
+#: The plots' size (7.5 × 7 in) and where their axes may lie (shares of it); below the
+#: axes, room for the tick labels and the x label, then the legend's row.
+FIGURE_IN = (7.5, 7.0)
+PLOT_FRAME = {"left": 0.1, "right": 0.97, "bottom": 0.1, "top": 0.95}
+LABELS_BELOW = 0.062
+LEGEND_ROW = 0.035
+
+#: Most pixels along either side of a map shown in a plot (its axes are about 800 wide).
+MAP_PIXELS = 700
+
+
+def _plot(scene: Scene) -> tuple[Canvas, Axes]:
+    """A white plot whose axes span the scene's extent in metres at equal scale."""
+    canvas = Canvas(round(FIGURE_IN[0] * DPI), round(FIGURE_IN[1] * DPI))
+    return canvas, Axes.fit(canvas, scene.extent, PLOT_FRAME)
+
+
+def _finish(canvas: Canvas, axes: Axes, title: str, entries: list[Entry]) -> bytes:
+    """The plot's frame, labels, title and legend (below the axes), as PNG bytes."""
+    axes.frame(canvas, "x (m)", "y (m)", title)
+    bottom = (axes.top + axes.height) / canvas.height
+    top = max(bottom + LABELS_BELOW, 1.0 - LEGEND_ROW)
+    legend(canvas, entries, axes.left + 0.5 * axes.width,
+           min(top, 1.0 - LEGEND_ROW) * canvas.height)
+    return png(canvas.rgb)
+
+
+def truth_lines(geom: Geometry) -> np.ndarray:
+    """[n, 2, 2] segments (metres) tracing every true surface: walls, circles by 360
+    chords, curves by 2000."""
+    parts = [geom.walls.reshape(-1, 2, 2)]
+    for cx, cy, r in geom.circles:
+        a = np.linspace(0.0, 2.0 * np.pi, 361)
+        parts.append(_chords(np.stack([cx + r * np.cos(a), cy + r * np.sin(a)], axis=1)))
+    for k, curve in enumerate(geom.curves):
+        s = geom.interval_s[geom.interval_curve == k]
+        parts.append(_chords(curve_point(curve, np.linspace(s[0, 0], s[-1, 1], 2000))))
+    return np.concatenate(parts)
+
+
+def _chords(points: np.ndarray) -> np.ndarray:
+    return np.stack([points[:-1], points[1:]], axis=1)
+
+
+def _truth(canvas: Canvas, axes: Axes, geom: Geometry) -> None:
+    """The true surfaces in red (0.8 pt, 80 %)."""
+    seg = truth_lines(geom)
+    canvas.lines(axes.pixels(seg[:, 0]), axes.pixels(seg[:, 1]), "tab:red", 0.8, 0.8, axes.clip)
+
+
+def _poses(canvas: Canvas, axes: Axes, scene: Scene, poses: np.ndarray, light: bool
+           ) -> list[Entry]:
+    """The placement's poses: ring centres joined along their path (wall-following,
+    closed; circular), or the centres of the per-wall arrays as separate squares; the
+    legend's entry."""
+    if not len(poses):
+        return []
+    alpha = 0.4 if light else 1.0
+    if isinstance(scene.sensors.placement, PerWall):
+        axes.markers(canvas, poses, "s", "tab:green", 4.0, alpha=alpha)
+        return [Entry("array centres", "tab:green", "s", 4.0, alpha=alpha)]
+    if isinstance(scene.sensors.placement, WallFollowing):
+        poses = np.concatenate([poses, poses[:1]])  # the path closes on its start
+    axes.polyline(canvas, poses, "tab:green", 0.6, alpha)
+    axes.markers(canvas, poses, "disc", "tab:green", 3.0, alpha=alpha)
+    return [Entry("ring poses", "tab:green", "disc", 3.0, line_pt=0.6, alpha=alpha)]
+
+
+def scene_png(scene: Scene, geom: Geometry, sensors: SensorArray,
+              echo_points: np.ndarray) -> bytes:
+    """scene.png: the true geometry, the transducers with short axis ticks, the
+    placement's poses (ring poses or array centres) and the reflection points of all
+    echoes."""
+    canvas, axes = _plot(scene)
+    _truth(canvas, axes, geom)
+    tick = 0.02 * max(scene.extent[2] - scene.extent[0], scene.extent[3] - scene.extent[1])
+    canvas.lines(axes.pixels(sensors.positions),
+                 axes.pixels(sensors.positions + tick * sensors.axes), "tab:blue", 0.5,
+                 clip=axes.clip)
+    entries = _poses(canvas, axes, scene, sensors.poses, light=False)
+    if len(echo_points):
+        axes.markers(canvas, echo_points, "x", "tab:orange", 3.0)
+        entries.append(Entry("reflection points", "tab:orange", "x", 3.0))
+    return _finish(canvas, axes, f"{scene.name}: {len(sensors)} transducers, "
+                   f"{len(echo_points)} echoes", entries)
+
+
+def _map_image(canvas: Canvas, axes: Axes, scene: Scene, image: np.ndarray) -> None:
+    """A binary map (``[iy, ix]``) in black on white over the axes' box, shown by blocks
+    of at most :data:`MAP_PIXELS` a side (:func:`block_max`), each pixel the block under
+    its centre."""
+    block = max(1, math.ceil(max(image.shape) / MAP_PIXELS))
+    ny, nx = image.shape
+    on = np.pad(image > 0, ((0, -ny % block), (0, -nx % block)))
+    shown = np.asarray(on.reshape(on.shape[0] // block, block, -1, block).any(axis=(1, 3)))
+    r0, c0, r1, c1 = axes.clip
+    size = block * scene.cell * axes.scale  # pixels a block
+    bx = np.floor((np.arange(c0, c1) + 0.5 - axes.left) / size).astype(np.int64)
+    by = np.floor((axes.top + axes.height - np.arange(r0, r1) - 0.5) / size).astype(np.int64)
+    ok_x = (bx >= 0) & (bx < shown.shape[1])
+    ok_y = (by >= 0) & (by < shown.shape[0])
+    on = np.zeros((r1 - r0, c1 - c0), dtype=bool)
+    on[np.ix_(ok_y, ok_x)] = shown[np.ix_(by[ok_y], bx[ok_x])]
+    canvas.rgb[r0:r1, c0:c1][on] = 0.0
+
+
+def profile_png(scene: Scene, geom: Geometry, image: np.ndarray, title: str,
+                profile: Profile, sensors: SensorArray) -> bytes:
+    """profile.png: the thinned map with the profile (``post.Profile``) in black, its
+    corners and edges as red crosses, the true ones as grey rings, the true surfaces in
+    red and the sensors drawn lightly."""
+    canvas, axes = _plot(scene)
+    _map_image(canvas, axes, scene, np.asarray(image))
+    _truth(canvas, axes, geom)
+    if len(sensors):
+        axes.markers(canvas, sensors.positions, "disc", "tab:blue", 1.5, alpha=0.5)
+    entries = _poses(canvas, axes, scene, sensors.poses, light=True)
+    if len(profile.points):
+        axes.markers(canvas, profile.points, "disc", "black", 1.5)
+    truth = true_vertices(geom)
+    if len(truth):
+        axes.markers(canvas, truth, "o", "grey", 5.0, 0.8)
+        entries.append(Entry("true corners and edges", "grey", "o", 5.0, 0.8))
+    if len(profile.vertices):
+        axes.markers(canvas, profile.vertices, "x", "red", 6.0, 1.2)
+        entries.append(Entry("corners and edges", "red", "x", 6.0, 1.2))
+    return _finish(canvas, axes, title, entries)
+
+
+__all__ = ["MAP_PIXELS", "MAX_SIDE", "PNG_LEVEL", "block_max", "colour", "coloured",
+           "map_picture", "png", "profile_png", "scene_png", "to_bytes", "truth_lines",
+           "truth_pixels"]

@@ -61,10 +61,10 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
 
     The worker runs as the command's does on an idle machine (:mod:`clsonar.drawing`,
     started even where the machine is busy; ``worker=False`` or none available: its work
-    done here): with ``--png all`` it draws the plots, else it places the transducers and
-    scores the truth. Its fork is a phase, and so is the wait for its PNGs
-    once every other file is built; its own seconds (importing matplotlib, drawing each
-    plot, while the phases run) are returned too, named ``worker: ...``, not phases."""
+    done here): it places the transducers, then with ``--png all`` draws the plots, else
+    scores the truth. Its fork is a phase, and so is the wait for its PNGs once every other
+    file is built; its own seconds (placing, drawing each plot, while the phases run) are
+    returned too, named ``worker: ...``, not phases."""
     clock = _Clock()
     from .. import cli  # noqa: F401  (what the command line imports to start)
 
@@ -118,9 +118,9 @@ def _run_and_write(scene, png: str, out: str, helper, clock: _Clock) -> dict[str
         files.update(drawn)
         clock.mark("scene.png, profile.png: waiting for the worker")
     elif jobs:
-        from .. import plots  # noqa: F401  (its import is a phase of its own)
+        from .. import pictures  # noqa: F401  (its import is a phase of its own)
 
-        clock.mark("matplotlib import")
+        clock.mark("pictures import")
         for name, job in jobs.items():
             files.update(outputs.draw({name: job}))
             clock.mark(name)
