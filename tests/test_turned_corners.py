@@ -9,7 +9,7 @@ import math
 from types import SimpleNamespace
 
 import numpy as np
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from clsonar.mapping import models
@@ -36,6 +36,7 @@ def _arrays(V: np.ndarray, distance: float, bearings: list[float], n: int,
        distance=st.floats(min_value=2.0, max_value=8.0),
        stray=st.floats(min_value=0.1, max_value=1.0),
        seed=st.integers(min_value=0, max_value=2**16))
+@example(gamma=95.5, distance=4.0, stray=0.4453125, seed=0)  # a first fit that did not turn
 def test_a_turned_start_is_the_corner_without_another_reflectors_echo(gamma, distance, stray,
                                                                       seed):
     """A seed's rows: the double bounces of a corner of 80–100° (not within 2° of square)

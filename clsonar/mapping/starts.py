@@ -85,7 +85,8 @@ def turned_start(w: Window, start: np.ndarray, rows: np.ndarray, tolerance: np.n
     of at least :data:`MIN_CURVE` of ``rows`` to within :data:`START_TOLERANCE_M` plus its
     ``tolerance`` [len(rows)], fitted from the right-angled corner's ``start`` (V) and
     dropping the row it fits worst until it does, at most :data:`TURN_DROPS` of them (a
-    seed's rows hold other reflectors' echoes); None if none does. For a corner the right
+    seed's rows hold other reflectors' echoes; one far off can keep the fit from turning
+    at all, β = 0: dropped too); None if none does. For a corner the right
     angle misses by more than a start's tolerance: the double bounce turns R's image by
     π − β about V, so no locus of the right angle's crosses at V, and no right-angled
     corner grew from its rows (the zoo's seed 4 corner-07: an 85° corner 3.6 m from seven
@@ -97,9 +98,10 @@ def turned_start(w: Window, start: np.ndarray, rows: np.ndarray, tolerance: np.n
         right = fit_corner(T, R, paths, start[:2], turn=False)
         turned = fit_corner(T, R, paths, right.params).params
         off = np.abs(corner_paths(turned, T, R)[0] - paths)
-        if turned[2] == 0.0 or not np.all(np.isfinite(off)):
+        if not np.all(np.isfinite(off)):
             return None
-        if np.all(off <= START_TOLERANCE_M + tolerance[keep]):
+        # a fit that did not turn (its rows held another reflector's, far off) drops one
+        if turned[2] != 0.0 and np.all(off <= START_TOLERANCE_M + tolerance[keep]):
             return turned
         keep = np.delete(keep, int(np.argmax(off - tolerance[keep])))
     return None
