@@ -15,6 +15,7 @@ with y down; an :class:`Axes` maps metres onto them, north up.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from functools import cache
 from importlib import resources
@@ -42,9 +43,10 @@ def _segment_distance(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray
                       ) -> np.ndarray:
     """Distance from points ``(x, y)`` to the segments ``a`` → ``b`` ([..., 2] each)."""
     d = b - a
-    dd = np.maximum(np.einsum("...i,...i->...", d, d), 1e-12)
-    t = np.clip(((x - a[..., 0]) * d[..., 0] + (y - a[..., 1]) * d[..., 1]) / dd, 0.0, 1.0)
-    return np.hypot(x - a[..., 0] - t * d[..., 0], y - a[..., 1] - t * d[..., 1])
+    dd = np.maximum(d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1], 1e-12)
+    x, y = x - a[..., 0], y - a[..., 1]
+    t = np.clip((x * d[..., 0] + y * d[..., 1]) / dd, 0.0, 1.0)
+    return np.hypot(x - t * d[..., 0], y - t * d[..., 1])
 
 
 def cover(distance: np.ndarray, half_width: float) -> np.ndarray:
@@ -58,26 +60,48 @@ def cover(distance: np.ndarray, half_width: float) -> np.ndarray:
 def segment_pixels(a: np.ndarray, b: np.ndarray, width: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(rows, cols, share)`` of the pixels the segments ``a`` → ``b`` ([n, 2] pixel
-    coordinates) cover at ``width`` pixels: the pixels around points a pixel apart along
-    each (far enough around to reach every pixel the stroke touches), with their
-    distance to the segment itself."""
+    coordinates) cover at ``width`` pixels, by scanlines: along each segment's major axis
+    (x, or y where it is steeper than 45°), every pixel line whose centre lies within
+    reach of the stroke, and across it the pixels within E·√2 of the segment there (E the
+    stroke's half width plus the pixel of falling share: across a line at most 45° off
+    the axis its band is E/cos ≤ E·√2 high, and its round caps no higher), each share
+    from the distance of the pixel's centre to the segment itself."""
+    a = np.asarray(a, dtype=np.float64).reshape(-1, 2)
+    b = np.asarray(b, dtype=np.float64).reshape(-1, 2)
     if len(a) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
-    length = np.hypot(*(b - a).T)
-    count = np.ceil(length).astype(np.int64) + 1
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32)
+    reach = max(0.5 * width, 0.5) + 0.5  # no share beyond this from the middle line
+    steep = np.abs(b[:, 1] - a[:, 1]) > np.abs(b[:, 0] - a[:, 0])
+    au, av = np.where(steep, a[:, 1], a[:, 0]), np.where(steep, a[:, 0], a[:, 1])
+    bu, bv = np.where(steep, b[:, 1], b[:, 0]), np.where(steep, b[:, 0], b[:, 1])
+    first = np.ceil(np.minimum(au, bu) - reach - 0.5).astype(np.int64)
+    count = np.maximum(np.floor(np.maximum(au, bu) + reach - 0.5).astype(np.int64) - first + 1, 0)
     seg = np.repeat(np.arange(len(a)), count)
-    t = (np.arange(len(seg)) - np.repeat(np.cumsum(count) - count, count)) / np.repeat(
-        np.maximum(count - 1, 1), count)
-    p = a[seg] + t[:, None] * (b - a)[seg]
-    r = math.ceil(0.5 * width + 1.5)
-    off = np.arange(-r, r + 1)
-    cols = (np.floor(p[:, 0])[:, None, None] + off[None, None, :]).astype(np.int64)
-    rows = (np.floor(p[:, 1])[:, None, None] + off[None, :, None]).astype(np.int64)
-    cols, rows = np.broadcast_arrays(cols, rows)
-    d = _segment_distance(cols + 0.5, rows + 0.5, a[seg][:, None, None], b[seg][:, None, None])
+    line = first[seg] + np.arange(len(seg)) - np.repeat(np.cumsum(count) - count, count)
+    du = bu - au
+    t = np.clip((line + 0.5 - au[seg]) / np.where(du == 0, 1.0, du)[seg], 0.0, 1.0)
+    band = reach * math.sqrt(2.0)
+    low = np.floor(av[seg] + t * (bv - av)[seg] - band).astype(np.int64)
+    across = low[:, None] + np.arange(math.ceil(2.0 * band + 1.5))[None, :]
+    along = np.broadcast_to(line[:, None], across.shape)
+    steep_k = steep[seg][:, None]
+    rows = np.where(steep_k, along, across)
+    cols = np.where(steep_k, across, along)
+    # in float32 about the segment's start (pixel coordinates: a few thousand at most)
+    start = a[seg].astype(np.float32)[:, None]
+    d = _segment_distance((cols + 0.5).astype(np.float32) - start[..., 0],
+                          (rows + 0.5).astype(np.float32) - start[..., 1], np.zeros(2, np.float32),
+                          (b - a)[seg].astype(np.float32)[:, None])
     share = cover(d, 0.5 * width)
     keep = share > 0
     return rows[keep], cols[keep], share[keep]
+
+
+def marker_reach(size: float, width: float) -> int:
+    """How many pixels around the pixel of a marker's centre hold every pixel it covers:
+    its strokes reach half its size, half their width and the pixel of falling share
+    from the centre along either axis (a cross's corners), plus half a pixel."""
+    return math.ceil(0.5 * size + max(0.5 * width, 0.5) + 1.0)
 
 
 def marker_pixels(centres: np.ndarray, marker: str, size: float, width: float
@@ -85,18 +109,18 @@ def marker_pixels(centres: np.ndarray, marker: str, size: float, width: float
     """``(rows, cols, share)`` of markers at ``centres`` ([n, 2] pixels), ``size`` pixels
     across: ``"x"`` (a cross of strokes ``width`` wide), ``"o"`` (a ring), ``"disc"``,
     ``"s"`` (a filled square)."""
-    r = math.ceil(0.5 * size + width + 1.0)
+    r = marker_reach(size, width)
     off = np.arange(-r, r + 1)
     cols = np.floor(centres[:, 0])[:, None, None] + off[None, None, :]
     rows = np.floor(centres[:, 1])[:, None, None] + off[None, :, None]
     cols, rows = np.broadcast_arrays(cols, rows)
-    dx = cols + 0.5 - centres[:, 0, None, None]
-    dy = rows + 0.5 - centres[:, 1, None, None]
-    h = 0.5 * size
+    dx = (cols + 0.5 - centres[:, 0, None, None]).astype(np.float32)
+    dy = (rows + 0.5 - centres[:, 1, None, None]).astype(np.float32)
+    h = np.float32(0.5 * size)
     if marker == "x":
-        arm = h
-        d = np.minimum(_segment_distance(dx, dy, np.array([-arm, -arm]), np.array([arm, arm])),
-                       _segment_distance(dx, dy, np.array([-arm, arm]), np.array([arm, -arm])))
+        ends = np.array([[-h, -h], [h, h], [-h, h], [h, -h]], dtype=np.float32)
+        d = np.minimum(_segment_distance(dx, dy, ends[0], ends[1]),
+                       _segment_distance(dx, dy, ends[2], ends[3]))
         share = cover(d, 0.5 * width)
     elif marker == "o":
         share = cover(np.abs(np.hypot(dx, dy) - h), 0.5 * width)
@@ -148,6 +172,41 @@ def text_alpha(text: str, size: str = "normal") -> tuple[np.ndarray, int, float]
     return out, f.baseline, float(pens[-1])
 
 
+#: The most pixels one part of an artist looks at (:meth:`Canvas.lines`,
+#: :meth:`Canvas.markers`): its working arrays, about 50 bytes a pixel, stay near 50 MB
+#: whatever the number of segments or markers (a floor's 10⁵ transducers and echoes).
+PART_PIXELS = 1 << 20
+
+#: Markers are drawn at their centres rounded to this fraction of a pixel, each place once
+#: (a floor's echoes fall on the same reflection points thousands of times).
+MARKER_GRID = 8.0
+
+
+def distinct_rows(a: np.ndarray) -> np.ndarray:
+    """The distinct rows of ``a`` [n, 2] (integral values), sorted."""
+    if len(a) < 2:
+        return a.reshape(-1, 2)
+    order = np.lexsort((a[:, 1], a[:, 0]))
+    a = a[order]
+    new = np.r_[True, np.any(a[1:] != a[:-1], axis=1)]
+    return a[new]
+
+
+#: The ``(rows, cols, share)`` of the pixels a stroke or marker covers.
+Pixels = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def _parts(counts: np.ndarray, most: int) -> Iterator[slice]:
+    """Consecutive slices of items whose ``counts`` add up to at most ``most`` each (an item
+    alone where its own count is more)."""
+    ends = np.cumsum(counts)
+    start, done = 0, 0
+    while start < len(ends):
+        stop = max(int(np.searchsorted(ends, done + max(most, 1), side="right")), start + 1)
+        yield slice(start, stop)
+        done, start = int(ends[stop - 1]), stop
+
+
 class Canvas:
     """An RGB picture ``width`` × ``height`` pixels, white, drawn on by blending."""
 
@@ -156,17 +215,25 @@ class Canvas:
         self.rgb = np.full((height, width, 3), 255.0, dtype=np.float32)
         self._share = np.zeros(width * height, dtype=np.float32)  # zero between paints
 
-    def paint(self, rows: np.ndarray, cols: np.ndarray, share: np.ndarray, colour: str,
-              alpha: float = 1.0, clip: tuple[int, int, int, int] | None = None) -> None:
-        """Blend ``colour`` over the pixels ``(rows, cols)`` at ``alpha`` × their largest
-        ``share`` (within ``clip`` = (row0, col0, row1, col1), else the picture)."""
+    def paint(self, parts: Iterable[Pixels], colour: str, alpha: float = 1.0,
+              clip: tuple[int, int, int, int] | None = None) -> None:
+        """Blend ``colour`` over the pixels ``(rows, cols, share)`` of every part (one
+        artist) at ``alpha`` × the largest share any part gives each (within ``clip`` =
+        (row0, col0, row1, col1), else the picture)."""
         r0, c0, r1, c1 = clip or (0, 0, self.height, self.width)
-        inside = (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
-        flat = rows[inside] * self.width + cols[inside]
-        if len(flat) == 0:
+        low, high = self.height, -1  # the rows touched
+        for rows, cols, share in parts:
+            inside = (rows >= r0) & (rows < r1) & (cols >= c0) & (cols < c1)
+            if not inside.any():
+                continue
+            kept = rows[inside]
+            np.maximum.at(self._share, kept * self.width + cols[inside],  # the largest share
+                          share[inside].astype(np.float32))
+            low, high = min(low, int(kept.min())), max(high, int(kept.max()))
+        if high < 0:
             return
-        np.maximum.at(self._share, flat, share[inside])  # each pixel's largest share
-        flat = np.unique(flat)
+        flat = low * self.width + np.flatnonzero(
+            self._share[low * self.width:(high + 1) * self.width])
         a = alpha * self._share[flat][:, None]
         self._share[flat] = 0.0
         pixels = self.rgb.reshape(-1, 3)
@@ -174,16 +241,46 @@ class Canvas:
 
     def lines(self, a: np.ndarray, b: np.ndarray, colour: str, width_pt: float,
               alpha: float = 1.0, clip: tuple[int, int, int, int] | None = None) -> None:
-        """Segments ``a`` → ``b`` (pixels), ``width_pt`` wide, as one artist."""
-        self.paint(*segment_pixels(a, b, px(width_pt)), colour, alpha, clip)
+        """Segments ``a`` → ``b`` (pixels), ``width_pt`` wide, as one artist (in parts of
+        at most :data:`PART_PIXELS` pixels to look at)."""
+        width = px(width_pt)
+        reach = max(0.5 * width, 0.5) + 0.5
+        across = math.ceil(2.0 * reach * math.sqrt(2.0) + 1.5)
+        lines = np.ceil(np.maximum(np.abs(b[:, 0] - a[:, 0]), np.abs(b[:, 1] - a[:, 1]))
+                        + 2 * reach + 1).astype(np.int64)
+        self.paint((segment_pixels(a[part], b[part], width)
+                    for part in _parts(lines, PART_PIXELS // across)), colour, alpha, clip)
 
     def markers(self, centres: np.ndarray, marker: str, colour: str, size_pt: float,
                 width_pt: float = 1.0, alpha: float = 1.0,
                 clip: tuple[int, int, int, int] | None = None) -> None:
-        """Markers at ``centres`` (pixels): :func:`marker_pixels`."""
-        if len(centres):
-            self.paint(*marker_pixels(centres, marker, px(size_pt), px(width_pt)), colour,
-                       alpha, clip)
+        """Markers at ``centres`` (pixels), as one artist: each centre rounded to
+        1/:data:`MARKER_GRID` of a pixel, each place once, stamped with its fraction's
+        :func:`marker_pixels` (computed once a fraction) in parts of at most
+        :data:`PART_PIXELS` pixels."""
+        size, width = px(size_pt), px(width_pt)
+        grid = distinct_rows(np.round(np.asarray(centres, dtype=np.float64) * MARKER_GRID)
+                             ).astype(np.int64)
+        if len(grid) == 0:
+            return
+        pixel, fraction = np.divmod(grid, int(MARKER_GRID))
+        variant = fraction[:, 0] * int(MARKER_GRID) + fraction[:, 1]
+        order = np.argsort(variant, kind="stable")
+        pixel, variant = pixel[order], variant[order]
+        bounds = np.flatnonzero(np.r_[True, variant[1:] != variant[:-1], True])
+
+        def parts() -> Iterator[Pixels]:
+            for lo, hi in zip(bounds[:-1].tolist(), bounds[1:].tolist(), strict=True):
+                f = np.divmod(int(variant[lo]), int(MARKER_GRID))
+                rows, cols, share = marker_pixels(np.array([f]) / MARKER_GRID, marker, size,
+                                                  width)
+                for part in _parts(np.full(hi - lo, len(share)), PART_PIXELS):
+                    base = pixel[lo:hi][part]
+                    yield ((base[:, 1, None] + rows[None]).ravel(),
+                           (base[:, 0, None] + cols[None]).ravel(),
+                           np.broadcast_to(share, (len(base), len(share))).ravel())
+
+        self.paint(parts(), colour, alpha, clip)
 
     def text(self, x: float, y: float, text: str, size: str = "normal", ha: str = "left",
              va: str = "baseline", vertical: bool = False, colour: str = "black") -> float:
@@ -202,7 +299,7 @@ class Canvas:
             left, top = x + dy, y - dx - alpha.shape[0]
         r0, c0 = round(top), round(left)
         rows, cols = np.nonzero(alpha)
-        self.paint(rows + r0, cols + c0, alpha[rows, cols], colour)
+        self.paint([(rows + r0, cols + c0, alpha[rows, cols])], colour)
         return width
 
     def image(self, rgb: np.ndarray, row0: int, col0: int) -> None:
@@ -351,5 +448,6 @@ def legend(canvas: Canvas, entries: list[Entry], centre_x: float, top: float) ->
         x += w + 2.0 * em
 
 
-__all__ = ["COLOURS", "DPI", "SIZES", "Axes", "Canvas", "Entry", "cover", "font", "legend",
-           "marker_pixels", "nice_ticks", "px", "segment_pixels", "text_alpha", "tick_label"]
+__all__ = ["COLOURS", "DPI", "PART_PIXELS", "SIZES", "Axes", "Canvas", "Entry", "cover", "font",
+           "legend", "marker_pixels", "nice_ticks", "px", "segment_pixels", "text_alpha",
+           "tick_label"]
