@@ -52,15 +52,21 @@ TRUTH_ALPHA = 0.6
 
 def block_max(image: np.ndarray, block: int) -> np.ndarray:
     """``image`` [ny, nx] reduced by the largest value of each ``block`` × ``block`` block
-    (the last blocks padded with the image's minimum)."""
+    (the last blocks cut at the image's edge), as float64: the maximum of the block²
+    strided views in the image's own type, so a floor's map (10⁸ cells) is never copied
+    whole (a float64 copy and its padding were 1.6 GB)."""
+    image = np.asarray(image)
     if block <= 1:
-        return np.asarray(image, dtype=np.float64)
+        return image.astype(np.float64)
     ny, nx = image.shape
-    py, px = -ny % block, -nx % block
-    low = float(np.min(image)) if image.size else 0.0
-    padded = np.pad(np.asarray(image, dtype=np.float64), ((0, py), (0, px)),
-                    constant_values=low)
-    return padded.reshape((ny + py) // block, block, (nx + px) // block, block).max(axis=(1, 3))
+    out = np.full((-(-ny // block), -(-nx // block)), image.min() if image.size else 0,
+                  dtype=image.dtype)
+    for dy in range(min(block, ny)):
+        for dx in range(min(block, nx)):
+            view = image[dy::block, dx::block]
+            part = out[:view.shape[0], :view.shape[1]]
+            np.maximum(part, view, out=part)
+    return out.astype(np.float64)
 
 
 def colour(values: np.ndarray, binary: bool, top: float | None = None) -> np.ndarray:
@@ -233,9 +239,7 @@ def _map_image(canvas: Canvas, axes: Axes, scene: Scene, image: np.ndarray) -> N
     of at most :data:`MAP_PIXELS` a side (:func:`block_max`), each pixel the block under
     its centre."""
     block = max(1, math.ceil(max(image.shape) / MAP_PIXELS))
-    ny, nx = image.shape
-    on = np.pad(image > 0, ((0, -ny % block), (0, -nx % block)))
-    shown = np.asarray(on.reshape(on.shape[0] // block, block, -1, block).any(axis=(1, 3)))
+    shown = block_max(image, block) > 0
     r0, c0, r1, c1 = axes.clip
     size = block * scene.cell * axes.scale  # pixels a block
     bx = np.floor((np.arange(c0, c1) + 0.5 - axes.left) / size).astype(np.int64)
