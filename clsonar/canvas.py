@@ -302,13 +302,6 @@ class Canvas:
         self.paint([(rows + r0, cols + c0, alpha[rows, cols])], colour)
         return width
 
-    def image(self, rgb: np.ndarray, row0: int, col0: int) -> None:
-        """Place ``rgb`` [h, w, 3] with its top left at pixel ``(row0, col0)`` (cropped to
-        the picture)."""
-        h = min(rgb.shape[0], self.height - row0)
-        w = min(rgb.shape[1], self.width - col0)
-        self.rgb[row0:row0 + h, col0:col0 + w] = rgb[:h, :w]
-
 
 def nice_ticks(low: float, high: float, most: int) -> np.ndarray:
     """Ticks in [low, high] at a step of 1, 2, 2.5 or 5 × 10^k, the least giving at most
@@ -371,11 +364,15 @@ class Axes:
         return (math.floor(self.top), math.floor(self.left),
                 math.ceil(self.top + self.height), math.ceil(self.left + self.width))
 
+    def segments(self, canvas: Canvas, a: np.ndarray, b: np.ndarray, colour: str,
+                 width_pt: float, alpha: float = 1.0) -> None:
+        """The segments ``a`` → ``b`` ([n, 2] metres each), clipped to the box."""
+        canvas.lines(self.pixels(a), self.pixels(b), colour, width_pt, alpha, self.clip)
+
     def polyline(self, canvas: Canvas, xy: np.ndarray, colour: str, width_pt: float,
                  alpha: float = 1.0) -> None:
         """The polyline through ``xy`` [n, 2] metres, clipped to the box."""
-        p = self.pixels(xy)
-        canvas.lines(p[:-1], p[1:], colour, width_pt, alpha, self.clip)
+        self.segments(canvas, xy[:-1], xy[1:], colour, width_pt, alpha)
 
     def markers(self, canvas: Canvas, xy: np.ndarray, marker: str, colour: str,
                 size_pt: float, width_pt: float = 1.0, alpha: float = 1.0) -> None:

@@ -147,11 +147,10 @@ def map_picture(scene: Scene, geom: Geometry, image: np.ndarray, *,
     return png(rgb)
 
 
-#: The plots' size (7.5 × 7 in) and where their axes may lie (shares of it); below the
-#: axes, room for the tick labels and the x label, then the legend's row.
+#: The plots' size (7.5 × 7 in), where their axes may lie, and the top of the legend's
+#: row below them (shares of it).
 FIGURE_IN = (7.5, 7.0)
 PLOT_FRAME = {"left": 0.1, "right": 0.97, "bottom": 0.1, "top": 0.95}
-LABELS_BELOW = 0.062
 LEGEND_ROW = 0.035
 
 #: Most pixels along either side of a map shown in a plot (its axes are about 800 wide).
@@ -165,12 +164,11 @@ def _plot(scene: Scene) -> tuple[Canvas, Axes]:
 
 
 def _finish(canvas: Canvas, axes: Axes, title: str, entries: list[Entry]) -> bytes:
-    """The plot's frame, labels, title and legend (below the axes), as PNG bytes."""
+    """The plot's frame, labels, title and legend (in the figure's last row), as PNG
+    bytes."""
     axes.frame(canvas, "x (m)", "y (m)", title)
-    bottom = (axes.top + axes.height) / canvas.height
-    top = max(bottom + LABELS_BELOW, 1.0 - LEGEND_ROW)
     legend(canvas, entries, axes.left + 0.5 * axes.width,
-           min(top, 1.0 - LEGEND_ROW) * canvas.height)
+           (1.0 - LEGEND_ROW) * canvas.height)
     return png(canvas.rgb)
 
 
@@ -194,7 +192,7 @@ def _chords(points: np.ndarray) -> np.ndarray:
 def _truth(canvas: Canvas, axes: Axes, geom: Geometry) -> None:
     """The true surfaces in red (0.8 pt, 80 %)."""
     seg = truth_lines(geom)
-    canvas.lines(axes.pixels(seg[:, 0]), axes.pixels(seg[:, 1]), "tab:red", 0.8, 0.8, axes.clip)
+    axes.segments(canvas, seg[:, 0], seg[:, 1], "tab:red", 0.8, 0.8)
 
 
 def _poses(canvas: Canvas, axes: Axes, scene: Scene, poses: np.ndarray, light: bool
@@ -223,9 +221,8 @@ def scene_png(scene: Scene, geom: Geometry, sensors: SensorArray,
     canvas, axes = _plot(scene)
     _truth(canvas, axes, geom)
     tick = 0.02 * max(scene.extent[2] - scene.extent[0], scene.extent[3] - scene.extent[1])
-    canvas.lines(axes.pixels(sensors.positions),
-                 axes.pixels(sensors.positions + tick * sensors.axes), "tab:blue", 0.5,
-                 clip=axes.clip)
+    axes.segments(canvas, sensors.positions, sensors.positions + tick * sensors.axes,
+                  "tab:blue", 0.5)
     entries = _poses(canvas, axes, scene, sensors.poses, light=False)
     if len(echo_points):
         axes.markers(canvas, echo_points, "x", "tab:orange", 3.0)

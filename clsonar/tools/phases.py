@@ -117,10 +117,7 @@ def _run_and_write(scene, png: str, out: str, helper, clock: _Clock) -> dict[str
     if drawn is not None:
         files.update(drawn)
         clock.mark("scene.png, profile.png: waiting for the worker")
-    elif jobs:
-        from .. import pictures  # noqa: F401  (its import is a phase of its own)
-
-        clock.mark("pictures import")
+    elif jobs:  # drawn here (pictures imported by the map pictures already)
         for name, job in jobs.items():
             files.update(outputs.draw({name: job}))
             clock.mark(name)
