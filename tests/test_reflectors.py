@@ -438,3 +438,21 @@ def test_a_patch_is_not_drawn_across_a_gap_no_echo_came_from():
     assert drawn_spans(_line_patch([0.0, 0.05, 1.45, 1.5], 1e-6)) == [(-0.1, 1.6)]
     near = _line_patch([0.0, 0.29 + 2 * reach], math.inf)
     assert len(drawn_spans(near)) == 1 and 0.29 < JOIN_GAP_M
+
+
+@settings(max_examples=200, deadline=None)
+@given(seen=st.lists(st.floats(-4.0, 4.0), min_size=1, max_size=40),
+       bearings=st.lists(st.floats(-4.0, 4.0), min_size=1, max_size=60),
+       edge=st.booleans())
+def test_a_corner_s_aperture_test_is_the_whole_matrix_s(seen, bearings, edge):
+    """reflectors._within (the seen directions nearest each bearing round the circle)
+    gives what the bearings × seen matrix of turns gave, bearings on the aperture's
+    edge and duplicated directions included."""
+    from clsonar.mapping.reflectors import CORNER_APERTURE_RAD, _within
+
+    s, b = np.array(seen), np.array(bearings)
+    if edge:  # bearings exactly an aperture from a seen direction, and duplicates
+        s = np.concatenate([s, s[:2]])
+        b = np.concatenate([b, s[:3] + CORNER_APERTURE_RAD, s[:3] - CORNER_APERTURE_RAD])
+    matrix = np.min(np.abs(np.angle(np.exp(1j * (b[:, None] - s)))), axis=1)
+    assert np.array_equal(_within(b, s), matrix <= CORNER_APERTURE_RAD)

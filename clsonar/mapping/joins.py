@@ -23,11 +23,11 @@ from ..scene import Scene
 from ..sensors import SensorArray
 from .ends import heard_ends
 from .families import Family
+from .heard import Heard, heard_index
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2, fit_curve
 from .patches import (
     STEP_CELLS,
-    Heard,
     Patch,
     Patches,
     carrier_points,
@@ -35,7 +35,6 @@ from .patches import (
     coordinates,
     draw_patch,
     flat,
-    heard_index,
     patch_of,
     spread_patch,
     trusted_reach,

@@ -31,15 +31,16 @@ import numpy as np
 from .. import steps
 from ..scene import Scene
 from ..sensors import SensorArray
-from ..signals import envelope_noise_scale, signal_model
 from .envelope import in_beams
 from .families import Family
+from .heard import HEARD_TOL_M, Heard, amplitude_noise, group_pairs, loudest
 from .loci import Loci
 from .models import curve_geometry, curve_paths, dot2, plane_points
 from .strength import (
     EDGE_SHARE,
     as_flat_as_its_range,
     convex_share,
+    edge_distance,
     mirror_echo,
     mirror_floor,
     two_way,
@@ -189,7 +190,7 @@ def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     """The span ``(lo, hi)`` cut where the arrays heard nothing (module docstring): pairs
     in front of the surface whose two-way beam (:func:`~.strength.two_way`) points at it
     beyond the span at least as well as for the weakest of the patch's own detections,
-    and that have no echo there as strong as its own (:func:`_beyond`, :data:`SILENCE_PAIRS`
+    and that have no echo there as strong as its own (:func:`_beyond`, :data:`~.heard.SILENCE_PAIRS`
     pairs of a group at a time). The patch's own group counts wherever beyond its
     reflection points; another group (another array, which sees the surface from
     elsewhere) where a plane would be drawn, over the span ``(lo, hi)``
@@ -202,12 +203,14 @@ def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     weakest = two_way(*beams, ka).min()
     own_pairs = np.sort(np.stack([p.tx, p.rx], axis=-1), axis=-1)
     found = [(p.u, *_strength(p, scene, heard, own_pairs, p.paths, beams, ka), p.T, p.R)]
+    middle = float(np.median(found[0][1]))  # the patch's own echoes over the surface's
     for own, pairs in _listeners(p, sensors):
         steps.poll()
-        u, ratio, loud, T, R = _beyond(p, scene, sensors, heard, pairs, weakest)
+        u, ratio, loud, spread, T, R = _beyond(p, scene, sensors, heard, pairs, weakest)
         keep = np.ones(len(u), dtype=bool) if own else (u >= lo) & (u <= hi)
-        found.append((u[keep], ratio[keep], loud[keep], T[keep], R[keep]))
-    u, ratio, loud, T, R = (np.concatenate(parts) for parts in zip(*found, strict=True))
+        found.append((u[keep], ratio[keep], loud[keep], spread[keep], T[keep], R[keep]))
+    u, ratio, loud, spread, T, R = (np.concatenate(parts) for parts in zip(*found, strict=True))
+    weak = loud & (ratio + spread < END_WEAKENING * middle)
     gauged = math.isfinite(p.bend) and flat(p)
     # a circle the detections cannot tell from its tangent (its ψ within 3σ of 0)
     line = p.straight or abs(float(p.params[2])) <= p.bend
@@ -219,6 +222,10 @@ def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
         else:
             along = (u[side] - end) * sign * scale  # arc length
         stop = _end(along, ratio[side], loud[side], gauged, p.straight)
+        if math.isinf(stop) and gauged and line:
+            reach = first - lo if sign < 0 else hi - last
+            stop = _fading_end(scene, q, outward(p, end), along, ratio[side], weak[side],
+                               T[side], R[side], reach)
         if stop == 0 or math.isinf(stop):
             ends.append(end + sign * stop)
         elif line:
@@ -292,13 +299,50 @@ def _end(along: np.ndarray, ratio: np.ndarray, loud: np.ndarray, gauged: bool,
     return max(float(along[prev]), 0.0)
 
 
+def _fading_end(scene: Scene, q: np.ndarray, t: np.ndarray, along: np.ndarray,
+                ratio: np.ndarray, weak: np.ndarray, T: np.ndarray, R: np.ndarray,
+                reach: float) -> float:
+    """Where a face ends that every pair beyond its reflection points heard (``along``
+    their reflection points' distances from its end ``q``, along its outward tangent
+    ``t``), the farthest ``weak``: its echo falls towards half a mirror's as the face
+    nears its edge (Kouyoumjian & Pathak 1974). Each weak pair beyond puts the edge where
+    a face ending there echoes its ``ratio`` of a mirror's (:func:`~.strength.edge_distance`,
+    at most ``reach`` past ``q``; at its reflection point with the edges' echo model the
+    estimate, which has no such fall); the median of theirs, no nearer than the farthest
+    pair's reflection point, which lies on the face. Inf where the farthest pair beyond
+    is not weak (the face may go on). The zoo's unseen seed 59 edge-02 (σ 0.3): two pairs
+    beyond heard 0.83 and 0.72 of a mirror's, none was silent, and the face was drawn
+    19 cm past its edge."""
+    last = int(np.argmax(along))
+    if along[last] <= 0 or not weak[last]:
+        return math.inf
+    k = np.flatnonzero(weak & (along > 0))
+    s = _to_edge(scene, ratio[k], T[k], R[k], q + along[k][:, None] * t, t,
+                 max(reach - float(along[last]), 0.0))
+    return max(float(np.median(along[k] + s)), float(along[last]))
+
+
+def _to_edge(scene: Scene, ratio: np.ndarray, T: np.ndarray, R: np.ndarray, q: np.ndarray,
+             t: np.ndarray, reach: float) -> np.ndarray:
+    """How far past the reflection points ``q`` of the pairs (T, R), along ``t``, the edge
+    of a face lies that gives their echoes ``ratio`` of a mirror's
+    (:func:`~.strength.edge_distance`, at most ``reach``); 0 with the estimate edge
+    model, whose face echoes a mirror's up to its end."""
+    if scene.echo.edge_model != "utd":
+        return np.zeros(len(ratio))
+    wavenumber = 2.0 * math.pi * scene.transducer.frequency_hz / scene.medium.c
+    return edge_distance(ratio, T, R, q, t, wavenumber, scene.echo.reflection_coefficient,
+                         reach)
+
+
 def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.ndarray,
               beams: Beams, ka: float) -> tuple[np.ndarray, np.ndarray]:
-    """``(ratio, loud)`` of ``pairs`` for ``p`` along ``path`` with the two-way ``beams``
-    (q, T, axT, R, axR): the strongest echo within :data:`HEARD_TOL_M` of the path, or
-    with noise within the path tolerance of a detection of the echo's strength there
-    (:func:`~.window.heard_tolerance`, at most the pulse's resolution c·σ), over
-    :func:`_surface_echo` (0: none), and whether it is as strong as :func:`_least_echo`.
+    """``(ratio, loud, spread)`` of ``pairs`` for ``p`` along ``path`` with the two-way
+    ``beams`` (q, T, axT, R, axR): the strongest echo within :data:`HEARD_TOL_M` of the
+    path, or with noise within the path tolerance of a detection of the echo's strength
+    there (:func:`~.window.heard_tolerance`, at most the pulse's resolution c·σ), over
+    :func:`_surface_echo` (0: none), whether it is as strong as :func:`_least_echo`, and
+    three σ of that ratio's noise (:func:`amplitude_noise` over the surface's echo).
     (At σn 1.2 a wall's echoes of 1.5–2.5 units read 3–5 mm off the plane: the zoo's
     seed 41 wall-08, whose patches ended at their reflection points, 78 % complete.)"""
     mirror = _surface_echo(p, scene, beams, ka)
@@ -307,7 +351,8 @@ def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.
                                       HEARD_TOL_M), c * sigma)
     amplitude, near = loudest(heard, pairs, path, tolerance)
     ratio = np.where(near, amplitude / np.maximum(mirror, 1e-300), 0.0)
-    return ratio, near & (amplitude >= _least_echo(p, scene, beams, ka))
+    spread = 3.0 * amplitude_noise(scene) / np.maximum(mirror, 1e-300)
+    return ratio, near & (amplitude >= _least_echo(p, scene, beams, ka)), spread
 
 
 def _surface_echo(p: Patch, scene: Scene, beams: Beams, ka: float) -> np.ndarray:
@@ -318,9 +363,9 @@ def _surface_echo(p: Patch, scene: Scene, beams: Beams, ka: float) -> np.ndarray
 
 def _beyond(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
             pairs: np.ndarray, weakest: float) -> tuple[np.ndarray, ...]:
-    """``(u, ratio, loud, T, R)`` (:func:`_strength`) of the ``pairs`` in front of the surface
-    whose reflection points lie beyond the patch's own, inside both beams, and that would
-    hear it there at least as well as the patch's weakest detection (tests in order of
+    """``(u, ratio, loud, spread, T, R)`` (:func:`_strength`) of the ``pairs`` in front of
+    the surface whose reflection points lie beyond the patch's own, inside both beams, and
+    that would hear it there at least as well as the patch's weakest detection (tests in order of
     cost: each on the pairs the last one kept); ``u`` their reflection points'
     coordinates."""
     c = scene.medium.c
@@ -382,95 +427,19 @@ def _listeners(p: Patch, sensors: SensorArray) -> Iterator[tuple[bool, np.ndarra
                 yield False, pairs
 
 
-#: Pairs of a group the silence test takes at a time (its memory; about 100 MB).
-SILENCE_PAIRS = 1 << 18
-
-
-def group_pairs(sensors: SensorArray, group: int) -> Iterator[np.ndarray]:
-    """[p, 2] the pairs (T ≤ R) of ``group``, about :data:`SILENCE_PAIRS` at a time."""
-    members = np.flatnonzero(sensors.groups == group)
-    n = len(members)
-    rows = max(1, SILENCE_PAIRS // max(n, 1))
-    for i0 in range(0, n, rows):
-        i, j = _triangle_rows(n, i0, min(i0 + rows, n))
-        yield np.stack([members[i], members[j]], axis=-1)
-
-
-def _triangle_rows(n: int, i0: int, i1: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(i, j)`` of the upper triangle (j ≥ i) of an n × n matrix, rows i0 … i1 − 1."""
-    width = n - np.arange(i0, i1)
-    i = np.repeat(np.arange(i0, i1), width)
-    j = np.arange(int(width.sum())) - np.repeat(np.cumsum(width) - width, width) + i
-    return i, j
-
-
-#: A pair heard the surface where one of its detections lies within this of the
-#: predicted path, metres.
-HEARD_TOL_M = 0.003
-
-
-def amplitude_noise(scene: Scene) -> float:
-    """The noise σ of a detection's amplitude (units): with envelope detection the
-    envelope's Rayleigh scale (each quadrature's σ, 0.145·σn for the default pulse,
-    :func:`clsonar.signals.envelope_noise_scale`, docs/detection.md), with threshold
-    detection the signal's σn (its amplitude is a sample)."""
-    noise = scene.signal.noise_std
-    if noise == 0 or scene.detection.mode != "envelope":
-        return noise
-    floor = scene.detection.min_envelope  # the scale does not depend on it
-    detection = replace(scene.detection, min_envelope=1.0 if floor is None else floor)
-    return envelope_noise_scale(signal_model(replace(scene, detection=detection)))
-
-
-@dataclass(frozen=True)
-class Heard:
-    """The detections by pair (either direction), sorted once for :func:`loudest`:
-    ``key`` = min(T, R)·base + max(T, R), their path c·τ and amplitude."""
-
-    base: int
-    key: np.ndarray
-    path: np.ndarray
-    amplitude: np.ndarray
-
-
-def heard_index(loci: Loci, sensors: SensorArray, c: float) -> Heard:
-    """:class:`Heard` of ``loci`` (speed of sound ``c``)."""
-    base = len(sensors.positions) + 1
-    key = np.minimum(loci.tx, loci.rx) * base + np.maximum(loci.tx, loci.rx)
-    order = np.argsort(key, kind="stable")
-    return Heard(base, key[order], c * loci.tof_s[order], loci.amplitude[order])
-
-
-def loudest(heard: Heard, pairs: np.ndarray, path: np.ndarray,
-            tolerance: float | np.ndarray = HEARD_TOL_M) -> tuple[np.ndarray, np.ndarray]:
-    """``(amplitude, near)``: the strongest of each pair's detections (either direction;
-    ``pairs`` T ≤ R) within ``tolerance`` (one, or one per pair) of ``path``, and whether
-    it has one."""
-    want = pairs[:, 0] * heard.base + pairs[:, 1]
-    start = np.searchsorted(heard.key, want, side="left")
-    count = np.searchsorted(heard.key, want, side="right") - start
-    pair = np.repeat(np.arange(len(pairs)), count)  # each of the pairs' detections
-    row = np.arange(len(pair)) - np.repeat(np.cumsum(count) - count, count) \
-        + np.repeat(start, count)
-    near = np.abs(heard.path[row] - path[pair]) <= np.broadcast_to(tolerance, len(pairs))[pair]
-    amplitude = np.zeros(len(pairs))
-    np.maximum.at(amplitude, pair[near], heard.amplitude[row[near]])
-    return amplitude, np.bincount(pair[near], minlength=len(pairs)) > 0
-
-
 def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
                  amplitude: np.ndarray) -> Patch:
     """``p`` over its regions of constant depth, cut where the array heard nothing (the
-    detections ``heard``, :func:`heard_index`) or, where nothing beyond could tell, at an
-    end its echoes say is near (:func:`weakened_ends`), as far as its curvature is known
+    detections ``heard``, :func:`~.heard.heard_index`) or, where nothing beyond could
+    tell, at an end its echoes say is near (:func:`weakened_ends`), as far as its curvature is known
     (:func:`trusted_reach`, by its paths or by its echoes' strength ``amplitude``:
     :func:`strength_bend`)."""
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
     span = extents(p, sensors, cut_sin2, scene.medium.c * scene.transducer.pulse_sigma_s)
     lo, hi = clamp_to_silence(p, scene, sensors, heard, *span)
-    first, last = weakened_ends(p, scene, sensors, amplitude)
-    lo = p.lo if first and lo == span[0] else lo
-    hi = p.hi if last and hi == span[1] else hi
+    first, last = weakened_ends(p, scene, sensors, amplitude, span)
+    lo = p.lo - first if first is not None and lo == span[0] else lo
+    hi = p.hi + last if last is not None and hi == span[1] else hi
     reach = trusted_reach(replace(p, bend=min(p.bend, strength_bend(p, scene, sensors,
                                                                      amplitude))))
     return replace(p, lo=min(max(lo, p.lo - reach), p.lo), hi=max(min(hi, p.hi + reach), p.hi))
@@ -481,30 +450,46 @@ def spread_patch(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
 END_WEAKENING = 0.9
 
 
-def weakened_ends(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.ndarray
-                  ) -> tuple[bool, bool]:
-    """Whether the echo (``amplitude``) of ``p``'s first and last reflection points over
-    the surface's there (:func:`_surface_echo`) is off its median by :data:`END_WEAKENING`:
-    a face's echo falls to half a mirror's as its reflection point nears its edge over
-    about a Fresnel zone, √(λ·r/2) (8 cm at 1.5 m; Kouyoumjian & Pathak 1974), after
-    rising to 1.17 of it a zone or so before (the edge's diffraction in phase: the zoo's
-    seed 45 wall-04, a pair's echo 1.14 of the others' 2–5 cm from a free end, the face
-    drawn 9.7 cm past it; raised only where the surface echoes a mirror's, steadily),
-    so it ends near there. Neither with threshold detection (a sample) or no mirror."""
+def weakened_ends(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.ndarray,
+                  span: tuple[float, float]) -> tuple[float | None, float | None]:
+    """Where the echo (``amplitude``) of ``p``'s first and last reflection points over
+    the surface's there (:func:`_surface_echo`) is off its median by :data:`END_WEAKENING`,
+    how far past that reflection point the face ends (None where it is not off): a face's
+    echo falls to half a mirror's as its reflection point nears its edge over about a
+    Fresnel zone, √(λ·r/2) (8 cm at 1.5 m; Kouyoumjian & Pathak 1974), so a weakened
+    one puts the edge where a face ending there gives it (a plane's, :func:`_to_edge`,
+    within its region of constant depth ``span``; the zoo's unseen seed 37 edge-02, σ
+    0.3, a face stopped at its last reflection point 3.4 cm short of its edge); a raised
+    one, its echo rising to 1.17 of it a zone or so before (the edge's diffraction in
+    phase: the zoo's seed 45 wall-04, a pair's echo 1.14 of the others' 2–5 cm from a
+    free end, the face drawn 9.7 cm past it; raised only where the surface echoes a
+    mirror's, steadily), at that point. Neither with threshold detection (a sample) or
+    no mirror."""
     if scene.detection.mode != "envelope" or mirror_echo(scene) <= 0 or len(amplitude) < 3:
-        return False, False
+        return None, None
     beams = own_beams(p, sensors)
     echo = np.maximum(_surface_echo(p, scene, beams, scene.transducer.beam(scene.medium.c)[1]),
                       1e-300)
     ratio, spread = amplitude / echo, 3.0 * amplitude_noise(scene) / echo
     middle = float(np.median(ratio))
-    off = ratio + spread < END_WEAKENING * middle
+    weak = ratio + spread < END_WEAKENING * middle
+    off = weak.copy()
     # raised: where a mirror's echo is the surface's within 5 % (κ·r ≤ 0.1), and steady
     low, high = np.percentile(ratio, [10, 90])  # (not a sinusoid's stretch named a plane)
     if (0.5 * float(np.median(p.paths)) <= 0.1 * abs(curve_geometry(p.params, p.x0)[1])
             and high - low <= 0.05 * middle + 2.0 * float(np.median(spread))):
         off |= ratio - spread > middle / END_WEAKENING
-    return bool(off[int(np.argmin(p.u))]), bool(off[int(np.argmax(p.u))])
+    ends: list[float | None] = []
+    for i, reach in ((int(np.argmin(p.u)), p.lo - span[0]), (int(np.argmax(p.u)), span[1] - p.hi)):
+        if not off[i]:
+            ends.append(None)
+        elif weak[i] and p.straight:
+            q = carrier_points(p.params, p.x0, p.u[i:i + 1])
+            ends.append(float(_to_edge(scene, ratio[i:i + 1], p.T[i:i + 1], p.R[i:i + 1], q,
+                                       outward(p, float(p.u[i])), max(reach, 0.0))[0]))
+        else:
+            ends.append(0.0)
+    return ends[0], ends[1]
 
 
 def strength_bend(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.ndarray
@@ -594,7 +579,7 @@ def nearest_index(values: np.ndarray, queries: np.ndarray) -> np.ndarray:
     return np.where(take_left, order[left], order[right])
 
 
-__all__ = ["BISECTIONS", "HEARD_TOL_M", "PATCH_BIAS_M", "STEP_CELLS", "Beams", "Patch", "Patches",
-           "amplitude_noise", "carrier_points", "clamp_to_silence", "coordinates", "draw_patch",
+__all__ = ["BISECTIONS", "PATCH_BIAS_M", "STEP_CELLS", "Beams", "Patch", "Patches",
+           "carrier_points", "clamp_to_silence", "coordinates", "draw_patch",
            "extents", "flat", "nearest_index", "outward", "patch_of", "spread_patch",
            "strength_bend", "trusted_reach"]

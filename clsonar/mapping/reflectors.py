@@ -49,10 +49,11 @@ from .families import (
     widened,
     window_tolerance,
 )
+from .heard import amplitude_noise, group_pairs, heard_index, loudest
 from .joins import END_AT_VERTEX_M, draw_families
 from .loci import Loci, _subset
 from .models import corner_images, corner_paths, dot2
-from .patches import Patches, amplitude_noise, group_pairs, heard_index, loudest
+from .patches import Patches
 from .starts import MIN_CURVE, family_starts
 from .strength import mirror_echo, strongest_echo, two_way
 from .tangents import tangent_map
@@ -204,7 +205,7 @@ def corners_heard(families: list[Family], sensors: SensorArray, loci: Loci, scen
     a mirror's. A right-angled corner retro-reflects: every pair of its arrays that sees
     the vertex from within :data:`CORNER_APERTURE_RAD` of one of its own pairs, and whose
     two-way beam along the double bounce's legs holds it at least as well as for the
-    corner's weakest echo, would have heard it at its path (:func:`~.patches.loudest`);
+    corner's weakest echo, would have heard it at its path (:func:`~.heard.loudest`);
     where fewer than :data:`CORNER_HEARD_SHARE` of them did, no corner is there. A few
     echoes of two neighbouring elements cannot tell a plane from a corner by their paths
     alone (they part by L²/(4r): 0.15 mm for elements 5.6 cm apart at 4.8 m, as much as
@@ -238,16 +239,29 @@ def _heard_share(f: Family, sensors: SensorArray, loci: Loci, heard, ka: float) 
     for g in np.unique(sensors.groups[loci.tx[f.loci]]):
         for pairs in group_pairs(sensors, int(g)):
             T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
-            near = np.ones(len(pairs), dtype=bool)
-            for X in (T, R):
-                turn = np.angle(np.exp(1j * (_bearing(X, v)[:, None] - seen)))
-                near &= np.min(np.abs(turn), axis=1) <= CORNER_APERTURE_RAD
+            near = _within(_bearing(T, v), seen) & _within(_bearing(R, v), seen)
             axT, axR = sensors.axes[pairs[:, 0]], sensors.axes[pairs[:, 1]]
             near &= _corner_gain(f.params, T, axT, R, axR, ka) >= own.min() * (1 - 1e-9)
             path, _ = corner_paths(f.params, T[near], R[near])
             share += float(np.count_nonzero(loudest(heard, pairs[near], path)[1]))
             total += int(np.count_nonzero(near))
     return share / total if total else 1.0
+
+
+def _within(bearing: np.ndarray, seen: np.ndarray) -> np.ndarray:
+    """Whether each ``bearing`` (radians) turns by at most :data:`CORNER_APERTURE_RAD`
+    to one of the directions ``seen``: ``min |angle(e^{i(b − s)})|`` over the seen
+    directions nearest it round the circle, two on either side (the nearest has the
+    least turn; the same minimum as over all of them, without a bearings × seen
+    matrix: 10⁴ pairs against 3,700 directions took 17 s of the zoo's seed 0 corner-04)."""
+    if len(seen) == 0:
+        return np.zeros(len(bearing), dtype=bool)
+    key = np.mod(seen, 2.0 * math.pi)
+    order = np.argsort(key, kind="stable")
+    at = np.searchsorted(key[order], np.mod(bearing, 2.0 * math.pi))
+    near = order[np.mod(at[:, None] + np.arange(-2, 2), len(seen))]  # [bearings, 4]
+    turn = np.angle(np.exp(1j * (bearing[:, None] - seen[near])))
+    return np.min(np.abs(turn), axis=1) <= CORNER_APERTURE_RAD
 
 
 def _bearing(X: np.ndarray, v: np.ndarray) -> np.ndarray:

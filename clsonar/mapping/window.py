@@ -60,7 +60,7 @@ class Window:
     #: fewer for the detections of scattered elements (:func:`~.reflectors._families`)
     least_curve: int = MIN_CURVE
     #: a flat mirror's echo on both axes (A0·ρ), the beam's k·a and the noise σ of a
-    #: detection's amplitude (:func:`~.patches.amplitude_noise`), for the amplitude a
+    #: detection's amplitude (:func:`~.heard.amplitude_noise`), for the amplitude a
     #: plane's echo has (:func:`mirror_floor`); mirror 0: not checked
     mirror: float = 0.0
     ka: float = 0.0
