@@ -336,7 +336,7 @@ def _to_edge(scene: Scene, ratio: np.ndarray, T: np.ndarray, R: np.ndarray, q: n
 
 
 def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.ndarray,
-              beams: Beams, ka: float) -> tuple[np.ndarray, np.ndarray]:
+              beams: Beams, ka: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(ratio, loud, spread)`` of ``pairs`` for ``p`` along ``path`` with the two-way
     ``beams`` (q, T, axT, R, axR): the strongest echo within :data:`HEARD_TOL_M` of the
     path, or with noise within the path tolerance of a detection of the echo's strength
