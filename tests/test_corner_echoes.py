@@ -3,7 +3,7 @@ is the corner's (issue 14): Kleeman & Kuc's T ≠ R pairs tell a corner from a p
 L²/(4r) of path, so a short array far away, or an array's last stretch of weak, noisy
 echoes, names the vertex's echoes a plane through it, square to its line of sight, which
 was drawn as a straight patch across the corner (``reflectors.corners_own``,
-``families.a_corners_echoes``)."""
+``owners.a_corners_echoes``)."""
 
 from __future__ import annotations
 
@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from clsonar import pipeline
-from clsonar.mapping.families import Family, Window, a_corners_echoes
+from clsonar.mapping.families import Family, Window
 from clsonar.mapping.models import corner_paths
+from clsonar.mapping.owners import a_corners_echoes
 from clsonar.opencl import get_context
 from clsonar.tools.zoo import zoo
 from clsonar.tools.zoo.score import score

@@ -12,9 +12,10 @@ import pytest
 
 import clsonar
 from clsonar.files import bundled_scenes
-from clsonar.mapping.families import Window, find_families, widened
+from clsonar.mapping.families import Window, find_families
 from clsonar.mapping.joins import meet
 from clsonar.mapping.models import plane_points
+from clsonar.mapping.owners import widened
 from clsonar.mapping.patches import Patch, coordinates
 from clsonar.outputs import metric
 from clsonar.tools.variants import at_distance, with_seed

@@ -68,3 +68,24 @@ def test_a_turned_start_is_the_corner_without_another_reflectors_echo(gamma, dis
     assert np.hypot(*(found[:2] - V)) < 0.01
     assert abs(found[2] - beta) < math.radians(1.0)
     assert turned_start(w, start, rows[:MIN_CURVE - 1], tolerance[:MIN_CURVE - 1]) is None
+
+
+def test_an_off_square_corner_whose_right_angled_start_explained_a_few_rows_is_turned():
+    """The zoo's unseen seed 43 corner-03: a 77° corner 8.3 m away along its bisector,
+    heard by random lines' pairs. The right angle's crossing of their double bounces lay
+    1.8 m from the vertex and explained five of a seed's ten rows by chance, so no
+    turned start was tried and no family grew (a tangent map of its echoes, 26 cm RMS).
+    Where such a start grows none, the corner is grown once more from a turned start
+    (families._grow, a window's TURN_RETRIES): the vertex located to the micrometre."""
+    from clsonar import pipeline
+    from clsonar.opencl import get_context
+    from clsonar.tools.zoo.cases import draw
+    from clsonar.tools.zoo.score import score
+
+    case = draw(43, "corner", 3)
+    result = pipeline.run(case.scene, context=get_context())
+    row = score(case, result)
+    assert row["passed"] and row["accuracy_m"] is not None and row["accuracy_m"] < 1e-4
+    vertex = np.array(case.data["surfaces"][0]["points"][1])
+    assert np.hypot(*(np.asarray(result.profile.vertices).reshape(-1, 2) - vertex).T).min() \
+        < 1e-4

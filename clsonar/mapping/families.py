@@ -11,7 +11,8 @@ a first fit of each model (:mod:`.starts`); each model then takes every unexplai
 detection it predicts within the tolerance, its reflection point in both beams, is fitted
 again, and so on; the model that explains most wins the detections, and the simplest
 (plane, point, corner) that explains them about as well as the free curve names the
-family. A plane takes the detections no family explained that it predicts (:func:`widened`).
+family. A plane takes the detections no family explained that it predicts
+(:func:`~.owners.widened`).
 """
 
 from __future__ import annotations
@@ -52,6 +53,10 @@ from .window import (
 #: A family needs this many detections (fewer and every model fits them; three are the
 #: T₁ = R₁, T₂ = R₂, T₁ → R₂ triple of Kleeman & Kuc).
 MIN_FAMILY = 3
+
+#: Turned corners a window's search grows where a right-angled corner's start explained
+#: enough rows but grew none (:func:`_grow`), as many as a scattered window's failed seeds.
+TURN_RETRIES = 12
 
 #: Rounds of taking the explained rows and fitting again.
 GROW_ROUNDS = 6
@@ -215,21 +220,46 @@ def _close(w: Window, kind: str, start: np.ndarray, rows: np.ndarray) -> np.ndar
 
 
 def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
-          free: np.ndarray) -> tuple[np.ndarray, Fit] | None:
+          free: np.ndarray, turns: list[int]) -> tuple[np.ndarray, Fit] | None:
     """Fit ``kind`` to the seed's rows that its ``start`` explains to within
     :data:`START_TOLERANCE_M` (a free curve, started from a plane or a point, to all of
     them if those are too few), then alternately take the rows of ``free`` it explains and
     fit again, until they no longer change (at most :data:`GROW_ROUNDS` rounds); the
     members are those the last fit explains. None if the start of a plane, point or corner
-    explains fewer rows than it needs (:func:`_least`), or the last fit does."""
+    explains fewer rows than it needs (:func:`_least`), or the last fit does.
+
+    A corner grows from a turned start (:func:`~.starts.turned_start`) where its
+    right-angled start explains too few rows, or, while the window's ``turns`` last (a
+    one-item budget, :data:`TURN_RETRIES`), where it explains enough of at least
+    :data:`~.starts.MIN_CURVE` seed rows but grew none: an off-square corner's double
+    bounces may cross, right-angled, a metre or two from the vertex and explain a few
+    rows there by chance (the zoo's unseen seed 43 corner-03: 77°, 8.3 m along its
+    bisector, the right-angled start 1.8 m from the vertex; seed 50 corner-07, 86°:
+    both orders of its walls' double bounces)."""
     close = _close(w, kind, start, seed_rows)
     least = _least(w, kind)
     if kind == "corner" and len(close) < least:  # a corner off the right angle?
         turned = turned_start(w, start, seed_rows, w.tolerance[seed_rows])
         if turned is not None:
             start, close = turned, _close(w, kind, turned, seed_rows)
+    elif kind == "corner" and len(seed_rows) >= MIN_CURVE and turns[0] > 0:
+        grown = _grown(w, kind, start, close, seed_rows, free)
+        if grown is not None:
+            return grown
+        turns[0] -= 1
+        turned = turned_start(w, start, seed_rows, w.tolerance[seed_rows])
+        if turned is None:
+            return None
+        start, close = turned, _close(w, kind, turned, seed_rows)
     if len(close) < least and kind != "curve":
         return None  # the start explains too few: another model's seed
+    return _grown(w, kind, start, close, seed_rows, free)
+
+
+def _grown(w: Window, kind: str, start: np.ndarray, close: np.ndarray, seed_rows: np.ndarray,
+           free: np.ndarray) -> tuple[np.ndarray, Fit] | None:
+    """:func:`_grow`'s rounds from ``start`` and the seed's rows it explains, ``close``."""
+    least = _least(w, kind)
     members = close if len(close) >= least else seed_rows
     fit = _fit(w, kind, members, start)
     for _ in range(GROW_ROUNDS):
@@ -286,9 +316,10 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
     return np.sort(found[order[:SEED_SIZE]])
 
 
-def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
+def _best_family(w: Window, seed: int, free: np.ndarray, turns: list[int]) -> Family | None:
     """The model that, grown from ``seed``, explains the most free rows (ties: the lower
-    RMS), named by :func:`_simplest`; None if none explains :data:`MIN_FAMILY`."""
+    RMS), named by :func:`_simplest`; None if none explains :data:`MIN_FAMILY`
+    (``turns``: :func:`_grow`'s budget of turned corners)."""
     rows = _seed_rows(w, seed, free)
     if len(rows) < MIN_FAMILY:
         return None
@@ -298,7 +329,7 @@ def _best_family(w: Window, seed: int, free: np.ndarray) -> Family | None:
     for kind, start in starts(w, seed, rows):
         if w.curve_tolerance > 0 and kind != "curve":
             continue  # the loose pass is the free curve's alone
-        grown = _grow(w, kind, start, rows, free)
+        grown = _grow(w, kind, start, rows, free, turns)
         if grown is None:
             continue
         members, fit = grown
@@ -378,7 +409,7 @@ def _measured_bend(w: Window, members: np.ndarray, fits: dict[str, Fit],
     """How far from the family's model the surface's curvature may be (1/m): 3σ of the
     free curve's ψ (:func:`_bend`), the curve fitted to name the family; or, with fewer
     members than a curve needs to name one but at least :data:`MIN_BEND`, or for a plane
-    widened by other arrays' echoes (:func:`widened`), of the curve fitted for its bend
+    widened by other arrays' echoes (:func:`~.owners.widened`), of the curve fitted for its bend
     alone where its ψ is within that of none: the rows show the plane straight (four
     T = R echoes of scattered elements, metres apart on one face). Inf otherwise: the
     curvature is unknown (a cylinder's four echoes, named a plane, show it bent)."""
@@ -417,75 +448,6 @@ def outside_allowed(w: Window, rows: np.ndarray) -> float:
     return (NOISY_OUTSIDE_SHARE if noisy else DISTORTED_SHARE) * len(rows)
 
 
-def widened(f: Family, w: Window, free: np.ndarray) -> tuple[Family, np.ndarray]:
-    """``(family, taken)``: the plane family ``f`` with the rows ``free`` of ``w`` (the
-    detections no family explained, every array's) that its plane predicts within their
-    tolerance, in front of it and inside both beams, as strong as a mirror's echo there
-    (:func:`_inliers`): other elements' echoes of the same face, too few or too far apart
-    to be a family of their own. Refitted to all of its rows, then widened again by the
-    refitted plane, until it takes no more (at most :data:`GROW_ROUNDS` rounds, as
-    :func:`_grow`: an echo far along the face, which the family's own short stretch
-    predicts to 0.3 mm, fits once a nearer one has tilted the plane into place — the
-    zoo's seed 39 wall-07); its bend measured over all of them (:func:`_bend`). ``f``
-    itself (nothing taken) when it is no plane or takes none; a round that would give up
-    rows an earlier one took, or whose refitted plane no longer explains all its rows, is
-    not taken."""
-    taken = free[:0]
-    if f.kind != "plane":
-        return f, taken
-    kept: tuple[Window, Fit] | None = None  # the last round taken: its window and fit
-    params = f.params
-    for _ in range(GROW_ROUNDS):
-        found = _inliers(w, "plane", params, free)
-        if len(found) <= len(taken) or not np.isin(taken, found).all():
-            break  # nothing more, or it would give up rows it took
-        both = _joined(f, w, found)
-        every = np.arange(len(both.paths))
-        fit = _fit(both, "plane", every, params)
-        if len(_inliers(both, "plane", fit.params, every)) < len(every):
-            break
-        taken, kept, params = found, (both, fit), fit.params
-    if kept is None:
-        return f, taken
-    both, fit = kept  # its bend and reflection points, of the last round only
-    every = np.arange(len(both.paths))
-    bend = _measured_bend(both, every, {}, {"curve": fit.params}, detection_noise(both.tolerance))
-    q = _predict(both, "plane", fit.params, every)[1]
-    return Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend), taken
-
-
-def _joined(f: Family, w: Window, found: np.ndarray) -> Window:
-    """The window of ``f``'s rows and the rows ``found`` of ``w``, about their middle."""
-    a, b = f.window, f.rows
-
-    def cat(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        return np.concatenate([x[b], y[found]])
-
-    T, R = cat(a.T, w.T), cat(a.R, w.R)
-    return replace(w, rows=cat(a.rows, w.rows), T=T, R=R, axT=cat(a.axT, w.axT),
-                   axR=cat(a.axR, w.axR), paths=cat(a.paths, w.paths),
-                   amplitude=cat(a.amplitude, w.amplitude),
-                   tolerance=cat(a.tolerance, w.tolerance), x0=0.5 * (T + R).mean(axis=0))
-
-
-def a_corners_echoes(f: Family, corner: Family) -> bool:
-    """Whether every echo of ``f`` (a plane, point or curve family) is the double bounce
-    of the located ``corner`` (a family of more rows): its model predicts each of them
-    within their tolerance, its vertex inside both beams (:func:`_inliers`). Kleeman &
-    Kuc's pairs tell a corner from a plane by about L²/(4r) of path (L the pair's
-    separation, r the range): a few elements of an array far away, or its last stretch's
-    weak echoes, cannot, and their echoes of the vertex fit a plane through it, square to
-    their line of sight, as well; the corner that pairs farther apart located explains
-    them as one reflector. With noise, all but the share of them a best fit may leave
-    outside their tolerance (:func:`outside_allowed`), as :func:`_simplest` names
-    families (the zoo's seed 12 corner-05, σ 0.6: 44 of a plane's 45 echoes, one 0.1 mm
-    beyond its 1.4 mm tolerance, and the plane was drawn 80 cm across the vertex)."""
-    if corner.kind != "corner" or f.kind == "corner" or len(corner.rows) <= len(f.rows):
-        return False
-    explained = len(_inliers(f.window, "corner", corner.params, f.rows))
-    return explained >= len(f.rows) - outside_allowed(f.window, f.rows)
-
-
 def shadowed(w: Window, families: list[Family], rows: np.ndarray,
              resolution: float) -> np.ndarray:
     """Which ``rows`` lie within ``resolution`` (the pulse's, c·σ) of the path a family
@@ -512,6 +474,7 @@ def _candidates(w: Window, rows: np.ndarray, resolution: float) -> list[Family]:
     tried[rows] = False
     deferred = np.zeros(len(w.paths), dtype=bool)
     found: list[Family] = []
+    turns = [TURN_RETRIES]  # the turned corners _grow may try where a right angle grew none
     for last in (False, True):
         failed = 0
         for seed in np.argsort(-w.amplitude, kind="stable"):
@@ -520,7 +483,7 @@ def _candidates(w: Window, rows: np.ndarray, resolution: float) -> list[Family]:
             if failed >= w.max_failed:
                 break
             tried[seed] = True
-            family = _best_family(w, int(seed), rows)
+            family = _best_family(w, int(seed), rows, turns)
             if family is None:
                 failed += 1
                 continue
@@ -572,5 +535,5 @@ def find_families(w: Window, resolution: float) -> tuple[list[Family], np.ndarra
 
 
 __all__ = ["BASE_TOLERANCE_M", "CURVE_TOLERANCE_M", "KINDS", "MIN_FAMILY", "Family", "Window",
-           "a_corners_echoes", "detection_noise", "find_families", "predict", "shadowed",
-           "widened", "window_tolerance"]
+           "detection_noise", "find_families", "outside_allowed", "predict", "shadowed",
+           "window_tolerance"]

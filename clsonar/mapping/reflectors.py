@@ -43,16 +43,15 @@ from .families import (
     _strong,
     _tolerance,
     _valid,
-    a_corners_echoes,
     find_families,
     outside_allowed,
-    widened,
     window_tolerance,
 )
 from .heard import amplitude_noise, group_pairs, heard_index, loudest
 from .joins import END_AT_VERTEX_M, draw_families
 from .loci import Loci, _subset
 from .models import corner_images, corner_paths, dot2
+from .owners import a_corners_echoes, widened
 from .patches import Patches
 from .starts import MIN_CURVE, family_starts
 from .strength import mirror_echo, strongest_echo, two_way
@@ -291,7 +290,7 @@ def _as_plane(f: Family) -> Family | None:
 
 def corners_own(families: list[Family]) -> list[Family]:
     """``families`` less those whose every echo a located corner of more rows explains
-    (:func:`~clsonar.mapping.families.a_corners_echoes`): pairs too close together for
+    (:func:`~clsonar.mapping.owners.a_corners_echoes`): pairs too close together for
     their range, or too noisy, to tell its double bounce from a plane's echo name it a
     plane through the vertex, square to their line of sight (the zoo's seed 3 corner-02,
     a 110° corner seen by a long array at 2.5 m and a short one at 7.7 m)."""
@@ -396,7 +395,7 @@ def vertices_own(families: list[Family], resolution: float) -> list[Family]:
 def planes_own(families: list[Family]) -> tuple[list[Family], np.ndarray]:
     """``(families, left)``: ``families`` with each corner whose echoes a plane family of
     more rows predicts (within their tolerance, in front of it, inside both beams, as
-    strong as a mirror's echo: :func:`~.families.widened`) taken into that plane,
+    strong as a mirror's echo: :func:`~.owners.widened`) taken into that plane,
     refitted to both, and the loci of such a corner's echoes it leaves out: the converse
     of :func:`corners_own`. A corner's double bounce and a plane's echo differ by about
     L²/(4r) of path (Kleeman & Kuc 1995), so a short array far away, with noise, fits
@@ -426,7 +425,7 @@ def planes_own(families: list[Family]) -> tuple[list[Family], np.ndarray]:
 def _widened(scene: Scene, sensors: SensorArray, loci: Loci, families: list[Family],
              rest: np.ndarray) -> tuple[list[Family], np.ndarray]:
     """``families`` with each plane widened by the detections of ``rest`` (those no family
-    explained) that its plane predicts (:func:`~.families.widened`: another element's
+    explained) that its plane predicts (:func:`~.owners.widened`: another element's
     echo of the same face, alone or too far from the others to be a family), largest
     family first; and the rows still left."""
     if len(rest) == 0 or not families:

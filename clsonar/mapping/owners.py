@@ -1,0 +1,95 @@
+"""Detections that a family of another window owns (``mapping.mode = "reflectors"``): a
+plane widened by the rows no family explained that its plane predicts (:func:`widened`),
+and a family whose every echo is a located corner's double bounce
+(:func:`a_corners_echoes`)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from .families import (
+    GROW_ROUNDS,
+    Family,
+    Fit,
+    Window,
+    _fit,
+    _inliers,
+    _measured_bend,
+    _predict,
+    detection_noise,
+    outside_allowed,
+)
+
+
+def widened(f: Family, w: Window, free: np.ndarray) -> tuple[Family, np.ndarray]:
+    """``(family, taken)``: the plane family ``f`` with the rows ``free`` of ``w`` (the
+    detections no family explained, every array's) that its plane predicts within their
+    tolerance, in front of it and inside both beams, as strong as a mirror's echo there
+    (:func:`_inliers`): other elements' echoes of the same face, too few or too far apart
+    to be a family of their own. Refitted to all of its rows, then widened again by the
+    refitted plane, until it takes no more (at most :data:`GROW_ROUNDS` rounds, as
+    :func:`_grow`: an echo far along the face, which the family's own short stretch
+    predicts to 0.3 mm, fits once a nearer one has tilted the plane into place — the
+    zoo's seed 39 wall-07); its bend measured over all of them (:func:`_bend`). ``f``
+    itself (nothing taken) when it is no plane or takes none; a round that would give up
+    rows an earlier one took, or whose refitted plane no longer explains all its rows, is
+    not taken."""
+    taken = free[:0]
+    if f.kind != "plane":
+        return f, taken
+    kept: tuple[Window, Fit] | None = None  # the last round taken: its window and fit
+    params = f.params
+    for _ in range(GROW_ROUNDS):
+        found = _inliers(w, "plane", params, free)
+        if len(found) <= len(taken) or not np.isin(taken, found).all():
+            break  # nothing more, or it would give up rows it took
+        both = _joined(f, w, found)
+        every = np.arange(len(both.paths))
+        fit = _fit(both, "plane", every, params)
+        if len(_inliers(both, "plane", fit.params, every)) < len(every):
+            break
+        taken, kept, params = found, (both, fit), fit.params
+    if kept is None:
+        return f, taken
+    both, fit = kept  # its bend and reflection points, of the last round only
+    every = np.arange(len(both.paths))
+    bend = _measured_bend(both, every, {}, {"curve": fit.params}, detection_noise(both.tolerance))
+    q = _predict(both, "plane", fit.params, every)[1]
+    return Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend), taken
+
+
+def _joined(f: Family, w: Window, found: np.ndarray) -> Window:
+    """The window of ``f``'s rows and the rows ``found`` of ``w``, about their middle."""
+    a, b = f.window, f.rows
+
+    def cat(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        return np.concatenate([x[b], y[found]])
+
+    T, R = cat(a.T, w.T), cat(a.R, w.R)
+    return replace(w, rows=cat(a.rows, w.rows), T=T, R=R, axT=cat(a.axT, w.axT),
+                   axR=cat(a.axR, w.axR), paths=cat(a.paths, w.paths),
+                   amplitude=cat(a.amplitude, w.amplitude),
+                   tolerance=cat(a.tolerance, w.tolerance), x0=0.5 * (T + R).mean(axis=0))
+
+
+def a_corners_echoes(f: Family, corner: Family) -> bool:
+    """Whether every echo of ``f`` (a plane, point or curve family) is the double bounce
+    of the located ``corner`` (a family of more rows): its model predicts each of them
+    within their tolerance, its vertex inside both beams (:func:`_inliers`). Kleeman &
+    Kuc's pairs tell a corner from a plane by about L²/(4r) of path (L the pair's
+    separation, r the range): a few elements of an array far away, or its last stretch's
+    weak echoes, cannot, and their echoes of the vertex fit a plane through it, square to
+    their line of sight, as well; the corner that pairs farther apart located explains
+    them as one reflector. With noise, all but the share of them a best fit may leave
+    outside their tolerance (:func:`outside_allowed`), as :func:`_simplest` names
+    families (the zoo's seed 12 corner-05, σ 0.6: 44 of a plane's 45 echoes, one 0.1 mm
+    beyond its 1.4 mm tolerance, and the plane was drawn 80 cm across the vertex)."""
+    if corner.kind != "corner" or f.kind == "corner" or len(corner.rows) <= len(f.rows):
+        return False
+    explained = len(_inliers(f.window, "corner", corner.params, f.rows))
+    return explained >= len(f.rows) - outside_allowed(f.window, f.rows)
+
+
+__all__ = ["a_corners_echoes", "widened"]
