@@ -340,3 +340,20 @@ def test_a_noisy_face_whose_last_pairs_heard_it_fading_is_drawn_to_its_edge():
     row = score(case, pipeline.run(case.scene, context=get_context()))
     assert row["accuracy_m"] is not None and row["accuracy_m"] <= 0.005
     assert row["vertex_error_m"] is not None and row["vertex_error_m"] <= 0.01
+
+
+def test_a_face_seen_by_several_arrays_ends_where_any_of_them_heard_nothing():
+    """The zoo's unseen seed 61 edge-02 (σ 0.3): a face seen by three arrays, one of them
+    with 20 echoes whose own pairs could not test the face past them, so its region of
+    constant depth ran 21 cm past the edge that the other arrays' silent pairs placed;
+    joined, the union kept it (4.8 cm RMS). The join is cut again by every pair that
+    would hear its surface (joins.silence_clamp)."""
+    from clsonar import pipeline
+    from clsonar.opencl import get_context
+    from clsonar.tools.zoo.cases import draw
+    from clsonar.tools.zoo.score import score
+
+    case = draw(61, "edge", 2)
+    row = score(case, pipeline.run(case.scene, context=get_context()))
+    assert row["accuracy_m"] is not None and row["accuracy_m"] <= 0.001
+    assert row["vertex_error_m"] is not None and row["vertex_error_m"] <= 0.005
