@@ -29,6 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import steps
+from ..physics import wavenumber
 from ..scene import Scene
 from ..sensors import SensorArray
 from .envelope import in_beams
@@ -330,9 +331,8 @@ def _to_edge(scene: Scene, ratio: np.ndarray, T: np.ndarray, R: np.ndarray, q: n
     model, whose face echoes a mirror's up to its end."""
     if scene.echo.edge_model != "utd":
         return np.zeros(len(ratio))
-    wavenumber = 2.0 * math.pi * scene.transducer.frequency_hz / scene.medium.c
-    return edge_distance(ratio, T, R, q, t, wavenumber, scene.echo.reflection_coefficient,
-                         reach)
+    k = wavenumber(scene.transducer.frequency_hz, scene.medium.c)
+    return edge_distance(ratio, T, R, q, t, k, scene.echo.reflection_coefficient, reach)
 
 
 def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.ndarray,
