@@ -170,7 +170,8 @@ def face_end_echo(T: np.ndarray, R: np.ndarray, E: np.ndarray, outward: np.ndarr
     rising to the knife edge's first Fresnel maximum, about 1.17, a Fresnel zone inside
     (4 cm at 0.5 m, 15 cm at 9 m), then rippling about 1: the uniform theory near the
     reflection boundary, whose term is nearly the same for any wedge (a thin wall's end
-    or a box's corner: within 5 % for wedges of 11–169°), and what clsonar's echoes and
+    or a box's corner: within 5 % for wedges of 11–150°, up to 11 % for a nearly flat
+    one, 169°, with the reflection point on its edge), and what clsonar's echoes and
     envelope detection give near the edge (tests/test_face_ends.py; farther in, where δ
     parts the two pulses, the ripples are weaker)."""
     t = np.asarray(outward, dtype=np.float64)
@@ -200,7 +201,8 @@ def edge_distance(ratio: np.ndarray, T: np.ndarray, R: np.ndarray, q: np.ndarray
     mirror's on the edge to its first maximum (the knife edge's first Fresnel maximum,
     about 1.17), is ``ratio`` (the first of :data:`EDGE_GRID` steps where it reaches
     it, bisected); 0 for a ratio no more than its value on the edge, ``reach`` for one
-    it does not reach there."""
+    it does not reach there (or within a few thousandths of its maximum, which may fall
+    between the grid's steps: the mapping inverts weak echoes, under 0.9 of a face's)."""
     ratio = np.asarray(ratio, dtype=np.float64)
     grid = np.linspace(0.0, float(reach), EDGE_GRID + 1)
     E = q[:, None, :] + grid[None, :, None] * outward  # [pairs, steps, 2]
