@@ -114,8 +114,7 @@ def _joined(parts: list[Patch]) -> Patch:
                  np.concatenate([p.rx for p in parts]), T, R, paths)
 
 
-def join_collinear(patches: list[Patch], clamp: Callable[[Patch], Patch] | None = None
-                   ) -> list[Patch]:
+def join_collinear(patches: list[Patch], clamp: Callable[[Patch], Patch]) -> list[Patch]:
     """Straight patches of one line joined (module docstring), each join's span cut again
     by ``clamp`` (:func:`silence_clamp`: the silence of the pairs that would hear any of
     its detections' surface, not only each part's); circles as they are."""
@@ -135,10 +134,7 @@ def join_collinear(patches: list[Patch], clamp: Callable[[Patch], Patch] | None 
     groups: dict[int, list[Patch]] = {}
     for i, p in enumerate(straight):
         groups.setdefault(find(i), []).append(p)
-    joined = [g[0] if len(g) == 1 else _joined(g) for g in groups.values()]
-    if clamp is not None:
-        joined = [clamp(p) if len(g) > 1 else p
-                  for p, g in zip(joined, groups.values(), strict=True)]
+    joined = [g[0] if len(g) == 1 else clamp(_joined(g)) for g in groups.values()]
     return joined + [p for p in patches if not p.straight]
 
 

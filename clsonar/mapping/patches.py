@@ -211,7 +211,7 @@ def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
         keep = np.ones(len(u), dtype=bool) if own else (u >= lo) & (u <= hi)
         found.append((u[keep], ratio[keep], loud[keep], spread[keep], T[keep], R[keep]))
     u, ratio, loud, spread, T, R = (np.concatenate(parts) for parts in zip(*found, strict=True))
-    weak = loud & (ratio + spread < END_WEAKENING * middle)
+    weak = loud & _weakened(ratio, spread, middle)
     gauged = math.isfinite(p.bend) and flat(p)
     # a circle the detections cannot tell from its tangent (its ψ within 3σ of 0)
     line = p.straight or abs(float(p.params[2])) <= p.bend
@@ -351,8 +351,19 @@ def _strength(p: Patch, scene: Scene, heard: Heard, pairs: np.ndarray, path: np.
                                       HEARD_TOL_M), c * sigma)
     amplitude, near = loudest(heard, pairs, path, tolerance)
     ratio = np.where(near, amplitude / np.maximum(mirror, 1e-300), 0.0)
-    spread = 3.0 * amplitude_noise(scene) / np.maximum(mirror, 1e-300)
-    return ratio, near & (amplitude >= _least_echo(p, scene, beams, ka)), spread
+    return ratio, near & (amplitude >= _least_echo(p, scene, beams, ka)), _spread(scene, mirror)
+
+
+def _spread(scene: Scene, echo: np.ndarray) -> np.ndarray:
+    """Three σ of a detection's amplitude noise (:func:`amplitude_noise`) over ``echo``:
+    of its ratio to the surface's echo."""
+    return 3.0 * amplitude_noise(scene) / np.maximum(echo, 1e-300)
+
+
+def _weakened(ratio: np.ndarray, spread: np.ndarray, middle: float) -> np.ndarray:
+    """Echoes (``ratio`` of the surface's, noise ``spread``) under :data:`END_WEAKENING` of
+    the face's own (``middle``) beyond their noise: falling towards its edge."""
+    return ratio + spread < END_WEAKENING * middle
 
 
 def _surface_echo(p: Patch, scene: Scene, beams: Beams, ka: float) -> np.ndarray:
@@ -470,9 +481,9 @@ def weakened_ends(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.nd
     beams = own_beams(p, sensors)
     echo = np.maximum(_surface_echo(p, scene, beams, scene.transducer.beam(scene.medium.c)[1]),
                       1e-300)
-    ratio, spread = amplitude / echo, 3.0 * amplitude_noise(scene) / echo
+    ratio, spread = amplitude / echo, _spread(scene, echo)
     middle = float(np.median(ratio))
-    weak = ratio + spread < END_WEAKENING * middle
+    weak = _weakened(ratio, spread, middle)
     off = weak.copy()
     # raised: where a mirror's echo is the surface's within 5 % (κ·r ≤ 0.1), and steady
     low, high = np.percentile(ratio, [10, 90])  # (not a sinusoid's stretch named a plane)
