@@ -272,18 +272,21 @@ def _recorded(monkeypatch, function, *places) -> list:
 
 
 def test_the_room_line_of_sight_is_one_transducer_at_a_time(monkeypatch):
-    """The room's own points, pairs and map (1,622 ghosts of its 37,666 points): the
-    wanted bins' z-buffers give what one z-buffer per transducer gives."""
+    """The room's own points, pairs and map (on PoCL's CPU, 1,622 ghosts of its 37,666
+    points; the NVIDIA H200's float32 map gave 1,623): the wanted bins' z-buffers give what
+    one z-buffer per transducer gives."""
+    from clsonar.opencl import choose_device, device_kind
     from clsonar.pipeline import run
 
     whole = sight.line_of_sight
     calls = _recorded(monkeypatch, whole, (sight, "line_of_sight"))
     result = run(_ROOM)
-    assert result.counts["ghost_points"] == 1622 and len(calls) == 1
+    assert len(calls) == 1
     points_, tx, rx, positions, occluders, cell = calls[0]
-    assert len(points_) == 37666
     seen = whole(*calls[0])
-    assert np.count_nonzero(~seen) == 1622
+    assert result.counts["ghost_points"] == np.count_nonzero(~seen)
+    if device_kind(choose_device()) == "CPU":
+        assert (len(points_), np.count_nonzero(~seen)) == (37666, 1622)
     np.testing.assert_array_equal(
         seen, sight.line_of_sight_per_sensor(points_, tx, rx, positions, occluders, cell))
 
