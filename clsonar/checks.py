@@ -2,7 +2,7 @@
 
 A run that completes is never refused for these; each is one line of ``report.json``'s
 ``warnings`` list, and ``clsonar run`` prints it on stderr as ``clsonar: warning: FILE:
-TEXT`` (exit status 0). Three are given:
+TEXT`` (exit status 0). Four are given:
 
 - the scene has a closed polyline inside another one and the file leaves its ``solid``
   unset: it is read as a solid obstacle (a box, a pillar) that reflects on its outside
@@ -11,7 +11,9 @@ TEXT`` (exit status 0). Three are given:
   nearest an obstacle, which it circles instead (:func:`placement_warnings`);
 - the map is empty although echoes were detected: the surfaces heard lie outside the map's
   extent, or the settings lost every detection on the way to the profile (the counters say
-  at which stage).
+  at which stage);
+- the map holds only the points where two loud echoes' loci cross: too few echoes were
+  heard for any reflector's model (:func:`clsonar.mapping.reflectors.loud_crossings`).
 """
 
 from __future__ import annotations
@@ -48,9 +50,13 @@ def scene_warnings(scene: Scene) -> list[str]:
 
 
 def result_warnings(counts: Mapping[str, int]) -> list[str]:
-    """One line when a run's profile is empty although echoes were detected (``counts``:
-    the run's counters)."""
+    """One line when a run's profile is empty although echoes were detected, or holds only
+    the crossings of loud echoes' loci (``counts``: the run's counters)."""
     detected = counts.get("detections", 0)
+    crossings = counts.get("crossing_points", 0)
+    if crossings and counts.get("profile_points", 0) > 0:
+        return [f"the map holds only the {crossings} point(s) where two loud echoes' loci "
+                f"cross: the {detected} echoes detected are too few for a surface's model"]
     if detected == 0 or counts.get("profile_points", 0) > 0:
         return []
     return [f"the map is empty although {detected} echoes were detected "

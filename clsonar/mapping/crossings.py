@@ -2,7 +2,9 @@
 search of the tangent points, :func:`~.tangents.locus_crossings`): the arc-transversal
 median (``mapping.mode = "arc-transversal-median"``, ATM; Choset, Nagatani & Lazar 2003,
 :func:`arc_transversal_medians`) and triangulation-based fusion (``"triangulation"``, TBF;
-Wijk & Christensen 2000, :func:`triangulated_points`)."""
+Wijk & Christensen 2000, :func:`triangulated_points`); and the reflector mapping's last
+resort where too few echoes were heard for any reflector's model
+(:func:`crossing_points`)."""
 
 from __future__ import annotations
 
@@ -155,3 +157,31 @@ def triangulated_points(scene: Scene, sensors: SensorArray, loci, *,
     order = np.lexsort((locus, s.a[locus], member))
     first = np.r_[True, member[order][1:] != member[order][:-1]]
     return centroids, locus[order][first]
+
+
+#: Crossings of the same two loci this close are one (metres).
+SAME_CROSSING_M = 1e-6
+
+
+def crossing_points(scene: Scene, sensors: SensorArray, loci) -> tuple[np.ndarray, np.ndarray]:
+    """``(points [m, 2], source [m])``: where each two of the loci cross inside the joint
+    beam regions of both (:func:`_intersections`, any baseline), and the nearer of the two
+    (least path length), whose pair the point keeps: triangulation with the support of one
+    crossing (Wijk & Christensen's TBF asks for three), for the few echoes no reflector's
+    model explains. Two loci tangent to one smooth surface at points δ apart cross within
+    about δ²/(8r) of it (:func:`~.tangents.tangent_map`), and two loci of one point
+    reflector (a thin post, an edge, a corner's vertex) cross at it."""
+    loci = as_loci(loci)
+    if len(loci) < 2:
+        return np.zeros((0, 2)), np.zeros(0, np.int64)
+    s = sample_loci(scene, sensors, loci)
+    q, crossed = _intersections(s, np.inf)
+    # a crossing on a sample is found from both sides of it: once
+    order = np.lexsort((q[:, 1], q[:, 0], crossed[:, 1], crossed[:, 0]))
+    q, crossed = q[order], crossed[order]
+    again = np.zeros(len(q), dtype=bool)
+    again[1:] = (np.all(crossed[1:] == crossed[:-1], axis=1)
+                 & (np.hypot(*(q[1:] - q[:-1]).T) <= SAME_CROSSING_M))
+    q, crossed = q[~again], crossed[~again]
+    nearer = np.where(s.a[crossed[:, 0]] <= s.a[crossed[:, 1]], crossed[:, 0], crossed[:, 1])
+    return q, nearer.astype(np.int64)

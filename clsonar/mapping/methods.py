@@ -24,7 +24,7 @@ from .directional import arc_maxima
 from .launch import AccumulationStats, accumulate_with_stats, backproject, occupancy_grid
 from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
 from .occupancy import OCCUPIED_LOG_ODDS
-from .reflectors import reflector_points
+from .reflectors import loud_crossings, reflector_points
 from .tangents import tangent_map
 
 if TYPE_CHECKING:
@@ -192,12 +192,18 @@ def reflector_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
                     detections: Detections, context: cl.Context, tiles: bool) -> Votes:
     """``"reflectors"`` (the default): each linear array's echoes fitted by reflector
     models, planes and circles drawn as points, points and corners located as vertices;
-    other groups' tangent points (:func:`~clsonar.mapping.reflector_points`)."""
+    other groups' tangent points (:func:`~clsonar.mapping.reflector_points`); where those
+    are none, the crossings of the loud echoes' loci (:func:`~.reflectors.loud_crossings`,
+    counted as ``crossing_points``)."""
     loci = _loci(scene, detections)
     drawn = reflector_points(scene, sensors, loci)
+    few = len(drawn.points) == len(drawn.vertices) == 0
+    if few:
+        drawn = loud_crossings(scene, sensors, loci, drawn)
     return Votes(points=drawn.points, tx=loci.tx[drawn.source], rx=loci.rx[drawn.source],
                  vertices=drawn.vertices, patch_ends=drawn.ends,
-                 counts={"patches": len(drawn.ends), "vertices_located": len(drawn.vertices)})
+                 counts={"patches": len(drawn.ends), "vertices_located": len(drawn.vertices),
+                         "crossing_points": len(drawn.points) if few else 0})
 
 
 #: The mapping methods by ``mapping.mode``.

@@ -31,6 +31,7 @@ from ..scene import Scene
 from ..scene.settings import chosen
 from ..sensors import SensorArray
 from ..survey import DEFAULT_MIN_ENVELOPE, in_a_room
+from .crossings import crossing_points
 from .families import (
     DETECTION_FLOOR_M,
     MIN_FAMILY,
@@ -511,13 +512,34 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
     others = np.flatnonzero(~np.isin(sensors.groups[loci.tx], list(arrays)))
     rest = np.sort(np.concatenate([others, left]))
     rest = rest[loci.amplitude[rest] >= DEFAULT_MIN_ENVELOPE]
-    if len(rest) == 0:
+    if len(rest):
+        points, source, vertices = tangent_map(
+            scene, sensors, _subset(loci, rest),
+            isolated_bias_m=chosen(scene.mapping.isolated_bias_m, "mapping.isolated_bias_m"))
+        keep = ~past_located_ends(points, drawn)
+        drawn = drawn.plus(points[keep], rest[source[keep]], vertices)
+    return drawn
+
+
+#: The most loud echoes whose loci's crossings are a map (:func:`loud_crossings`).
+FEW_LOUD = 12
+
+
+def loud_crossings(scene: Scene, sensors: SensorArray, loci: Loci, drawn: Patches) -> Patches:
+    """``drawn`` and, each as a point found, where two loci of echoes as loud as a room
+    scan's floor (:data:`~clsonar.survey.DEFAULT_MIN_ENVELOPE`) cross inside both joint
+    beam regions (:func:`~.crossings.crossing_points`): what a map has where
+    :func:`reflector_points` drew nothing, too few echoes heard for any reflector's model
+    (a thin post two elements of a sparse array heard, a sinusoid's crest heard by two
+    pairs). A weak echo's locus is left out: a diffraction's or a multipath's, it would
+    cross a loud one's where no reflector is. More than :data:`FEW_LOUD` loud echoes that
+    no model explains are no longer a few: their crossings would be guesses among many
+    (and cost the square of their number), so the map stays empty."""
+    loud = np.flatnonzero(loci.amplitude >= DEFAULT_MIN_ENVELOPE)
+    if len(loud) > FEW_LOUD:
         return drawn
-    points, source, vertices = tangent_map(scene, sensors, _subset(loci, rest),
-                                           isolated_bias_m=chosen(scene.mapping.isolated_bias_m,
-                                                                  "mapping.isolated_bias_m"))
-    keep = ~past_located_ends(points, drawn)
-    return drawn.plus(points[keep], rest[source[keep]], vertices)
+    points, source = crossing_points(scene, sensors, _subset(loci, loud))
+    return drawn.plus(points, loud[source], points)
 
 
 #: A face that ends at a located vertex (within :data:`~.joins.END_AT_VERTEX_M`) does not
@@ -555,4 +577,4 @@ def past_located_ends(points: np.ndarray, drawn: Patches) -> np.ndarray:
 
 
 __all__ = ["LINEAR_TOL_M", "WINDOW_M", "corners_own", "in_a_room", "linear_groups",
-           "reflector_points", "strongest_echo"]
+           "loud_crossings", "reflector_points", "strongest_echo"]
