@@ -18,7 +18,7 @@ family. A plane takes the detections no family explained that it predicts
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -57,6 +57,14 @@ MIN_FAMILY = 3
 #: Turned corners a window's search grows where a right-angled corner's start explained
 #: enough rows but grew none (:func:`_grow`), as many as a scattered window's failed seeds.
 TURN_RETRIES = 12
+
+
+@dataclass
+class Budget:
+    """How many more times a costly try may be made (a window's turned corners)."""
+
+    left: int
+
 
 #: Rounds of taking the explained rows and fitting again.
 GROW_ROUNDS = 6
@@ -220,7 +228,7 @@ def _close(w: Window, kind: str, start: np.ndarray, rows: np.ndarray) -> np.ndar
 
 
 def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
-          free: np.ndarray, turns: list[int]) -> tuple[np.ndarray, Fit] | None:
+          free: np.ndarray, turns: Budget) -> tuple[np.ndarray, Fit] | None:
     """Fit ``kind`` to the seed's rows that its ``start`` explains to within
     :data:`START_TOLERANCE_M` (a free curve, started from a plane or a point, to all of
     them if those are too few), then alternately take the rows of ``free`` it explains and
@@ -229,8 +237,8 @@ def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
     explains fewer rows than it needs (:func:`_least`), or the last fit does.
 
     A corner grows from a turned start (:func:`~.starts.turned_start`) where its
-    right-angled start explains too few rows, or, while the window's ``turns`` last (a
-    one-item budget, :data:`TURN_RETRIES`), where it explains enough of at least
+    right-angled start explains too few rows, or, while the window's ``turns`` last
+    (:data:`TURN_RETRIES` a window), where it explains enough of at least
     :data:`~.starts.MIN_CURVE` seed rows but grew none: an off-square corner's double
     bounces may cross, right-angled, a metre or two from the vertex and explain a few
     rows there by chance (the zoo's unseen seed 43 corner-03: 77°, 8.3 m along its
@@ -242,11 +250,11 @@ def _grow(w: Window, kind: str, start: np.ndarray, seed_rows: np.ndarray,
         turned = turned_start(w, start, seed_rows, w.tolerance[seed_rows])
         if turned is not None:
             start, close = turned, _close(w, kind, turned, seed_rows)
-    elif kind == "corner" and len(seed_rows) >= MIN_CURVE and turns[0] > 0:
+    elif kind == "corner" and len(seed_rows) >= MIN_CURVE and turns.left > 0:
         grown = _grown(w, kind, start, close, seed_rows, free)
         if grown is not None:
             return grown
-        turns[0] -= 1
+        turns.left -= 1
         turned = turned_start(w, start, seed_rows, w.tolerance[seed_rows])
         if turned is None:
             return None
@@ -316,7 +324,7 @@ def _seed_rows(w: Window, seed: int, free: np.ndarray) -> np.ndarray:
     return np.sort(found[order[:SEED_SIZE]])
 
 
-def _best_family(w: Window, seed: int, free: np.ndarray, turns: list[int]) -> Family | None:
+def _best_family(w: Window, seed: int, free: np.ndarray, turns: Budget) -> Family | None:
     """The model that, grown from ``seed``, explains the most free rows (ties: the lower
     RMS), named by :func:`_simplest`; None if none explains :data:`MIN_FAMILY`
     (``turns``: :func:`_grow`'s budget of turned corners)."""
@@ -474,7 +482,7 @@ def _candidates(w: Window, rows: np.ndarray, resolution: float) -> list[Family]:
     tried[rows] = False
     deferred = np.zeros(len(w.paths), dtype=bool)
     found: list[Family] = []
-    turns = [TURN_RETRIES]  # the turned corners _grow may try where a right angle grew none
+    turns = Budget(TURN_RETRIES)  # the turned corners _grow may try where a right angle grew none
     for last in (False, True):
         failed = 0
         for seed in np.argsort(-w.amplitude, kind="stable"):
