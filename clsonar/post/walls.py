@@ -46,6 +46,13 @@ MIN_VERTEX_DEG = 20.0
 #: walls beside it.
 MIN_JOIN_WALL_M = 0.5
 
+#: Two short walls that no circle takes (a box's faces, each seen over a stretch), each
+#: at least :data:`MIN_FACE_M` long, meet where their lines cross within
+#: :data:`SHORT_REACH` times each one's length of its end: a ring's patches of a pillar of
+#: radius R, R·tan(θ/2) − ℓ/2 from their crossing, stay apart.
+MIN_FACE_M = 0.2
+SHORT_REACH = 1.5
+
 
 @dataclass
 class Wall:
@@ -189,16 +196,19 @@ def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
     return a.at(t)
 
 
-def join_walls(walls: list[Wall], join_m: float) -> np.ndarray:
+def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_M,
+               reach: float = math.inf, shortest: float = 0.0) -> np.ndarray:
     """Extend or trim adjoining walls to the intersection of their lines — a corner or an
-    edge — when it lies within ``join_m`` of an end of each (pairs of long walls first,
-    then the nearest, each end at most once: a short chamfer across a corner must not take
-    the ends of the two walls that meet there). Changes the walls' spans; returns the
-    vertices [k, 2]."""
+    edge — when it lies within ``join_m`` of an end of each, and within ``reach`` times
+    its length (pairs of long walls first, then the nearest, each end at most once: a
+    short chamfer across a corner must not take the ends of the two walls that meet
+    there); two walls meet only if one of them is at least ``longest`` long and both at
+    least ``shortest``. Changes the walls' spans; returns the vertices [k, 2]."""
     candidates = []
     for i in range(len(walls)):
         for j in range(i + 1, len(walls)):
-            if max(walls[i].length, walls[j].length) < MIN_JOIN_WALL_M:
+            if (max(walls[i].length, walls[j].length) < longest
+                    or min(walls[i].length, walls[j].length) < shortest):
                 continue
             x = _intersection(walls[i], walls[j])
             if x is None:
@@ -208,7 +218,8 @@ def join_walls(walls: list[Wall], join_m: float) -> np.ndarray:
                 t = (x - w.centre) @ w.direction
                 end = 0 if abs(t - w.lo) <= abs(t - w.hi) else 1
                 ends.append((end, t, abs(t - (w.lo, w.hi)[end])))
-            if ends[0][2] <= join_m and ends[1][2] <= join_m:
+            if all(e[2] <= min(join_m, reach * w.length)
+                   for e, w in zip(ends, (walls[i], walls[j]), strict=True)):
                 shorter = min(walls[i].length, walls[j].length)
                 candidates.append((-shorter, ends[0][2] + ends[1][2], i, j, x, ends))
     used: set[tuple[int, int]] = set()
@@ -403,9 +414,16 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) 
         return bool(np.all(d.min(axis=1) <= join))
 
     long = [w for w in walls if w.joins or w.length >= MIN_JOIN_WALL_M]
-    short = [w.points for w in walls if not (w.joins or w.length >= MIN_JOIN_WALL_M)]
-    arcs, rest = find_circles([p for p in short + bends if not rounding(p)])
+    short = [w for w in walls if not (w.joins or w.length >= MIN_JOIN_WALL_M)]
+    arcs, rest = find_circles([p for p in [w.points for w in short] + bends
+                               if not rounding(p)])
     long = [w for w in long if w.joins or not any(arc.holds(w.points) for arc in arcs)]
+    # a box's faces: short walls that no circle took meet where they reach each other
+    faces = [w for w in short if any(w.points is p for p in rest)]
+    vertices = np.concatenate([vertices, join_walls(faces, join, 0.0, SHORT_REACH,
+                                                    MIN_FACE_M)])
+    long += [w for w in faces if w.joins]
+    rest = [p for p in rest if not any(w.joins and w.points is p for w in faces)]
     out = [w.sample(spacing) for w in long]
     for arc in arcs:
         out += arc.sample(spacing, max_gap)
