@@ -35,9 +35,9 @@ def test_j1_is_cephes(lo: float, hi: float) -> None:
     """Both branches of Cephes' j1 (|x| ≤ 5 and beyond) as scipy has them: the same bits
     here (scipy 1.17; 1.14.1 gave the same bits too), within 2 units of the last place on
     that release. Another release may compute j1 otherwise (the NVIDIA machine's scipy,
-    not on PyPI yet, differed by up to 3e8 units of the last place next to J1's zeros, by
-    how much in value that run did not say): there the values agree within 1e-13 (|J1| ≤
-    0.582; the piston pattern needs far less)."""
+    its version not printed, differed by up to 3e8 units of the last place next to J1's
+    zeros, by how much in value that run did not say): there the values agree within
+    1e-13 (|J1| ≤ 0.582; the piston pattern needs far less)."""
     x = np.random.default_rng(7).uniform(lo, hi, 200_000)
     if not SCIPY.startswith("1.17."):
         np.testing.assert_allclose(j1(x), special.j1(x), rtol=0, atol=1e-13)
