@@ -195,15 +195,22 @@ def _extension(package: str, name: str) -> ModuleType | None:
 FITPACK_SCIPY = ("1.15.", "1.16.", "1.17.")
 
 
+def fitpack_release() -> bool:
+    """Whether the installed scipy is a release of :data:`FITPACK_SCIPY`, whose private
+    FITPACK wrappers :func:`_fitpack` loads (another gets ``scipy.interpolate``'s public
+    functions)."""
+    import importlib.metadata  # here, when a spline is first fitted: 15 ms at start-up
+
+    return importlib.metadata.version("scipy").startswith(FITPACK_SCIPY)
+
+
 @cache
 def _fitpack() -> tuple[Any, Any] | None:
     """scipy's FITPACK wrappers ``(_fitpack, _dfitpack)``, the modules its ``splprep`` and
     ``splev`` call, or None where they cannot be loaded so, or scipy is not a release of
-    :data:`FITPACK_SCIPY`."""
-    import importlib.metadata  # here, when a spline is first fitted: 15 ms at start-up
-
+    :data:`FITPACK_SCIPY` (:func:`fitpack_release`)."""
     try:
-        if not importlib.metadata.version("scipy").startswith(FITPACK_SCIPY):
+        if not fitpack_release():
             return None
         if sys.modules.get("scipy.interpolate") is not None:  # paid for: the package's own
             from scipy.interpolate import _dfitpack, _fitpack

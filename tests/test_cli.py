@@ -1,6 +1,5 @@
 """Command-line contract: bad input gives one line naming file and key, exit 2, no output."""
 
-import importlib.metadata
 import json
 import subprocess
 import sys
@@ -9,13 +8,12 @@ from pathlib import Path
 import pytest
 
 from clsonar.cli import main
-from clsonar.numerics import FITPACK_SCIPY
+from clsonar.numerics import fitpack_release
 
 #: Where the installed scipy is not a release whose FITPACK wrappers clsonar.numerics loads
 #: itself, a spline is fitted through ``scipy.interpolate`` (the public functions).
 NEEDS_PRIVATE_FITPACK = pytest.mark.skipif(
-    not importlib.metadata.version("scipy").startswith(FITPACK_SCIPY),
-    reason="this scipy's splines come through scipy.interpolate")
+    not fitpack_release(), reason="this scipy's splines come through scipy.interpolate")
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from scipy import optimize, special
 
 from clsonar.numerics import (
-    FITPACK_SCIPY,
+    fitpack_release,
     j1,
     minimize_bounded,
     parametric_spline,
@@ -134,7 +134,7 @@ def test_the_spline_without_the_extension_files_is_scipys_public_one(monkeypatch
     assert np.array_equal(spline_values(x, parametric_spline(p, t, 1e-4, False)), direct)
 
 
-@pytest.mark.skipif(not SCIPY.startswith(FITPACK_SCIPY),
+@pytest.mark.skipif(not fitpack_release(),
                     reason=f"scipy {SCIPY}'s FITPACK wrappers are not the ones checked")
 def test_another_scipy_release_gets_the_public_functions(monkeypatch) -> None:
     """The private wrappers are called only for the releases whose splprep/splev call them

@@ -4,7 +4,6 @@ the garbage collector left out of what the command imported, the text outputs wr
 from Python numbers — each checked in a fresh process or against the element-by-element
 form it replaced, the same text."""
 
-import importlib.metadata
 import io
 import json
 import os
@@ -17,7 +16,7 @@ import pytest
 
 import clsonar
 from clsonar.echoes.table import KINDS, EchoTable
-from clsonar.numerics import FITPACK_SCIPY
+from clsonar.numerics import fitpack_release
 from clsonar.outputs import profile_csv
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -67,7 +66,7 @@ def test_the_command_line_starts_numpy_with_one_blas_thread_unless_told():
     assert _fresh(code, OPENBLAS_NUM_THREADS="2") == "2"
 
 
-@pytest.mark.skipif(not importlib.metadata.version("scipy").startswith(FITPACK_SCIPY),
+@pytest.mark.skipif(not fitpack_release(),
                     reason="this scipy's splines come through scipy.interpolate")
 def test_a_room_run_with_png_none_imports_no_scipy_package_nor_matplotlib(tmp_path):
     """Only scipy's FITPACK extensions are loaded (numerics._extension), never the

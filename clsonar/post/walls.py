@@ -419,11 +419,13 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) 
                                if not rounding(p)])
     long = [w for w in long if w.joins or not any(arc.holds(w.points) for arc in arcs)]
     # a box's faces: short walls that no circle took meet where they reach each other
-    faces = [w for w in short if any(w.points is p for p in rest)]
+    left = {id(p) for p in rest}
+    faces = [w for w in short if id(w.points) in left]
     vertices = np.concatenate([vertices, join_walls(faces, join, 0.0, SHORT_REACH,
                                                     MIN_FACE_M)])
-    long += [w for w in faces if w.joins]
-    rest = [p for p in rest if not any(w.joins and w.points is p for w in faces)]
+    met = {id(w.points) for w in faces if w.joins}
+    long += [w for w in faces if id(w.points) in met]
+    rest = [p for p in rest if id(p) not in met]
     out = [w.sample(spacing) for w in long]
     for arc in arcs:
         out += arc.sample(spacing, max_gap)
