@@ -12,8 +12,9 @@ TEXT`` (exit status 0). Four are given:
 - the map is empty although echoes were detected: the surfaces heard lie outside the map's
   extent, or the settings lost every detection on the way to the profile (the counters say
   at which stage);
-- the map holds only the points where two loud echoes' loci cross: too few echoes were
-  heard for any reflector's model (:func:`clsonar.mapping.reflectors.loud_crossings`).
+- the map holds only faces drawn from two elements' echoes each and the points where two
+  loud echoes' loci cross: too few echoes were heard for any reflector's model
+  (:func:`clsonar.mapping.reflectors.loud_crossings`).
 """
 
 from __future__ import annotations
@@ -51,12 +52,15 @@ def scene_warnings(scene: Scene) -> list[str]:
 
 def result_warnings(counts: Mapping[str, int]) -> list[str]:
     """One line when a run's profile is empty although echoes were detected, or holds only
-    the crossings of loud echoes' loci (``counts``: the run's counters)."""
+    two-echo faces and the crossings of loud echoes' loci (``counts``: the run's counters)."""
     detected = counts.get("detections", 0)
-    crossings = counts.get("crossing_points", 0)
-    if crossings and counts.get("profile_points", 0) > 0:
-        return [f"the map holds only the {crossings} point(s) where two loud echoes' loci "
-                f"cross: the {detected} echoes detected are too few for a surface's model"]
+    crossings, faces = counts.get("crossing_points", 0), counts.get("two_echo_faces", 0)
+    if (crossings or faces) and counts.get("profile_points", 0) > 0:
+        held = [f"{faces} face(s) each drawn from two elements' echoes"] if faces else []
+        if crossings:
+            held.append(f"the {crossings} point(s) where two loud echoes' loci cross")
+        return [f"the map holds only {' and '.join(held)}: the {detected} echoes detected "
+                "are too few for a surface's model"]
     if detected == 0 or counts.get("profile_points", 0) > 0:
         return []
     return [f"the map is empty although {detected} echoes were detected "

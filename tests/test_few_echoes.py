@@ -7,6 +7,7 @@ from hypothesis import strategies as st
 
 from clsonar import pipeline
 from clsonar.mapping.crossings import crossing_points
+from clsonar.mapping.few import common_tangents
 from clsonar.mapping.loci import Loci
 from clsonar.mapping.patches import Patches
 from clsonar.mapping.reflectors import loud_crossings
@@ -100,3 +101,35 @@ def test_a_map_of_a_located_vertex_alone_is_not_a_few_echoes_map():
     result = pipeline.run(draw(67, "corner", 0).scene, context=get_context())
     assert result.counts["vertices_located"] == 1 and result.counts["crossing_points"] == 0
     assert len(result.profile.points) == 1 and result.warnings == ()
+
+
+@settings(max_examples=60)
+@given(st.tuples(st.floats(-5, 5), st.floats(-5, 5)), st.tuples(st.floats(-5, 5), st.floats(-5, 5)),
+       st.floats(0.1, 9), st.floats(0.1, 9))
+def test_both_loci_touch_their_common_tangents(t1, t2, r1, r2):
+    """Each line of few.common_tangents is ρ_k from T_k, both on the side away from n;
+    none where one circle holds the other."""
+    T, rho = np.array([t1, t2], dtype=np.float64), np.array([r1, r2])
+    apart = np.hypot(*(T[0] - T[1]))
+    if apart < abs(r1 - r2) or apart == 0:  # one circle inside the other: no such line
+        assert np.all(np.isnan(common_tangents(T, rho)))
+        return
+    for n in common_tangents(T, rho):
+        assert abs(np.hypot(*n) - 1.0) < 1e-12
+        d = n @ T.T + rho  # the line n·x = d through each reflection point T_k + ρ_k·n
+        assert abs(d[0] - d[1]) < 1e-9 * (1 + np.abs(d).max())
+
+
+def test_a_wall_two_elements_heard_is_a_face_not_their_crossing():
+    """The zoo's unseen seed 74 wall-07: two elements of a random-lines array 1.1 m apart,
+    7.3 m from a wall tilted 29°, each heard it once, as loud as the plane their loci
+    touch. Their crossing, 1.5 cm in front of the wall, was the map; now the face they
+    are the echoes of is, over its regions of constant depth: 100 % complete."""
+    case = draw(74, "wall", 7)
+    result = pipeline.run(case.scene, context=get_context())
+    row = score(case, result)
+    assert row["accuracy_m"] < 1e-4 and row["completeness_3cm"] > 0.99
+    assert result.counts["two_echo_faces"] == 1 and result.counts["crossing_points"] == 0
+    assert result.warnings == ("the map holds only 1 face(s) each drawn from two elements' "
+                               "echoes: the 2 echoes detected are too few for a surface's "
+                               "model",)

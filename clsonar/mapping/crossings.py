@@ -163,19 +163,26 @@ def triangulated_points(scene: Scene, sensors: SensorArray, loci, *,
 SAME_CROSSING_M = 1e-6
 
 
-def crossing_points(scene: Scene, sensors: SensorArray, loci) -> tuple[np.ndarray, np.ndarray]:
+def crossing_points(scene: Scene, sensors: SensorArray, loci, apart: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
     """``(points [m, 2], source [m])``: where each two of the loci cross inside the joint
     beam regions of both (:func:`_intersections`, any baseline), and the nearer of the two
     (least path length), whose pair the point keeps: triangulation with the support of one
     crossing (Wijk & Christensen's TBF asks for three), for the few echoes no reflector's
     model explains. Two loci tangent to one smooth surface at points δ apart cross within
     about δ²/(8r) of it (:func:`~.tangents.tangent_map`), and two loci of one point
-    reflector (a thin post, an edge, a corner's vertex) cross at it."""
+    reflector (a thin post, an edge, a corner's vertex) cross at it. The rows of
+    ``apart`` [k, 2] are pairs of loci whose crossing is no point (one plane's echoes:
+    :func:`~.few.two_echo_faces`)."""
     loci = as_loci(loci)
     if len(loci) < 2:
         return np.zeros((0, 2)), np.zeros(0, np.int64)
     s = sample_loci(scene, sensors, loci)
     q, crossed = _intersections(s, np.inf)
+    if apart is not None and len(apart):  # two loci of one plane: no reflector where they cross
+        faces = {tuple(sorted(p)) for p in apart.tolist()}
+        keep = np.array([tuple(sorted(p)) not in faces for p in crossed.tolist()], dtype=bool)
+        q, crossed = q[keep].reshape(-1, 2), crossed[keep].reshape(-1, 2)
     # a crossing on a sample is found from both sides of it: once
     order = np.lexsort((q[:, 1], q[:, 0], crossed[:, 1], crossed[:, 0]))
     q, crossed = q[order], crossed[order]

@@ -185,8 +185,14 @@ def silence_clamp(scene: Scene, sensors: SensorArray, heard: Heard
     their spans kept a part's region of constant depth that no pair of its own could
     test, past an end that another part's silent pairs had placed (the zoo's unseen seed
     61 edge-02, σ 0.3: a face seen by three arrays, 20 echoes of one drawn 21 cm past the
-    edge where the others' pairs heard nothing, 4.8 cm RMS)."""
+    edge where the others' pairs heard nothing, 4.8 cm RMS). A join of one group's parts
+    is left as it is: each part was cut by every pair of its group already, and cut again
+    as one patch, by the weakest of all its parts' echoes, it lost the end that the part
+    nearest the edge had found (unseen seed 60 edge-02, σ 0.3: two families of one array
+    on one face, the joined face cut 2.4 cm short of the edge its second part reached)."""
     def clamp(p: Patch) -> Patch:
+        if len(np.unique(sensors.groups[np.concatenate([p.tx, p.rx])])) == 1:
+            return p
         lo, hi = clamp_to_silence(p, scene, sensors, heard, p.lo, p.hi)
         return replace(p, lo=lo, hi=hi)
 
@@ -406,8 +412,13 @@ def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
     if alone is not None:
         patches, vertices = reach_heard_ends(patches, vertices, scene, sensors, loci, heard,
                                              alone)
+    return draw_patches(scene, patches, merge_vertices(vertices, np.zeros(len(vertices))))
+
+
+def draw_patches(scene: Scene, patches: list[Patch], vertices: np.ndarray) -> Patches:
+    """``patches`` inside the map's extent drawn every :data:`STEP_CELLS` cells over their
+    drawn spans (:func:`drawn_spans`), with the located ``vertices``."""
     patches = [clip_to_extent(p, scene.extent) for p in patches]
-    vertices = merge_vertices(vertices, np.zeros(len(vertices)))
     step = STEP_CELLS * scene.cell
     drawn = [draw_patch(replace(p, lo=a, hi=b), step) for p in patches
              for a, b in drawn_spans(p)]
@@ -419,5 +430,5 @@ def draw_families(scene: Scene, sensors: SensorArray, loci: Loci,
 
 __all__ = ["CROSSED_INSIDE_M", "CROSSED_MIN_ANGLE_RAD", "END_AT_VERTEX_M", "JOIN_GAP_M",
            "MEET_M", "SAME_LINE_M", "SAME_LINE_RAD", "SAME_VERTEX_M", "crossed_faces",
-           "draw_families", "drawn_spans", "join_collinear", "meet",
+           "draw_families", "draw_patches", "drawn_spans", "join_collinear", "meet",
            "merge_vertices", "reach_heard_ends"]

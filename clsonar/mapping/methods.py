@@ -193,17 +193,20 @@ def reflector_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     """``"reflectors"`` (the default): each linear array's echoes fitted by reflector
     models, planes and circles drawn as points, points and corners located as vertices;
     other groups' tangent points (:func:`~clsonar.mapping.reflector_points`); where those
-    are none, the crossings of the loud echoes' loci (:func:`~.reflectors.loud_crossings`,
+    are none, the faces two loud echoes are a plane's (counted as ``two_echo_faces``) and
+    the crossings of the other loud echoes' loci (:func:`~.reflectors.loud_crossings`,
     counted as ``crossing_points``)."""
     loci = _loci(scene, detections)
     drawn = reflector_points(scene, sensors, loci)
     few = len(drawn.points) == len(drawn.vertices) == 0
     if few:
         drawn = loud_crossings(scene, sensors, loci, drawn)
+    faces = int(drawn.ends[-1]) if len(drawn.ends) else 0  # the patches' points come first
     return Votes(points=drawn.points, tx=loci.tx[drawn.source], rx=loci.rx[drawn.source],
                  vertices=drawn.vertices, patch_ends=drawn.ends,
                  counts={"patches": len(drawn.ends), "vertices_located": len(drawn.vertices),
-                         "crossing_points": len(drawn.points) if few else 0})
+                         "crossing_points": len(drawn.points) - faces if few else 0,
+                         "two_echo_faces": len(drawn.ends) if few else 0})
 
 
 #: The mapping methods by ``mapping.mode``.

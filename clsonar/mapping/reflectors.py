@@ -48,8 +48,9 @@ from .families import (
     outside_allowed,
     window_tolerance,
 )
+from .few import two_echo_faces
 from .heard import amplitude_noise, group_pairs, heard_index, loudest
-from .joins import END_AT_VERTEX_M, draw_families
+from .joins import END_AT_VERTEX_M, draw_families, draw_patches
 from .loci import Loci, _subset
 from .models import corner_images, corner_paths, dot2
 from .owners import a_corners_echoes, widened
@@ -526,9 +527,10 @@ FEW_LOUD = 12
 
 
 def loud_crossings(scene: Scene, sensors: SensorArray, loci: Loci, drawn: Patches) -> Patches:
-    """``drawn`` and, each as a point found, where two loci of echoes as loud as a room
-    scan's floor (:data:`~clsonar.survey.DEFAULT_MIN_ENVELOPE`) cross inside both joint
-    beam regions (:func:`~.crossings.crossing_points`): what a map has where
+    """``drawn``'s vertices with the faces of which two echoes as loud as a room scan's
+    floor (:data:`~clsonar.survey.DEFAULT_MIN_ENVELOPE`) are a plane's
+    (:func:`~.few.two_echo_faces`), and, each as a point found, where two other such loci
+    cross inside both joint beam regions (:func:`~.crossings.crossing_points`): what a map has where
     :func:`reflector_points` drew nothing, too few echoes heard for any reflector's model
     (a thin post two elements of a sparse array heard, a sinusoid's crest heard by two
     pairs). A weak echo's locus is left out: a diffraction's or a multipath's, it would
@@ -538,7 +540,11 @@ def loud_crossings(scene: Scene, sensors: SensorArray, loci: Loci, drawn: Patche
     loud = np.flatnonzero(loci.amplitude >= DEFAULT_MIN_ENVELOPE)
     if len(loud) > FEW_LOUD:
         return drawn
-    points, source = crossing_points(scene, sensors, _subset(loci, loud))
+    faces, pairs = two_echo_faces(scene, sensors, loci, loud)
+    points, source = crossing_points(scene, sensors, _subset(loci, loud),
+                                     np.searchsorted(loud, pairs))
+    if faces:
+        drawn = draw_patches(scene, faces, drawn.vertices)
     return drawn.plus(points, loud[source], points)
 
 

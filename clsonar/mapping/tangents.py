@@ -412,7 +412,7 @@ def _facing_too_weak(scene: Scene, s: SampledLoci, loci: np.ndarray, bias: float
     return out
 
 
-def _plane_echoes(scene: Scene, s: SampledLoci, loci: list[int], normal: np.ndarray) -> bool:
+def plane_echoes(scene: Scene, s: SampledLoci, loci: list[int], normal: np.ndarray) -> bool:
     """Whether the T = R ``loci`` (two or more) are a plane's with unit ``normal`` (towards
     the transducers; :func:`~.pillars.a_plane_not_a_corner`): heard as loud as its echo at
     each reflection point T − ρ·n would be (a mirror's A0·ρ times the two-way beam there
@@ -424,13 +424,21 @@ def _plane_echoes(scene: Scene, s: SampledLoci, loci: list[int], normal: np.ndar
     idx = np.asarray(loci, dtype=np.int64)
     if scene.detection.mode != "envelope" or ka == 0 or np.any(s.loci.tx[idx] != s.loci.rx[idx]):
         return False
+    return a_plane_not_a_corner(s.loci.amplitude[idx], *plane_and_corner(scene, s, idx, normal),
+                                HEARD_NOISE_SCALES * envelope_noise(scene))
+
+
+def plane_and_corner(scene: Scene, s: SampledLoci, idx: np.ndarray, normal: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The echoes of the T = R loci ``idx`` from the plane they touch with unit ``normal``
+    (towards them), and from a concave corner at the first two's crossing."""
+    _, ka = scene.transducer.beam(scene.medium.c)
     T, axes, rho = s.T[idx], s.axes[s.loci.tx[idx]], s.a[idx]
     q = T - rho[:, None] * normal
     corner = np.tile(loci_crossing(T, rho, q.mean(axis=0)), (len(idx), 1))
     mirror = mirror_echo(scene) * absorption_factor(2.0 * rho, scene.echo.absorption_db_per_m)
-    return a_plane_not_a_corner(s.loci.amplitude[idx], mirror * two_way(q, T, axes, T, axes, ka),
-        mirror * scene.echo.reflection_coefficient * two_way(corner, T, axes, T, axes, ka),
-        HEARD_NOISE_SCALES * envelope_noise(scene))
+    return (mirror * two_way(q, T, axes, T, axes, ka),
+            mirror * scene.echo.reflection_coefficient * two_way(corner, T, axes, T, axes, ka))
 
 
 def _two_pose_faces(scene: Scene, sensors: SensorArray, s: SampledLoci, points: np.ndarray,
@@ -440,14 +448,14 @@ def _two_pose_faces(scene: Scene, sensors: SensorArray, s: SampledLoci, points: 
     poses only (:func:`~.envelope.two_pose_links`: a box's face a ring passes obliquely)
     where all are isolated, none a point reflector's nor a pillar's (``points``: the
     loci those explain), and their echoes are the plane's of their common tangent
-    (:func:`_plane_echoes`): two circles always have one, and a concave corner heard
+    (:func:`plane_echoes`): two circles always have one, and a concave corner heard
     twice has both loci through its vertex, heard at angles either side of the tangent's
     (one louder than the plane would be, one weaker, or both weaker), and a pillar echoes
     sqrt(R/(R + d)) of a plane."""
 
     def plane(loci: list[int], normal: np.ndarray) -> bool:
         return (bool(np.all(np.isin(loci, isolated))) and not np.any(np.isin(loci, points))
-                and _plane_echoes(scene, s, loci, normal))
+                and plane_echoes(scene, s, loci, normal))
 
     return two_pose_links(scene, sensors, s.loci, LINK_STEP_M, bias, plane, scans)
 

@@ -196,6 +196,36 @@ def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
     return a.at(t)
 
 
+#: A wall's extension to a crossing "passes" another wall's line only this far from it.
+PASSES_M = 0.02
+
+
+def _passes_another(walls: list[Wall], k: int, pair: tuple[int, int],
+                    end: tuple[int, float, float], x: np.ndarray, join_m: float,
+                    least: float) -> bool:
+    """Whether wall ``k``, extended from its ``end`` (which end, the crossing's coordinate,
+    how far) to the crossing ``x``, would pass through the line of another wall at least
+    ``least`` long (not one of ``pair``) where that wall could meet it, within ``join_m``
+    of its span: it meets the wall it reaches first. A U room's notch (the zoo's unseen
+    seed 73 room-06): the two walls beside its mouth, each 1 m from its crossing with the
+    notch's far side as with its near one, were drawn across the mouth, 6.7 cm RMS."""
+    wall = walls[k]
+    start = wall.at((wall.lo, wall.hi)[end[0]])
+    if not (wall.lo < end[1] < wall.hi) and end[2] > PASSES_M:  # an extension, not a cut
+        for m, other in enumerate(walls):
+            if m in pair or other.length < least:
+                continue
+            y = _intersection(wall, other)
+            if y is None:
+                continue
+            along = float((y - start) @ (x - start))  # y on the way: 0 … |x − start|²
+            t = float((y - other.centre) @ other.direction)
+            if (0.0 <= along <= end[2] ** 2 and float(np.hypot(*(y - x))) > PASSES_M
+                    and other.lo - join_m <= t <= other.hi + join_m):
+                return True
+    return False
+
+
 def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_M,
                reach: float = math.inf, shortest: float = 0.0) -> np.ndarray:
     """Extend or trim adjoining walls to the intersection of their lines — a corner or an
@@ -219,7 +249,10 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
                 end = 0 if abs(t - w.lo) <= abs(t - w.hi) else 1
                 ends.append((end, t, abs(t - (w.lo, w.hi)[end])))
             if all(e[2] <= min(join_m, reach * w.length)
-                   for e, w in zip(ends, (walls[i], walls[j]), strict=True)):
+                   for e, w in zip(ends, (walls[i], walls[j]), strict=True)) and not any(
+                    _passes_another(walls, k, (i, j), ends[n], x, join_m,
+                                    max(longest, shortest))
+                    for n, k in enumerate((i, j))):
                 shorter = min(walls[i].length, walls[j].length)
                 candidates.append((-shorter, ends[0][2] + ends[1][2], i, j, x, ends))
     used: set[tuple[int, int]] = set()

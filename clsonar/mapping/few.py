@@ -1,0 +1,115 @@
+"""A face heard by two elements only (``mapping.mode = "reflectors"``, where no reflector's
+model explains the few echoes heard, :func:`~.reflectors.loud_crossings`).
+
+Two elements at T₁ and T₂ that each heard a plane straight back (T = R) have loci, circles
+of radii ρ₁ and ρ₂, both tangent to it: the plane is one of the circles' common tangents,
+n·x = d with d = n·T_k + ρ_k (n the plane's normal, away from the elements), and each
+reflection point is T_k + ρ_k·n. The loci cross about δ²/(8r) in front of it (δ the
+reflection points' distance apart, r the range: 1.5 cm for the zoo's unseen seed 74
+wall-07, two elements 1.1 m apart 7.3 m from a wall, whose crossing was its map). A point
+reflector heard twice (a post, an edge, a concave corner's double bounce) has both loci
+through it instead. The echoes' strengths tell the two apart, as a ring's two poses'
+do (:func:`~.tangents.plane_echoes`, Kleeman & Kuc 1995's test): where they are the
+plane's, within :data:`FACE_ECHO_SHARE`, the face is a patch like a family's, spread
+over its regions of constant depth and cut where other pairs heard nothing
+(:func:`~.patches.spread_patch`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from ..scene import Scene
+from ..sensors import SensorArray
+from .envelope import in_beams
+from .heard import heard_index
+from .loci import Loci, _subset
+from .patches import Patch, coordinates, spread_patch, strength_bend
+from .tangents import (
+    HEARD_NOISE_SCALES,
+    envelope_noise,
+    plane_and_corner,
+    plane_echoes,
+    sample_loci,
+)
+
+#: Two echoes are a face's only within this share of the plane's echo (beyond the noise):
+#: a face's nearer its edge (down to half of it there) or a convex surface's
+#: (sqrt(R/(R + d)) of it, a 5 cm post 0.44 m away heard at 0.52-0.60 of the plane its two
+#: loci touch: the zoo's unseen seed 67 post-03) may be heard at their crossing instead.
+FACE_ECHO_SHARE = 0.2
+
+
+def common_tangents(T: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """[2, 2] the unit normals n (away from the circles' centres) of the two lines tangent
+    to both circles (``T[k]``, ``rho[k]``) with both on the same side, n·(T₁ − T₂) = ρ₂ − ρ₁;
+    NaN where one circle holds the other (no such line) or both have one centre."""
+    D = T[0] - T[1]
+    length = float(np.hypot(*D))
+    if length == 0.0 or abs(float(rho[1] - rho[0])) > length:
+        return np.full((2, 2), np.nan)
+    c = float(rho[1] - rho[0]) / length
+    along, across = D / length, np.array([-D[1], D[0]]) / length
+    s = math.sqrt(1.0 - c * c)
+    return np.stack([c * along + s * across, c * along - s * across])
+
+
+def two_echo_face(scene: Scene, sensors: SensorArray, loci: Loci, pair: np.ndarray
+                  ) -> Patch | None:
+    """The plane the T = R loci ``pair`` (two rows of ``loci``, two positions) are the echoes
+    of, as a patch over its reflection points (module docstring): the common tangent whose
+    reflection points lie inside both elements' beams (None where neither or both do, or
+    the echoes are not that plane's)."""
+    tx, rx = loci.tx[pair], loci.rx[pair]
+    T = sensors.positions[tx]
+    if np.any(tx != rx) or float(np.hypot(*(T[0] - T[1]))) < 1e-6:
+        return None
+    rho = 0.5 * scene.medium.c * loci.tof_s[pair]  # as sample_loci's half paths
+    axes = sensors.axes[tx]
+    cut_sin2 = scene.transducer.beam(scene.medium.c)[0]
+    faces = []
+    for n in common_tangents(T, rho):
+        q = T + rho[:, None] * n
+        if np.all(np.isfinite(q)) and np.all(in_beams(q, T, axes, cut_sin2)):
+            faces.append((n, q))
+    if len(faces) != 1:
+        return None
+    n, q = faces[0]
+    s = sample_loci(scene, sensors, _subset(loci, pair))
+    if not plane_echoes(scene, s, [0, 1], -n):
+        return None
+    plane, _ = plane_and_corner(scene, s, np.arange(2), -n)
+    spare = HEARD_NOISE_SCALES * envelope_noise(scene)
+    if np.any(np.abs(loci.amplitude[pair] - plane) > FACE_ECHO_SHARE * plane + spare):
+        return None
+    params = np.array([math.atan2(n[1], n[0]), float(n @ T[0] + rho[0]), 0.0])
+    x0 = q.mean(axis=0)
+    u = coordinates(params, x0, q)
+    return Patch(params, x0, u, float(u.min()), float(u.max()), np.asarray(pair), math.inf,
+                 tx, rx, T, T.copy(), 2.0 * rho)
+
+
+def two_echo_faces(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray
+                   ) -> tuple[list[Patch], np.ndarray]:
+    """``(faces, pairs [k, 2])``: each two of ``rows`` (loci) that are one plane's echoes
+    (:func:`two_echo_face`), its patch as flat as its echoes' strengths say
+    (:func:`~.patches.strength_bend`) spread over its regions of constant depth
+    (:func:`~.patches.spread_patch`), and the two rows of each."""
+    heard = heard_index(loci, sensors, scene.medium.c)
+    faces, pairs = [], []
+    for a in range(len(rows)):
+        for b in range(a + 1, len(rows)):
+            pair = np.array([rows[a], rows[b]], dtype=np.int64)
+            face = two_echo_face(scene, sensors, loci, pair)
+            if face is not None:
+                amplitude = loci.amplitude[pair]
+                face = replace(face, bend=strength_bend(face, scene, sensors, amplitude))
+                faces.append(spread_patch(face, scene, sensors, heard, amplitude))
+                pairs.append(pair)
+    return faces, np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+
+
+__all__ = ["common_tangents", "two_echo_face", "two_echo_faces"]
