@@ -111,3 +111,15 @@ def test_a_corner_two_short_noisy_arrays_fit_as_planes_is_its_vertex():
     case = draw(72, "corner", 2)
     row = score(case, pipeline.run(case.scene, context=get_context()))
     assert row["accuracy_m"] < 0.002 and row["vertex_error_m"] < 0.002
+
+
+def test_a_boxs_faces_seen_over_centimetres_close_it():
+    """A 0.7 × 0.6 m box whose two long faces are seen over 0.56-0.62 m and its other two
+    over 12-13 cm: each short face meets a long one at one end (one of the two at least
+    0.5 m), and their free ends meet at the box's last vertex, (0, 0) — the zoo's unseen
+    seed 66 room-05 (σ 0.6), whose box vertex was 16 cm from anything drawn (0.3 cm now)."""
+    curves = [_segment((0.7, 0.02), (0.7, 0.58)), _segment((0.04, 0.6), (0.66, 0.6)),
+              _segment((0.16, 0.0), (0.28, 0.0)), _segment((0.0, 0.26), (0.0, 0.39))]
+    vertices = fit_walls(curves, 0.005, WALLS).vertices
+    for corner in ((0.0, 0.0), (0.7, 0.0), (0.7, 0.6), (0.0, 0.6)):
+        assert np.min(np.hypot(*(vertices - corner).T)) < 1e-9

@@ -12,7 +12,7 @@ of a cylinder, fitted as a circle (:func:`find_circles`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -66,6 +66,7 @@ class Wall:
     hi: float
     residual: float
     joins: int = 0  # ends extended or trimmed to a vertex
+    met: list[bool] = field(default_factory=lambda: [False, False])  # which: lo, hi
 
     @classmethod
     def fit(cls, points: np.ndarray) -> Wall:
@@ -80,6 +81,12 @@ class Wall:
     @property
     def length(self) -> float:
         return self.hi - self.lo
+
+    @property
+    def seen(self) -> float:
+        """How long a stretch its points cover (its span before any join)."""
+        t = (self.points - self.centre) @ self.direction
+        return float(t.max() - t.min())
 
     def at(self, t: float) -> np.ndarray:
         return self.centre + t * self.direction
@@ -227,13 +234,15 @@ def _passes_another(walls: list[Wall], k: int, pair: tuple[int, int],
 
 
 def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_M,
-               reach: float = math.inf, shortest: float = 0.0) -> np.ndarray:
+               reach: float = math.inf, shortest: float = 0.0, free: bool = False
+               ) -> np.ndarray:
     """Extend or trim adjoining walls to the intersection of their lines — a corner or an
     edge — when it lies within ``join_m`` of an end of each, and within ``reach`` times
     its length (pairs of long walls first, then the nearest, each end at most once: a
     short chamfer across a corner must not take the ends of the two walls that meet
     there); two walls meet only if one of them is at least ``longest`` long and both at
-    least ``shortest``. Changes the walls' spans; returns the vertices [k, 2]."""
+    least ``shortest``, and with ``free`` only at ends that met no wall before. Changes the
+    walls' spans; returns the vertices [k, 2]."""
     candidates = []
     for i in range(len(walls)):
         for j in range(i + 1, len(walls)):
@@ -248,6 +257,8 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
                 t = (x - w.centre) @ w.direction
                 end = 0 if abs(t - w.lo) <= abs(t - w.hi) else 1
                 ends.append((end, t, abs(t - (w.lo, w.hi)[end])))
+            if free and (walls[i].met[ends[0][0]] or walls[j].met[ends[1][0]]):
+                continue
             if all(e[2] <= min(join_m, reach * w.length)
                    for e, w in zip(ends, (walls[i], walls[j]), strict=True)) and not any(
                     _passes_another(walls, k, (i, j), ends[n], x, join_m,
@@ -263,6 +274,7 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
         for k, (end, t, _) in zip((i, j), ends, strict=True):
             used.add((k, end))
             walls[k].joins += 1
+            walls[k].met[end] = True
             if end == 0:
                 walls[k].lo = t
             else:
@@ -459,6 +471,11 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) 
     met = {id(w.points) for w in faces if w.joins}
     long += [w for w in faces if id(w.points) in met]
     rest = [p for p in rest if id(p) not in met]
+    # a box's faces seen over a few centimetres, each met at its other end (a chain round
+    # the box): their free ends meet as a box's faces do
+    chain = [w for w in long if w.joins == 1 and w.seen < MIN_JOIN_WALL_M]
+    vertices = np.concatenate([vertices, join_walls(chain, join, 0.0, SHORT_REACH, MIN_WALL_M,
+                                                    free=True)])
     out = [w.sample(spacing) for w in long]
     for arc in arcs:
         out += arc.sample(spacing, max_gap)
