@@ -11,7 +11,9 @@
   point or located vertex (Kleeman & Kuc 1995: a corner and an edge map to a point); the
   worst one. A vertex is in view when the echoes locate it: its own echo — a corner's
   double bounce, an edge's diffraction — is at least what the run's detection detects
-  (:func:`clsonar.metrics.detection_level`), or the insonified truth reaches within
+  (:func:`clsonar.metrics.detection_level`) and a detection of its pair reports it
+  (within the pulse's σ of its time of flight: an echo under a louder one's tail, which
+  the detector never reported, locates nothing), or the insonified truth reaches within
   :data:`FACES_NEAR_M` of it on two faces (it is where their lines meet; nearer than
   :data:`FACES_FROM_M` a face's locus band also crosses the other face). A wall's free
   end that only its own face's echoes reach, or an edge whose diffraction stays under the
@@ -60,11 +62,32 @@ FACES_APART_RAD = math.radians(20.0)
 OWN_ECHOES = (KINDS.index("corner"), KINDS.index("edge"))
 
 
-def _own_echoes(echoes):
-    """The rows of ``echoes`` (an EchoTable) of the kinds :data:`OWN_ECHOES`."""
+def _own_echoes(echoes, detections=None, resolution: float = 0.0):
+    """The rows of ``echoes`` (an EchoTable) of the kinds :data:`OWN_ECHOES`; with
+    ``detections``, only those a detection of their pair reports within ``resolution``
+    of their path (metres; times of flight × c): an echo the detector never reported,
+    under a louder one's tail, locates nothing."""
     keep = np.isin(np.asarray(echoes.kind), OWN_ECHOES)
+    if detections is not None:
+        keep &= _reported(echoes, detections, resolution)
     return dataclasses.replace(echoes, **{f.name: np.asarray(getattr(echoes, f.name))[keep]
                                           for f in dataclasses.fields(echoes)})
+
+
+def _reported(echoes, detections, resolution: float) -> np.ndarray:
+    """[n] bool: which ``echoes`` have a detection of their pair within ``resolution``
+    seconds of their time of flight."""
+    key_d = np.asarray(detections.tx, np.int64) * (1 << 32) + np.asarray(detections.rx)
+    order = np.lexsort((np.asarray(detections.tof_s), key_d))
+    key_d, tof_d = key_d[order], np.asarray(detections.tof_s)[order]
+    key_e = np.asarray(echoes.tx, np.int64) * (1 << 32) + np.asarray(echoes.rx)
+    tof_e = np.asarray(echoes.tof_s)
+    lo = np.searchsorted(key_d, key_e, side="left")
+    hi = np.searchsorted(key_d, key_e, side="right")
+    out = np.zeros(len(tof_e), dtype=bool)
+    for i in np.flatnonzero(hi > lo):
+        out[i] = bool(np.any(np.abs(tof_d[lo[i]:hi[i]] - tof_e[i]) <= resolution))
+    return out
 
 
 def between_faces(vertices: np.ndarray, lit: np.ndarray) -> np.ndarray:
@@ -91,8 +114,9 @@ def in_view(result: RunResult) -> np.ndarray:
     truth = true_vertices(result.geometry)
     if len(truth) == 0:
         return np.zeros(0, dtype=bool)
-    own = insonified(scene, sensors, _own_echoes(echoes), truth,
-                     detection_level(scene, sensors))
+    resolution = scene.transducer.pulse_sigma_s  # the pulse's σ: c·σ of path
+    own = insonified(scene, sensors, _own_echoes(echoes, result.detections, resolution),
+                     truth, detection_level(scene, sensors))
     points, strongest = lit_truth(scene, result.geometry, sensors, echoes)
     return own | between_faces(truth, points[strongest >= detectable_amplitude(scene, sensors)])
 
