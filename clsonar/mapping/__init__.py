@@ -78,7 +78,8 @@ against every locus.
 The modules: :mod:`.grid` (the map's grid, band, memory check), :mod:`.loci` (the inputs),
 :mod:`.reference`, :mod:`.tiles`, :mod:`.launch`, :mod:`.tangents`, :mod:`.envelope`,
 :mod:`.points`, :mod:`.models`, :mod:`.families`, :mod:`.patches`, :mod:`.joins`,
-:mod:`.reflectors`, :mod:`.arcs`, :mod:`.directional`, :mod:`.occupancy`, :mod:`.crossings` and
+:mod:`.reflectors`, :mod:`.few`, :mod:`.openings`, :mod:`.arcs`, :mod:`.directional`,
+:mod:`.occupancy`, :mod:`.crossings` and
 :mod:`.methods` (the registry). The scalar launch limits
 (``MAX_ROWS_PER_LAUNCH``, ``MAX_LAUNCH_BYTES``, ``MAX_PAIRS_PER_LAUNCH``, ``TILE_CHUNK``,
 ``BIN_*``) are read from their own modules: set them there.
@@ -99,6 +100,7 @@ __all__ = [
     "MapGrid",
     "MapMethod",
     "MapProblem",
+    "OpenGap",
     "TileBins",
     "Votes",
     "accumulate",
@@ -133,6 +135,7 @@ __all__ = [
     "occupancy_grid",
     "occupancy_grid_reference",
     "occupancy_votes",
+    "open_gaps",
     "point_map",
     "point_marking_votes",
     "points_window",
@@ -201,6 +204,7 @@ from .methods import (
     tangent_votes,
     triangulation_votes,
 )
+from .openings import OpenGap, open_gaps
 from .points import point_map, points_window
 from .reference import (
     accumulate_reference,

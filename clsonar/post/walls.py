@@ -12,6 +12,7 @@ of a cylinder, fitted as a circle (:func:`find_circles`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -149,7 +150,9 @@ def _pieces(curves: list[np.ndarray]) -> tuple[list[Wall], list[np.ndarray]]:
     return walls, bends
 
 
-def merge_collinear(walls: list[Wall], max_gap: float) -> list[Wall]:
+def merge_collinear(walls: list[Wall], max_gap: float,
+                    open_gap: Callable[[np.ndarray, np.ndarray], bool] | None = None
+                    ) -> list[Wall]:
     """Walls on one line (within :data:`COLLINEAR_DEG`, and the shorter's ends within
     :data:`COLLINEAR_M` of the longer's line) whose spans overlap or lie within ``max_gap``
     of each other become one wall, refitted: the first such pair in order (by index, then
@@ -169,7 +172,7 @@ def merge_collinear(walls: list[Wall], max_gap: float) -> list[Wall]:
     while True:
         for flat in np.flatnonzero(maybe):
             i, j = divmod(int(flat), len(walls))
-            if _merges(walls[i], walls[j], cos_tol, max_gap):
+            if _merges(walls[i], walls[j], cos_tol, max_gap, open_gap):
                 break
             maybe[i, j] = False
         else:
@@ -181,17 +184,24 @@ def merge_collinear(walls: list[Wall], max_gap: float) -> list[Wall]:
         maybe[:i, i], maybe[i, i + 1:] = row[:i], row[i + 1:]
 
 
-def _merges(a: Wall, b: Wall, cos_tol: float, max_gap: float) -> bool:
+def _merges(a: Wall, b: Wall, cos_tol: float, max_gap: float,
+            open_gap: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> bool:
     """Whether :func:`merge_collinear` joins ``a`` and ``b`` (``a`` first): their
     directions within ``cos_tol``, the shorter's ends near the longer's line, their spans
-    overlapping or within ``max_gap``."""
+    overlapping or within ``max_gap`` — and not where ``open_gap`` says the scan heard the
+    gap between them as free space (an opening, :func:`clsonar.mapping.open_gaps`)."""
     if abs(a.direction @ b.direction) < cos_tol:
         return False
     long, short = (a, b) if a.length >= b.length else (b, a)
     if max(long.offset(short.at(short.lo)), long.offset(short.at(short.hi))) > COLLINEAR_M:
         return False
     t = (b.points - a.centre) @ a.direction
-    return not (t.min() > a.hi + max_gap or t.max() < a.lo - max_gap)
+    if t.min() > a.hi + max_gap or t.max() < a.lo - max_gap:
+        return False
+    if open_gap is not None and (t.min() > a.hi or t.max() < a.lo):
+        ends = (a.hi, t.min()) if t.min() > a.hi else (t.max(), a.lo)
+        return not open_gap(a.at(ends[0]), a.at(ends[1]))
+    return True
 
 
 def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
@@ -437,17 +447,19 @@ class _OnCircle:
         return on
 
 
-def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings) -> Profile:
+def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
+              open_gap: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> Profile:
     """A room's profile from its linked, refined ``curves`` (metres): straight walls where
     the data are straight, joined at corners and edges (:func:`join_walls`, within
     ``settings.join_m``), circles where several short pieces are patches of one
     (:func:`find_circles`; gaps up to ``settings.max_gap_m`` of arc bridged), and a
     smoothing spline through each remaining piece that is not the rounding of a found
-    vertex."""
+    vertex. ``open_gap(p, q)``: whether a gap on a wall's line was heard as free space
+    (:func:`merge_collinear` does not bridge it)."""
     max_gap, join = chosen(settings.max_gap_m, "post.max_gap_m"), chosen(settings.join_m,
                                                                        "post.join_m")
     walls, bends = _pieces(curves)
-    walls = merge_collinear(walls, max_gap)
+    walls = merge_collinear(walls, max_gap, open_gap)
     vertices = join_walls(walls, join)
 
     def rounding(points: np.ndarray) -> bool:
