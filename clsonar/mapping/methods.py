@@ -201,11 +201,11 @@ def reflector_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     few = len(drawn.points) == len(drawn.vertices) == 0
     if few:
         drawn = loud_crossings(scene, sensors, loci, drawn)
-    faces = int(drawn.ends[-1]) if len(drawn.ends) else 0  # the patches' points come first
+    face_points = int(drawn.ends[-1]) if len(drawn.ends) else 0  # the patches' points first
     return Votes(points=drawn.points, tx=loci.tx[drawn.source], rx=loci.rx[drawn.source],
                  vertices=drawn.vertices, patch_ends=drawn.ends,
                  counts={"patches": len(drawn.ends), "vertices_located": len(drawn.vertices),
-                         "crossing_points": len(drawn.points) - faces if few else 0,
+                         "crossing_points": len(drawn.points) - face_points if few else 0,
                          "two_echo_faces": len(drawn.ends) if few else 0})
 
 

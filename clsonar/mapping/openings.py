@@ -59,19 +59,21 @@ def open_gaps(scene: Scene, sensors: SensorArray, loci) -> OpenGap:
     resolution = c * scene.transducer.pulse_sigma_s
 
     @functools.cache
-    def indexed() -> tuple[Heard, np.ndarray, np.ndarray]:  # made at the first gap tested
+    def indexed() -> tuple[Heard, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+        """The detections, every pair, its shortest path heard, and (T, R, axT, axR):
+        made at the first gap tested."""
         pairs = [k for g in np.unique(sensors.groups) for k in group_pairs(sensors, int(g))]
         every = np.concatenate(pairs) if pairs else np.zeros((0, 2), np.int64)
         heard = heard_index(as_loci(loci), sensors, c)
-        return heard, every, _first_paths(heard, every)
+        ends = (sensors.positions[every[:, 0]], sensors.positions[every[:, 1]],
+                sensors.axes[every[:, 0]], sensors.axes[every[:, 1]])
+        return heard, every, _first_paths(heard, every), ends
 
     def open_gap(p: np.ndarray, q: np.ndarray) -> bool:
         length = float(np.hypot(*(q - p)))
         if length <= 2.0 * GAP_MARGIN_M or mirror <= 0:
             return False
-        heard, pairs, first = indexed()
-        T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
-        axT, axR = sensors.axes[pairs[:, 0]], sensors.axes[pairs[:, 1]]
+        heard, pairs, first, (T, R, axT, axR) = indexed()
         u = (q - p) / length
         facing = []
         for n in (np.array([u[1], -u[0]]), np.array([-u[1], u[0]])):  # either side

@@ -66,8 +66,8 @@ class Wall:
     lo: float
     hi: float
     residual: float
-    joins: int = 0  # ends extended or trimmed to a vertex
-    met: list[bool] = field(default_factory=lambda: [False, False])  # which: lo, hi
+    #: which ends (lo, hi) were extended or trimmed to a vertex
+    met: list[bool] = field(default_factory=lambda: [False, False])
 
     @classmethod
     def fit(cls, points: np.ndarray) -> Wall:
@@ -82,6 +82,11 @@ class Wall:
     @property
     def length(self) -> float:
         return self.hi - self.lo
+
+    @property
+    def joins(self) -> int:
+        """How many of its ends met a vertex."""
+        return sum(self.met)
 
     @property
     def seen(self) -> float:
@@ -283,7 +288,6 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
             continue
         for k, (end, t, _) in zip((i, j), ends, strict=True):
             used.add((k, end))
-            walls[k].joins += 1
             walls[k].met[end] = True
             if end == 0:
                 walls[k].lo = t
