@@ -63,7 +63,7 @@ def _point_from_matmul(T, a, start):
 
 
 def _fit_matmul(T, rho, start):
-    """``pillars._fit`` before: the Jacobian a fresh ``np.column_stack`` each step."""
+    """``pillars.fit_circle`` before: the Jacobian a fresh ``np.column_stack`` each step."""
 
     def residual(x):
         return np.hypot(*(x[:2] - T).T) - rho - x[2]
@@ -113,7 +113,7 @@ def test_the_fits_are_the_matmul_fits(case):
     v, r = pillars._point_from(T, T, a, start)
     v0, r0 = _point_from_matmul(T, a, start)
     assert v.tobytes() == v0.tobytes() and r.tobytes() == r0.tobytes()
-    c, radius, r = pillars._fit(T, a, start)
+    c, radius, r = pillars.fit_circle(T, a, start)
     c0, radius0, r0 = _fit_matmul(T, a, start)
     assert c.tobytes() == c0.tobytes() and radius == radius0 and r.tobytes() == r0.tobytes()
 

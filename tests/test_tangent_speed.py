@@ -58,7 +58,7 @@ def _point_from_loop(T, R, a, start):
 
 
 def _fit_loop(T, rho, start):
-    """pillars._fit as it was."""
+    """pillars.fit_circle as it was."""
 
     def residual(x):
         return np.hypot(*(x[:2] - T).T) - rho - x[2]
@@ -94,7 +94,7 @@ def test_the_point_and_circle_fits_are_the_loops(case):
     v, r = pillars._point_from(T, R, a, start)
     v0, r0 = _point_from_loop(T, R, a, start)
     assert v.tobytes() == v0.tobytes() and r.tobytes() == r0.tobytes()
-    c, radius, r = pillars._fit(T, a, start)
+    c, radius, r = pillars.fit_circle(T, a, start)
     c0, radius0, r0 = _fit_loop(T, a, start)
     assert c.tobytes() == c0.tobytes() and radius == radius0 and r.tobytes() == r0.tobytes()
 

@@ -102,9 +102,11 @@ class _Lengths:
         return _directions(v, self.T)
 
 
-def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+def fit_circle(T: np.ndarray, rho: np.ndarray, start: np.ndarray, radius: float = 0.1
+               ) -> tuple[np.ndarray, float, np.ndarray]:
     """Least-squares circle ``(C, R)`` with |C − T_k| = ρ_k + R (:func:`_gauss_newton`
-    from ``start`` and R = 0.1 m), and the residuals."""
+    from ``start`` and ``radius``), and the residuals: the circle the loci (T_k, ρ_k)
+    touch, or with ρ = 0 the geometric fit of a circle through the points T."""
     lengths = _Lengths(T)
     jac = np.empty((len(T), 3))  # the columns [directions, −1], filled in place each step
     jac[:, 2] = -1.0
@@ -116,7 +118,7 @@ def _fit(T: np.ndarray, rho: np.ndarray, start: np.ndarray) -> tuple[np.ndarray,
         jac[:, :2] = lengths.directions(x, x[:2])
         return jac
 
-    x, r = _gauss_newton(residual, jacobian, np.r_[start, 0.1])
+    x, r = _gauss_newton(residual, jacobian, np.r_[start, radius])
     return x[:2], float(x[2]), r
 
 
@@ -218,7 +220,7 @@ def fit_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndar
         if np.count_nonzero(keep) < MIN_PILLAR_LOCI:
             return None
         if keep.tobytes() != fitted:  # the same loci would give the same circle again
-            centre, radius, _ = _fit(T[keep], rho[keep], middles[keep].mean(axis=0))
+            centre, radius, _ = fit_circle(T[keep], rho[keep], middles[keep].mean(axis=0))
             fitted = keep.tobytes()
         keep = np.abs(np.hypot(*(centre - T).T) - rho - radius) <= loose * tol
     if (_positions(T[keep]) < MIN_PILLAR_LOCI
@@ -487,6 +489,7 @@ __all__ = [
     "PILLAR_RADII_M",
     "PILLAR_TOL_M",
     "SEED_M",
+    "fit_circle",
     "fit_pillar",
     "pillar_arc",
     "pillar_arcs",

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..mapping.pillars import fit_circle
 from ..scene import PostSettings
 from ..scene.settings import chosen
 from .fits import Profile, fit_spline
@@ -374,14 +375,11 @@ def _circle_through(a: Wall, b: Wall) -> tuple[np.ndarray, float] | None:
 
 def _refine_circle(points: np.ndarray, centre: np.ndarray, radius: float
                    ) -> tuple[np.ndarray, float]:
-    """Geometric least-squares circle through ``points`` from a first guess."""
-    from scipy.optimize import least_squares
-
-    def residuals(x: np.ndarray) -> np.ndarray:
-        return np.hypot(points[:, 0] - x[0], points[:, 1] - x[1]) - x[2]
-
-    x = least_squares(residuals, np.r_[centre, radius]).x
-    return x[:2], float(abs(x[2]))
+    """Geometric least-squares circle through ``points`` from a first guess: |C − p_k| = R
+    by Gauss–Newton (:func:`~clsonar.mapping.pillars.fit_circle` with ρ = 0; it spares a
+    run with a cylinder the 0.35–0.5 s import of ``scipy.optimize``)."""
+    fitted, r, _ = fit_circle(points, np.zeros(len(points)), centre, radius)
+    return fitted, float(abs(r))
 
 
 def find_circles(pieces: list[np.ndarray]) -> tuple[list[Arc], list[np.ndarray]]:
