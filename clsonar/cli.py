@@ -34,7 +34,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, TypeAlias
 
-from . import steps
+from . import heap, steps
 from .errors import ClsonarError, DeviceError, SceneError, one_line, save_traceback
 from .files import PNG_CHOICES
 from .opencl import INSTALL_HINT, PRECISIONS
@@ -575,6 +575,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     whole = argv is None  # this process's own command line: it ends when main returns
     if whole:  # what it imported lives to its exit: no collection of cycles searches it
         gc.freeze()
+        heap.settle()  # and its arrays come from the heap, not from fresh mappings
     try:
         return args.func(args)
     except ClsonarError as e:

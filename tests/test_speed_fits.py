@@ -132,3 +132,26 @@ def test_the_refined_circle_is_scipys_least_squares(seed, radius, span, noise):
         assert cost <= want_cost * (1 + 1e-9) + 1e-20  # round-off where both are exact
     else:  # a flat valley: both stop somewhere along it
         assert cost <= want_cost * 1.01
+
+
+def test_the_heap_thresholds_are_set_once_and_handed_to_children(monkeypatch):
+    """``heap.settle``: glibc takes both thresholds and the environment carries them to the
+    processes a run starts (room workers); where the environment names either, nothing."""
+    import os
+    import subprocess
+    import sys
+
+    from clsonar import heap
+
+    for name in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_"):
+        monkeypatch.delenv(name, raising=False)
+    assert heap.settle() is True
+    assert os.environ["MALLOC_MMAP_THRESHOLD_"] == str(heap.MMAP_THRESHOLD)
+    assert os.environ["MALLOC_TRIM_THRESHOLD_"] == str(heap.TRIM_THRESHOLD)
+    child = subprocess.run([sys.executable, "-c", "import os; print(os.environ["
+                            "'MALLOC_MMAP_THRESHOLD_'])"], capture_output=True, text=True)
+    assert child.stdout.strip() == str(heap.MMAP_THRESHOLD)
+    assert heap.settle() is False  # named already: left as it is
+    monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "1000")
+    monkeypatch.delenv("MALLOC_MMAP_THRESHOLD_")
+    assert heap.settle() is False and "MALLOC_MMAP_THRESHOLD_" not in os.environ

@@ -203,9 +203,13 @@ def _least_squares_step(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
     return np.linalg.lstsq(jac, r, rcond=None)[0]
 
 
-#: Gauss–Newton steps of :func:`_gauss_newton`, and the step (metres) at which it stops.
+#: Gauss–Newton steps of :func:`_gauss_newton`, and the step (metres) at which it stops: a
+#: micrometre, three orders below the finest cell a map is drawn on (1e-10 before stop 39:
+#: a fit that explains nothing converges linearly, and its last steps cost a floor's point
+#: fits a third of their time; the zoo's 672 room and cylinder cases of seeds 0–3 and
+#: 60–71 moved by at most 4e-11 m in accuracy, the 46 bundled runs by 1e-12 m).
 GN_ITERATIONS = 30
-GN_STEP_M = 1e-10
+GN_STEP_M = 1e-6
 
 
 def fit_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray

@@ -12,6 +12,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from .. import heap
 from ..scene import Circle, Polyline, Scene, Sensors, WallFollowing
 
 
@@ -153,6 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--digest", action="store_true",
                         help="also a sha256 of the maps, profile, tables, metrics and counts")
     args = parser.parse_args(argv)
+    if argv is None:  # this process's own command, as ``clsonar`` runs one (cli.main)
+        heap.settle()
     print(json.dumps(dataclasses.asdict(run_floor(args.size_m, args.device, args.digest))))
     return 0
 
