@@ -3,11 +3,10 @@ to sub-cell positions in metres, and fitted as ``settings.fit`` says."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from ..geometry import cell_centres
+from ..mapping.openings import OpenGap
 from ..scene import PostSettings
 from ..scene.settings import chosen
 from .curves import MIN_CURVE_CELLS, bridge_gaps, point_means, refine_cells, trace_curves
@@ -24,7 +23,7 @@ def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float
                     counts: np.ndarray | None = None,
                     sums: np.ndarray | None = None, occupied: np.ndarray | None = None,
                     origin: tuple[int, int] = (0, 0),
-                    open_gap: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> Profile:
+                    open_gap: OpenGap | None = None) -> Profile:
     """Link the thin cells into curves, refine them to sub-cell positions (``subcell``: the
     mean of the mapped points around each cell when the map counts points, ``counts`` and
     ``sums``, else the centroid of the filtered map ``weights``), bridge gaps up to

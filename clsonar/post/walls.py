@@ -12,11 +12,11 @@ of a cylinder, fitted as a circle (:func:`find_circles`).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..mapping.openings import OpenGap
 from ..mapping.pillars import fit_circle
 from ..scene import PostSettings
 from ..scene.settings import chosen
@@ -157,7 +157,7 @@ def _pieces(curves: list[np.ndarray]) -> tuple[list[Wall], list[np.ndarray]]:
 
 
 def merge_collinear(walls: list[Wall], max_gap: float,
-                    open_gap: Callable[[np.ndarray, np.ndarray], bool] | None = None
+                    open_gap: OpenGap | None = None
                     ) -> list[Wall]:
     """Walls on one line (within :data:`COLLINEAR_DEG`, and the shorter's ends within
     :data:`COLLINEAR_M` of the longer's line) whose spans overlap or lie within ``max_gap``
@@ -191,7 +191,7 @@ def merge_collinear(walls: list[Wall], max_gap: float,
 
 
 def _merges(a: Wall, b: Wall, cos_tol: float, max_gap: float,
-            open_gap: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> bool:
+            open_gap: OpenGap | None = None) -> bool:
     """Whether :func:`merge_collinear` joins ``a`` and ``b`` (``a`` first): their
     directions within ``cos_tol``, the shorter's ends near the longer's line, their spans
     overlapping or within ``max_gap`` — and not where ``open_gap`` says the scan heard the
@@ -202,12 +202,13 @@ def _merges(a: Wall, b: Wall, cos_tol: float, max_gap: float,
     if max(long.offset(short.at(short.lo)), long.offset(short.at(short.hi))) > COLLINEAR_M:
         return False
     t = (b.points - a.centre) @ a.direction
-    if t.min() > a.hi + max_gap or t.max() < a.lo - max_gap:
+    first, last = float(t.min()), float(t.max())
+    if first > a.hi + max_gap or last < a.lo - max_gap:
         return False
-    if open_gap is not None and (t.min() > a.hi or t.max() < a.lo):
-        ends = (a.hi, t.min()) if t.min() > a.hi else (t.max(), a.lo)
-        return not open_gap(a.at(ends[0]), a.at(ends[1]))
-    return True
+    if open_gap is None or (a.lo <= last and first <= a.hi):  # no gap between them
+        return True
+    gap = (a.hi, first) if first > a.hi else (last, a.lo)
+    return not open_gap(a.at(gap[0]), a.at(gap[1]))
 
 
 def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
@@ -450,7 +451,7 @@ class _OnCircle:
 
 
 def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
-              open_gap: Callable[[np.ndarray, np.ndarray], bool] | None = None) -> Profile:
+              open_gap: OpenGap | None = None) -> Profile:
     """A room's profile from its linked, refined ``curves`` (metres): straight walls where
     the data are straight, joined at corners and edges (:func:`join_walls`, within
     ``settings.join_m``), circles where several short pieces are patches of one

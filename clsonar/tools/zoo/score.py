@@ -35,6 +35,7 @@ import numpy as np
 
 from ...echoes.table import KINDS
 from ...geometry import true_vertices
+from ...mapping.heard import Heard, loudest
 from ...metrics import (
     LOCUS_TOL_M,
     detectable_amplitude,
@@ -75,19 +76,18 @@ def _own_echoes(echoes, detections=None, resolution: float = 0.0):
 
 
 def _reported(echoes, detections, resolution: float) -> np.ndarray:
-    """[n] bool: which ``echoes`` have a detection of their pair within ``resolution``
-    seconds of their time of flight."""
-    key_d = np.asarray(detections.tx, np.int64) * (1 << 32) + np.asarray(detections.rx)
-    order = np.lexsort((np.asarray(detections.tof_s), key_d))
-    key_d, tof_d = key_d[order], np.asarray(detections.tof_s)[order]
-    key_e = np.asarray(echoes.tx, np.int64) * (1 << 32) + np.asarray(echoes.rx)
-    tof_e = np.asarray(echoes.tof_s)
-    lo = np.searchsorted(key_d, key_e, side="left")
-    hi = np.searchsorted(key_d, key_e, side="right")
-    out = np.zeros(len(tof_e), dtype=bool)
-    for i in np.flatnonzero(hi > lo):
-        out[i] = bool(np.any(np.abs(tof_d[lo[i]:hi[i]] - tof_e[i]) <= resolution))
-    return out
+    """[n] bool: which ``echoes`` have a detection of their pair (the same transmitter
+    and receiver) within ``resolution`` seconds of their time of flight: the mapping's
+    search of a pair's detections (:func:`~clsonar.mapping.heard.loudest`), keyed by the
+    ordered pair, on times of flight."""
+    tx, rx = np.asarray(detections.tx, np.int64), np.asarray(detections.rx, np.int64)
+    pairs = np.stack([np.asarray(echoes.tx, np.int64), np.asarray(echoes.rx, np.int64)], -1)
+    base = int(max(tx.max(initial=0), rx.max(initial=0), pairs.max(initial=0))) + 1
+    key = tx * base + rx
+    order = np.argsort(key, kind="stable")
+    heard = Heard(base, key[order], np.asarray(detections.tof_s)[order],
+                  np.asarray(detections.amplitude)[order])
+    return loudest(heard, pairs, np.asarray(echoes.tof_s, dtype=np.float64), resolution)[1]
 
 
 def between_faces(vertices: np.ndarray, lit: np.ndarray) -> np.ndarray:
