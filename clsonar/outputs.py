@@ -111,7 +111,8 @@ def chosen_settings(result: RunResult) -> str:
         value: object = result.scene
         for part in key.split("."):
             value = getattr(value, part)
-        values.append(f"{key} {value:g}" if isinstance(value, float) else f"{key} {value}")
+        text = f"{value:g}" if isinstance(value, float) else "per pose" if value is None else value
+        values.append(f"{key} {text}")
     kinds = " / ".join(sorted(set(auto.values())))
     return f"settings chosen for {kinds}: " + ", ".join(values)
 

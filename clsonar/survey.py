@@ -31,7 +31,7 @@ import numpy as np
 from .geometry import Geometry, build_geometry, nearest_surface_point
 from .outlines import inside_polygon
 from .scene import Polyline, Scene, WallFollowing
-from .sensors import SensorArray, square_to_walls
+from .sensors import SensorArray, square_to_walls, walls_share_heading
 
 #: A group is a ring when its elements' distances from their centre agree within this
 #: share, the ring is at most :data:`MAX_RING_RADIUS_M` across, and every element faces
@@ -204,7 +204,9 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file",
     """``scene`` with every setting of :data:`AUTO_KEYS` it leaves out (None) chosen for
     the kind of scan ``found`` (:data:`CHOICES`), and a wall-following ring's heading
     square to the walls (:func:`~clsonar.sensors.square_to_walls`, on ``geom``, the
-    scene's geometry if the caller has built it); and, per setting, why its value was used:
+    scene's geometry if the caller has built it; left unset where the walls share no
+    heading, so that each pose turns to its nearest wall,
+    :func:`~clsonar.sensors.pose_headings`); and, per setting, why its value was used:
     ``"auto: <kind>"`` or ``given`` (where the file, or a preset, set it)."""
     why: dict[str, str] = {}
     auto = f"auto: {found.kind}"
@@ -238,9 +240,12 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file",
         why["sensors.placement.start_deg"] = "auto: square to the walls" if unset else given
         if unset:
             geom = build_geometry(scene) if geom is None else geom
-            start = square_to_walls(geom, placement.elements)
-            scene = dataclasses.replace(scene, sensors=dataclasses.replace(
-                scene.sensors, placement=dataclasses.replace(placement, start_deg=start)))
+            if walls_share_heading(geom, placement.elements):
+                start = square_to_walls(geom, placement.elements)
+                scene = dataclasses.replace(scene, sensors=dataclasses.replace(
+                    scene.sensors, placement=dataclasses.replace(placement, start_deg=start)))
+            else:  # left unset: the placement turns each pose (sensors.pose_headings)
+                why["sensors.placement.start_deg"] = "auto: square to each pose's nearest wall"
     return scene, why
 
 

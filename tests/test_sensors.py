@@ -600,6 +600,51 @@ def test_wall_following_ring_is_turned_square_to_the_walls(deg):
     assert place_wall_following(explicit, scene, geom)[1][0] == 5.0
 
 
+@pytest.mark.parametrize("outline", [
+    [(1, 1), (9, 1), (7, 6), (2, 6)],  # a trapezoid: walls at 0°, ±68°
+    [(5 + 3.5 * math.cos(math.radians(60 * k)), 5 + 3.5 * math.sin(math.radians(60 * k)))
+     for k in range(6)],  # a hexagon: walls every 60°
+    [(1, 1), (9, 1), (4, 8)],  # a triangle
+])
+def test_wall_following_rings_turn_square_to_each_wall_where_walls_share_no_heading(outline):
+    """start_deg left out in a room whose walls no one heading faces (modulo 45°): each
+    pose turns square to its nearest wall — one element faces that wall along its normal —
+    and the poses whose nearest wall is square to the main heading keep it to the bit; the
+    survey leaves start_deg unset and says why."""
+    from clsonar.sensors import pose_headings, walls_share_heading
+    from clsonar.survey import choose_settings, survey
+
+    scene, geom, _, (_, head, _, poses) = _wall_following(
+        [room(outline)], start=list(np.mean(outline, axis=0)))
+    assert not walls_share_heading(geom, 8)
+    heads = head.reshape(-1, 8)
+    assert len(np.unique(np.round(heads[:, 0], 6))) > 1
+    walls = geom.walls
+    for centre, ring_heads in zip(poses, heads, strict=True):
+        d = [_segment_distance(centre, w) for w in walls]
+        k = int(np.argmin(d))
+        a, b = walls[k, :2], walls[k, 2:]
+        foot = a + np.clip((centre - a) @ (b - a) / ((b - a) @ (b - a)), 0, 1) * (b - a)
+        n = np.array([(b - a)[1], -(b - a)[0]])
+        n = n if n @ (a - centre) >= 0 else -n
+        square = math.degrees(math.atan2(n[1], n[0]))
+        off = np.abs((ring_heads - square + 180.0) % 360.0 - 180.0).min()
+        assert off < 1e-5 or np.hypot(*(foot - a)) < 1e-9 or np.hypot(*(foot - b)) < 1e-9
+    main = square_to_walls(geom, 8)
+    starts = pose_headings(geom, poses, 8)
+    np.testing.assert_array_equal(starts, heads[:, 0])
+    assert np.any(starts == main)
+    chosen, why = choose_settings(scene, survey(scene, place_sensors(scene, geom)))
+    assert chosen.sensors.placement.start_deg is None
+    assert why["sensors.placement.start_deg"] == "auto: square to each pose's nearest wall"
+
+
+def _segment_distance(point, wall):
+    a, b = np.asarray(wall[:2]), np.asarray(wall[2:])
+    t = np.clip((point - a) @ (b - a) / ((b - a) @ (b - a)), 0.0, 1.0)
+    return float(np.hypot(*(point - a - t * (b - a))))
+
+
 def test_wall_following_traces_run_together_are_each_one_alone():
     """Issue 16: the rooms of a floor traced side by side (``wall_following_paths``) give
     each room's path to the bit, and a trace that fails fails alone, with its own error."""

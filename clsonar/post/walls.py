@@ -250,6 +250,22 @@ def _passes_another(walls: list[Wall], k: int, pair: tuple[int, int],
     return False
 
 
+def _acute_reach(a: Wall, b: Wall, ends: list[tuple[int, float, float]]) -> float:
+    """How much farther than ``join_m`` two walls may be extended to meet at an acute
+    corner: 1/tan(θ/2) for the angle θ < 90° between them at the crossing (each ray from
+    the crossing into its wall), else 1. A scan kept a clearance c from both walls of a
+    corner of angle θ comes no nearer its vertex than c/sin(θ/2), and its square-on echoes
+    reach no nearer than c/tan(θ/2) along each wall: c at a square corner, 1.7·c at 60°
+    (a trapezoid's or a triangle's corner). A crossing inside a wall's span (a cut): 1."""
+    rays = []
+    for w, (end, t, _) in zip((a, b), ends, strict=True):
+        if w.lo < t < w.hi:
+            return 1.0
+        rays.append(w.direction if end == 0 else -w.direction)
+    cos = float(np.clip(rays[0] @ rays[1], -1.0, 1.0))
+    return max(1.0, 1.0 / math.tan(0.5 * math.acos(cos))) if cos > 0.0 else 1.0
+
+
 def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_M,
                reach: float = math.inf, shortest: float = 0.0, free: bool = False
                ) -> np.ndarray:
@@ -276,7 +292,8 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
                 ends.append((end, t, abs(t - (w.lo, w.hi)[end])))
             if free and (walls[i].met[ends[0][0]] or walls[j].met[ends[1][0]]):
                 continue
-            if all(e[2] <= min(join_m, reach * w.length)
+            near = join_m * _acute_reach(walls[i], walls[j], ends)
+            if all(e[2] <= min(near, reach * w.length)
                    for e, w in zip(ends, (walls[i], walls[j]), strict=True)) and not any(
                     _passes_another(walls, k, (i, j), ends[n], x, join_m,
                                     max(longest, shortest))

@@ -25,20 +25,37 @@ source.
 """
 
 from .array import SensorArray, heading_deg, pairs, place_sensors, place_sensors_together
+from .headings import pose_headings, square_to_walls, walls_share_heading
 from .lines import per_wall_lines, per_wall_seed, place_per_wall, place_random_lines
 from .rings import (
     place_circular,
     place_wall_following,
     ring,
-    square_to_walls,
     wall_following_path,
     wall_following_paths,
     wall_following_substep,
 )
 from .space import Placed, in_free_space
 
-__all__ = ["Placed", "SensorArray", "heading_deg", "in_free_space", "pairs", "per_wall_lines",
-           "per_wall_seed", "place_circular", "place_per_wall", "place_random_lines",
-           "place_sensors", "place_sensors_together", "place_wall_following", "ring",
-           "square_to_walls", "wall_following_path", "wall_following_paths",
-           "wall_following_substep"]
+__all__ = [
+    "Placed",
+    "SensorArray",
+    "heading_deg",
+    "in_free_space",
+    "pairs",
+    "per_wall_lines",
+    "per_wall_seed",
+    "place_circular",
+    "place_per_wall",
+    "place_random_lines",
+    "place_sensors",
+    "place_sensors_together",
+    "place_wall_following",
+    "pose_headings",
+    "ring",
+    "square_to_walls",
+    "wall_following_path",
+    "wall_following_paths",
+    "wall_following_substep",
+    "walls_share_heading",
+]

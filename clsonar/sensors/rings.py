@@ -14,6 +14,7 @@ from .. import steps
 from ..errors import SceneError
 from ..geometry import Geometry, SurfaceSets, nearest_distances, nearest_surface_point, nearest_xy
 from ..scene import Circular, Scene, WallFollowing
+from .headings import pose_headings
 from .space import (
     NearestOne,
     Placed,
@@ -505,35 +506,6 @@ def _trace_start(p: WallFollowing, scene: Scene, geom: Geometry,
     return p0, wall
 
 
-#: Walls whose normals agree within this (modulo the ring's symmetry) share a heading.
-SQUARE_TOL_DEG = 2.0
-
-
-def square_to_walls(geom: Geometry, elements: int) -> float:
-    """The ring heading (``start_deg``) that turns an element square to the most wall: a
-    ring of n elements repeats every 360°/n, so each wall's normal angle is taken modulo
-    that; the angle shared (within :data:`SQUARE_TOL_DEG`) by the greatest length of wall
-    wins, refined to those walls' length-weighted mean. A room turned by θ gives θ modulo
-    360°/n whatever boxes stand in it; a room whose walls run along x and y gives 0, the
-    thesis' ring. In (−180°/n, 180°/n], rounded to 1e-6°."""
-    walls = geom.walls
-    if len(walls) == 0 or elements < 1:
-        return 0.0
-    period = 360.0 / elements
-    d = walls[:, 2:] - walls[:, :2]
-    length = np.hypot(d[:, 0], d[:, 1])
-    normal = np.degrees(np.arctan2(d[:, 0], -d[:, 1]))
-
-    def off(a: np.ndarray, b: float) -> np.ndarray:
-        return (a - b + 0.5 * period) % period - 0.5 * period
-
-    share = [float(length[np.abs(off(normal, n)) <= SQUARE_TOL_DEG].sum()) for n in normal]
-    best = float(normal[int(np.argmax(share))])
-    near = np.abs(off(normal, best)) <= SQUARE_TOL_DEG
-    mean = best + float(length[near] @ off(normal[near], best)) / float(length[near].sum())
-    return round(float(off(np.array([mean]), 0.0)[0]), 6) + 0.0
-
-
 def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry,
                          traced: Traced | None = None) -> Placed:
     """Ring poses along the walls, thesis §2.1.2 (see :class:`~clsonar.scene.WallFollowing`).
@@ -542,7 +514,9 @@ def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry,
     length, the first at the projected start, the last the last one before the trace is back
     at the start (a pose closer than half a sub-step to the start is dropped). Each pose is
     a :func:`ring` and its own pair group, its first element at ``start_deg`` or, where
-    the file leaves that out, square to the walls (:func:`square_to_walls`).
+    the file leaves that out, square to the walls (:func:`~.headings.pose_headings`: one
+    heading for every pose where the walls share one, else each pose square to its
+    nearest wall).
 
     Returns ``(positions [G·n, 2], headings_deg, groups, poses [G, 2])``. ``traced``: the
     trace, when already run (:func:`wall_following_paths`).
@@ -567,9 +541,10 @@ def place_wall_following(p: WallFollowing, scene: Scene, geom: Geometry,
         gx, gy = (closed_path[i] + t * (closed_path[i + 1] - closed_path[i])).tolist()
         centres.append(_project_alone(surfaces, one, gx, gy, p.clearance_m)[:2])  # _project
     poses = np.asarray(centres).reshape(-1, 2)
-    start_deg = square_to_walls(geom, p.elements) if p.start_deg is None else p.start_deg
+    starts = (pose_headings(geom, poses, p.elements) if p.start_deg is None
+              else np.full(len(poses), p.start_deg))
     pos, head = [], []
-    for centre in poses:
+    for centre, start_deg in zip(poses, starts.tolist(), strict=True):
         rp, rh = ring(tuple(centre), p.radius_m, p.elements, start_deg)
         pos.append(rp)
         head.append(rh)

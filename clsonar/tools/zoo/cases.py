@@ -50,7 +50,7 @@ CELLS = (0.005, 0.0075, 0.01, 0.015, 0.02)
 MARGIN_M = 0.3
 
 #: Cases of each kind in the zoo.
-COUNTS = {"room": 24, "corridor": 8, "wall": 10, "corner": 8, "edge": 6, "cylinder": 6,
+COUNTS = {"room": 30, "corridor": 8, "wall": 10, "corner": 8, "edge": 6, "cylinder": 6,
           "sinusoid": 5, "post": 4}
 
 

@@ -17,6 +17,10 @@ from .shapes import walk as walk_loop
 #: Outlines of the zoo's rooms, cycled case by case.
 ROOM_SHAPES = ("rect", "L", "U", "T")
 
+#: Room cases from this index on have a ``slanted`` outline (:func:`slanted`), their scans
+#: cycled case by case: walls at any angle, which no one ring heading faces.
+SLANTED_FROM = 24
+
 #: Scans of the zoo's rooms, cycled every four cases (one of each outline).
 ROOM_SCANS = ("wall-following", "rings", "per-wall")
 
@@ -38,6 +42,30 @@ def outline(rng: np.random.Generator, shape: str, arm: float) -> np.ndarray:
         return u_shape(w, h, side, rng.uniform(1.0, h - arm))
     w, h = rng.uniform(max(6.0, arm + 2), 12.0), rng.uniform(max(5.0, 2 * arm + 1.5), 12.0)
     return t_shape(w, h, rng.uniform(arm, w - 2.0), rng.uniform(arm, h - 1.5))
+
+
+def slanted(rng: np.random.Generator, arm: float) -> np.ndarray:
+    """A convex counter-clockwise room of 3–6 walls at random angles (a triangle, a
+    trapezoid, a hexagon …) 4–12 m across: every wall at least 1.5 m long, every corner
+    50–160°, and a loop ``arm``/2 inside the walls still one loop with every side."""
+    while True:
+        n = int(rng.integers(3, 7))
+        size = rng.uniform(max(4.0, 2 * arm + 1), 12.0)
+        angle = np.sort(rng.uniform(0.0, 2 * math.pi, n))
+        polygon = 0.5 * size * rng.uniform(0.75, 1.0, (n, 1)) * np.stack(
+            [np.cos(angle), np.sin(angle)], axis=-1)
+        side = np.roll(polygon, -1, axis=0) - polygon
+        before = np.roll(side, 1, axis=0)
+        turn = np.degrees(np.arctan2(before[:, 0] * side[:, 1] - before[:, 1] * side[:, 0],
+                                     np.einsum("ij,ij->i", before, side)))
+        if np.any(turn <= 20.0) or np.any(turn >= 130.0):  # corners 50–160°, convex
+            continue
+        if np.hypot(*side.T).min() < 1.5:
+            continue
+        loop = inset(polygon, 0.5 * arm)
+        kept = np.einsum("ij,ij->i", np.roll(loop, -1, axis=0) - loop, side)
+        if np.all(kept > 0.2 * np.hypot(*side.T) ** 2):
+            return polygon - polygon.min(axis=0)
 
 
 def _spot(rng: np.random.Generator, polygon: np.ndarray, keep: float,
@@ -121,10 +149,16 @@ def rings_along(loop: np.ndarray, step: float, start: float, reverse: bool
 
 def room(rng: np.random.Generator, index: int) -> Draft:
     """Room case ``index``: outline ``ROOM_SHAPES[index % 4]`` scanned by
-    ``ROOM_SCANS[(index // 4) % 3]``, pillars in about half, a box in every seventh."""
-    shape, scan = ROOM_SHAPES[index % 4], ROOM_SCANS[(index // 4) % 3]
+    ``ROOM_SCANS[(index // 4) % 3]`` (from :data:`SLANTED_FROM` on, a :func:`slanted`
+    outline scanned by ``ROOM_SCANS[index % 3]``), pillars in about half, a box in every
+    seventh."""
+    if index >= SLANTED_FROM:
+        shape, scan = "slanted", ROOM_SCANS[index % 3]
+    else:
+        shape, scan = ROOM_SHAPES[index % 4], ROOM_SCANS[(index // 4) % 3]
     loop_m = float(rng.uniform(0.6, 1.2))
-    polygon = outline(rng, shape, 2 * loop_m + 0.6)
+    polygon = (slanted(rng, 2 * loop_m + 0.6) if shape == "slanted"
+               else outline(rng, shape, 2 * loop_m + 0.6))
     keep = {"wall-following": 2 * FOLLOW_M, "rings": loop_m}.get(scan, 1.5)
     extra, tags = obstacles(rng, polygon, keep, int(rng.integers(1, 4)) if rng.random() < 0.5
                             else 0, index % 7 == 5)
