@@ -1066,3 +1066,27 @@ def test_a_pillar_seen_from_every_side_is_fitted_though_its_stubs_lie_apart():
     assert sorted(arcs) == list(range(5))
     for arc in arcs.values():
         assert np.abs(np.hypot(*(arc - centre).T) - radius).max() < 1e-3
+
+
+def test_an_element_before_its_ring_turns_keeps_its_envelope_point(room_scene):
+    """Rings written by hand turn with their path (the zoo's unseen seed 62 room-28): at
+    the last pose before a bend, the element facing a wall has its neighbour after the
+    bend turned 40° towards another surface. The central difference with it gives no
+    point; the one-sided difference with the pose before does, on the wall, so the wall's
+    links run to that pose's foot (before: to the pose before it)."""
+    from clsonar.sensors import ring
+
+    xs, wall_y = np.arange(0.0, 2.01, 0.5), 1.0
+    pos, head = [], []
+    for k, x in enumerate(xs):
+        p, h = ring((float(x), 0.0), 0.065, 8, 40.0 if k == len(xs) - 1 else 0.0)
+        pos.append(p)
+        head.append(h)
+    sensors = SensorArray(np.concatenate(pos), np.concatenate(head),
+                          np.repeat(np.arange(len(xs)), 8), np.stack([xs, 0 * xs], -1))
+    tx = np.arange(len(xs)) * 8 + 2  # the element facing +y (turned at the last pose)
+    ranges = np.full(len(xs), wall_y - 0.065)
+    loci = Loci(tx, tx, 2.0 * ranges / room_scene.medium.c, np.ones(len(xs)))
+    points, _ = envelope_links(room_scene, sensors, loci, 0.002, 0.005)
+    np.testing.assert_allclose(points[:, 1], wall_y, atol=1e-9)
+    assert points[:, 0].max() >= xs[-2] - 1e-9

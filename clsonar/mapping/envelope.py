@@ -94,6 +94,19 @@ class _Scan:
     #: from: the beam's cut, or less for an echo too loud to come from near it
     #: (:func:`~.strength.loud_beams`)
     beams: np.ndarray
+    #: per sensor, whether its group is a ring (its elements face every way)
+    ringed: np.ndarray | None = None
+
+
+def ringed(sensors: SensorArray) -> np.ndarray:
+    """[n] whether each transducer's group is a ring: its elements' axes average to less
+    than half a unit vector (a ring's to about zero, a linear array's to one)."""
+    groups = sensors.groups
+    sums = np.zeros((int(groups.max()) + 1 if len(groups) else 0, 2))
+    np.add.at(sums, groups, sensors.axes)
+    counts = np.bincount(groups, minlength=len(sums))
+    mean = np.hypot(*sums.T) / np.maximum(counts, 1)
+    return (mean < 0.5)[groups]
 
 
 #: An envelope point: (locus credited, locus circle's centre, its radius, the point).
@@ -165,11 +178,26 @@ def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: n
     return [(k, centre, r, q) for k in ((i,) if centred else (i, j))]
 
 
+def _unturned(s: _Scan, i: int, before: int, after: int) -> tuple[int, ...]:
+    """Of the loci ``before`` and ``after`` (of i's element at the poses either side), the
+    one whose transducer faces as i's does (within 1°) where the other's has turned: ()
+    where both or neither do, or where i's group is no ring (a linear array's neighbours
+    are other arrays, not the same element moved)."""
+    if s.ringed is None or not s.ringed[s.loci.tx[i]]:
+        return ()
+    axis = s.axes[s.loci.tx[i]]
+    same = [s.axes[s.loci.tx[k]].dot(axis) >= _SAME_HEADING_COS for k in (before, after)]
+    return (before,) if same == [True, False] else (after,) if same == [False, True] else ()
+
+
 def _pose_points(s: _Scan, i: int, before: int | None, after: int | None
                  ) -> tuple[list[EnvelopePoint], list[EnvelopePoint], bool]:
     """Locus ``i``'s envelope points: at its pose from the poses ``before`` and ``after``
     (from the one of them there is at a stretch's end: ``True``, first order, exact for a
-    plane), and midway to the pose after."""
+    plane; and from the one that faces as i does where the other has turned and the
+    central difference gives no point: a ring written by hand turns with its path, so at
+    a bend of the path the element after faces another wall, the zoo's unseen seed 62
+    room-28), and midway to the pose after."""
     at: list[EnvelopePoint] = []
     midway: list[EnvelopePoint] = []
     pos, tx, ranges = s.pos, s.loci.tx, s.ranges
@@ -180,6 +208,13 @@ def _pose_points(s: _Scan, i: int, before: int | None, after: int | None
         b = i if before is None else before
         at = _envelope_point(s, i, a, t, ranges[i], pos[tx[a]] - pos[tx[b]],
                              ranges[a] - ranges[b], centred=True)
+        for k in (_unturned(s, i, before, after) if not (at or one_sided) else ()):
+            a, b = (i, k) if k == before else (k, i)
+            at = _envelope_point(s, i, a, t, ranges[i], pos[tx[a]] - pos[tx[b]],
+                                 ranges[a] - ranges[b], centred=True)
+            if at:
+                one_sided = True
+                break
     if after is not None:
         ta = pos[tx[after]]
         midway = _envelope_point(s, i, after, 0.5 * (t + ta),
@@ -212,7 +247,7 @@ def element_scans(scene: Scene, sensors: SensorArray, loci,
     by_key = _first_echoes(sensors, loci, ranges)
     cut_sin2, _ = scene.transducer.beam(scene.medium.c)
     widest = np.full(len(loci), cut_sin2) if beams is None else np.minimum(beams, cut_sin2)
-    s = _Scan(loci, ranges, sensors.positions, sensors.axes, widest)
+    s = _Scan(loci, ranges, sensors.positions, sensors.axes, widest, ringed(sensors))
     scans: dict[int, ElementScan] = {}
     for (g, e), members in sorted(by_key.items()):
         for i in members:

@@ -250,20 +250,30 @@ def _passes_another(walls: list[Wall], k: int, pair: tuple[int, int],
     return False
 
 
+#: Corners whose walls may meet from farther than ``join_m`` (:func:`_acute_reach`),
+#: degrees: a room's corner is rarely sharper than 50°, while a ghost (a multiple
+#: reflection drawn as a wall) often crosses a wall at 40° or less.
+ACUTE_DEG = (50.0, 90.0)
+
+
 def _acute_reach(a: Wall, b: Wall, ends: list[tuple[int, float, float]]) -> float:
     """How much farther than ``join_m`` two walls may be extended to meet at an acute
     corner: 1/tan(θ/2) for the angle θ < 90° between them at the crossing (each ray from
     the crossing into its wall), else 1. A scan kept a clearance c from both walls of a
     corner of angle θ comes no nearer its vertex than c/sin(θ/2), and its square-on echoes
     reach no nearer than c/tan(θ/2) along each wall: c at a square corner, 1.7·c at 60°
-    (a trapezoid's or a triangle's corner). A crossing inside a wall's span (a cut): 1."""
+    (a trapezoid's or a triangle's corner); only for θ within :data:`ACUTE_DEG` (the zoo's
+    unseen seed 65 room-18: a ghost 38° off a U room's notch was drawn 1.4 m long). A
+    crossing inside a wall's span (a cut): 1."""
     rays = []
     for w, (end, t, _) in zip((a, b), ends, strict=True):
         if w.lo < t < w.hi:
             return 1.0
         rays.append(w.direction if end == 0 else -w.direction)
-    cos = float(np.clip(rays[0] @ rays[1], -1.0, 1.0))
-    return max(1.0, 1.0 / math.tan(0.5 * math.acos(cos))) if cos > 0.0 else 1.0
+    theta = math.degrees(math.acos(float(np.clip(rays[0] @ rays[1], -1.0, 1.0))))
+    if not ACUTE_DEG[0] <= theta < ACUTE_DEG[1]:
+        return 1.0
+    return 1.0 / math.tan(math.radians(0.5 * theta))
 
 
 def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_M,
