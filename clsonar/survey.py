@@ -240,8 +240,8 @@ def choose_settings(scene: Scene, found: Survey, given: str = "file",
         why["sensors.placement.start_deg"] = "auto: square to the walls" if unset else given
         if unset:
             geom = build_geometry(scene) if geom is None else geom
-            if walls_share_heading(geom, placement.elements):
-                start = square_to_walls(geom, placement.elements)
+            start = square_to_walls(geom, placement.elements)
+            if walls_share_heading(geom, placement.elements, start):
                 scene = dataclasses.replace(scene, sensors=dataclasses.replace(
                     scene.sensors, placement=dataclasses.replace(placement, start_deg=start)))
             else:  # left unset: the placement turns each pose (sensors.pose_headings)

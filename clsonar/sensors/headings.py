@@ -52,13 +52,13 @@ def square_to_walls(geom: Geometry, elements: int) -> float:
     return round(float(_off(np.array([mean]), 0.0, period)[0]), 6) + 0.0
 
 
-def walls_share_heading(geom: Geometry, elements: int) -> bool:
-    """Whether every wall is square to :func:`square_to_walls`' heading (within
+def walls_share_heading(geom: Geometry, elements: int, heading: float | None = None) -> bool:
+    """Whether every wall is square to ``heading`` (default :func:`square_to_walls`'; within
     :data:`SQUARE_TOL_DEG`, modulo 360°/``elements``): one heading then serves every pose."""
     if len(geom.walls) == 0 or elements < 1:
         return True
     period = 360.0 / elements
-    heading = square_to_walls(geom, elements)
+    heading = square_to_walls(geom, elements) if heading is None else heading
     return bool(np.all(np.abs(_off(_normals_deg(geom.walls), heading, period))
                        <= SQUARE_TOL_DEG))
 
@@ -81,7 +81,7 @@ def pose_headings(geom: Geometry, poses: np.ndarray, elements: int) -> np.ndarra
     pose, in a room whose walls share it), else square to that nearest wall (an element
     facing it along its normal). In (−180°/n, 180°/n]."""
     heading = square_to_walls(geom, elements)
-    if len(poses) == 0 or walls_share_heading(geom, elements):
+    if len(poses) == 0 or walls_share_heading(geom, elements, heading):
         return np.full(len(poses), heading)
     period = 360.0 / elements
     walls = geom.walls[nearest_walls(geom.walls, poses)]
