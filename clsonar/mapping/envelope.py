@@ -178,12 +178,12 @@ def _envelope_point(s: _Scan, i: int, j: int, centre: np.ndarray, r: float, d: n
     return [(k, centre, r, q) for k in ((i,) if centred else (i, j))]
 
 
-def _unturned(s: _Scan, i: int, before: int, after: int) -> tuple[int, ...]:
+def _unturned(s: _Scan, i: int, before: int | None, after: int | None) -> tuple[int, ...]:
     """Of the loci ``before`` and ``after`` (of i's element at the poses either side), the
     one whose transducer faces as i's does (within 1°) where the other's has turned: ()
-    where both or neither do, or where i's group is no ring (a linear array's neighbours
-    are other arrays, not the same element moved)."""
-    if s.ringed is None or not s.ringed[s.loci.tx[i]]:
+    where both or neither do, where one is missing, or where i's group is no ring (a
+    linear array's neighbours are other arrays, not the same element moved)."""
+    if before is None or after is None or s.ringed is None or not s.ringed[s.loci.tx[i]]:
         return ()
     axis = s.axes[s.loci.tx[i]]
     same = [s.axes[s.loci.tx[k]].dot(axis) >= _SAME_HEADING_COS for k in (before, after)]
