@@ -684,3 +684,18 @@ def test_wall_following_traces_run_together_are_each_one_alone():
     for k, geom in enumerate(geoms):
         d, q = nearest_surface_point(geom, pts[k])
         assert np.array_equal(dist[k], d) and np.array_equal(near[k], q)
+
+
+def test_nearest_walls_block_by_block_is_all_at_once(monkeypatch):
+    """The nearest wall of each pose, a block of poses at a time (bounded memory), is the
+    one all the distances at once give, and the nearest by brute force."""
+    from clsonar.sensors import headings
+
+    rng = np.random.default_rng(5)
+    walls, points = rng.uniform(0, 10, (37, 4)), rng.uniform(0, 10, (501, 2))
+    whole = headings.nearest_walls(walls, points)
+    monkeypatch.setattr(headings, "NEAREST_AT_ONCE", 100)  # blocks of two poses
+    blocks = headings.nearest_walls(walls, points)
+    np.testing.assert_array_equal(blocks, whole)
+    brute = [int(np.argmin([_segment_distance(p, w) for w in walls])) for p in points]
+    np.testing.assert_array_equal(blocks, brute)

@@ -63,16 +63,24 @@ def walls_share_heading(geom: Geometry, elements: int, heading: float | None = N
                        <= SQUARE_TOL_DEG))
 
 
+#: Point-to-wall distances :func:`nearest_walls` computes at once (bounded memory).
+NEAREST_AT_ONCE = 1 << 18
+
+
 def nearest_walls(walls: np.ndarray, points: np.ndarray) -> np.ndarray:
     """[P] the index of the wall (segment of ``walls`` [S, 4]) nearest each of ``points``
-    [P, 2]."""
+    [P, 2], for a block of points at a time (at most :data:`NEAREST_AT_ONCE` distances)."""
     a, b = walls[:, :2], walls[:, 2:]
     ab = b - a
-    rel = points[:, None, :] - a  # [P, S, 2]
     length2 = np.maximum(np.einsum("sk,sk->s", ab, ab), 1e-300)
-    t = np.clip(np.einsum("psk,sk->ps", rel, ab) / length2, 0.0, 1.0)
-    off = rel - t[..., None] * ab
-    return np.argmin(np.hypot(off[..., 0], off[..., 1]), axis=1)
+    block = max(1, NEAREST_AT_ONCE // max(len(walls), 1))
+    out = np.zeros(len(points), dtype=np.int64)
+    for first in range(0, len(points), block):
+        rel = points[first:first + block, None, :] - a  # [p, S, 2]
+        t = np.clip(np.einsum("psk,sk->ps", rel, ab) / length2, 0.0, 1.0)
+        off = rel - t[..., None] * ab
+        out[first:first + block] = np.argmin(np.hypot(off[..., 0], off[..., 1]), axis=1)
+    return out
 
 
 def pose_headings(geom: Geometry, poses: np.ndarray, elements: int) -> np.ndarray:
