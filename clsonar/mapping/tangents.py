@@ -464,7 +464,8 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
                   bias: float, found: list[np.ndarray], source: list[np.ndarray],
                   vertices: list[np.ndarray]) -> None:
     """Append to ``found`` and ``source`` what the ``isolated`` loci give: the scan
-    envelope's links between them (:func:`~.envelope.envelope_links`), and each one's
+    envelope's links between them (:func:`~.envelope.envelope_links`; none between two
+    loci a point reflector explains), and each one's
     points (:func:`_isolated_points`), a pillar's stretch for those a pillar explains
     (:func:`_pillars`), the point where they cross for those a point reflector explains
     (:func:`_points`; the point also to ``vertices``); a middle of arc that neither
@@ -477,6 +478,7 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
     points, ends = envelope_links(scene, sensors, s.loci, LINK_STEP_M,
                                   min(bias, ENVELOPE_ARC_BIAS_M), scans)
     keep = np.isin(ends, isolated).all(axis=1)
+    links = len(found)  # the links' slot, filled once the point reflectors are known
     found.append(points[keep])
     source.append(ends[keep, 0])
     env = scan_envelope(scene, sensors, s.loci, scans)
@@ -494,6 +496,9 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
     for k, drawn in [*pillars.items(), *((k, v[None]) for k, v in corners.items())]:
         arcs[k] = drawn
     vertices += list({v.tobytes(): v for v in corners.values()}.values())
+    if corners:  # a point reflector's loci touch at the point, not along a stretch
+        keep &= ~np.isin(ends, isolated[list(corners)]).all(axis=1)
+        found[links], source[links] = points[keep], ends[keep, 0]
     left = [k for k in stubs if k not in pillars and k not in corners]
     vouched = scene.detection.mode == "envelope" and scene.transducer.beam(scene.medium.c)[1]
     for k, weak in zip(left, _facing_too_weak(scene, s, isolated[left], bias), strict=True):
