@@ -10,6 +10,7 @@ import numpy as np
 from ..physics import (
     J1_FIRST_ZERO,
     MAX_FOCUS_GAIN,
+    absorption_factor,
     curved_gain,
     edge_diffraction,
     piston_pattern,
@@ -218,12 +219,31 @@ def edge_distance(ratio: np.ndarray, T: np.ndarray, R: np.ndarray, q: np.ndarray
         lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
     return np.where(first == 0, 0.0, np.where(first == len(grid), float(reach), 0.5 * (lo + hi)))
 
+def circle_echo(scene: Scene, T: np.ndarray, axes: np.ndarray, centre: np.ndarray,
+                radius: float) -> np.ndarray:
+    """[k] The echo amplitude a circle (``centre``, ``radius``: a pillar) returns to the
+    transducers at ``T`` [k, 2] with unit ``axes`` [k, 2], each its own receiver (T = R):
+    a flat mirror's A0·ρ times the two-way beam towards the circle's point nearest it, the
+    gain of the circle's curvature seen from the distance d to that point, sqrt(R/(R + d))
+    (``physics.curved_gain``; 1 without ``echo.curvature_gain``), and the absorption over
+    the path 2·d — the echo engine's specular amplitude of a convex circle."""
+    out = T - centre
+    far = np.maximum(np.hypot(out[:, 0], out[:, 1]), radius + 1e-12)
+    q = centre + radius * out / far[:, None]
+    d = far - radius
+    gain = (curved_gain(d, d, np.full(len(d), 1.0 / radius), np.ones(len(d)))
+            if scene.echo.curvature_gain else 1.0)
+    return (mirror_echo(scene) * two_way(q, T, axes, T, axes, scene.transducer.beam(
+        scene.medium.c)[1]) * gain * absorption_factor(2.0 * d, scene.echo.absorption_db_per_m))
+
+
 __all__ = [
     "EDGE_SHARE",
     "MIRROR_SHARE",
     "OVERLAP_FACTOR",
     "POINT_LIKE",
     "as_flat_as_its_range",
+    "circle_echo",
     "convex_share",
     "edge_distance",
     "face_end_echo",

@@ -9,7 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import steps
-from ..physics import absorption_factor, curved_gain, piston_pattern
+from ..physics import absorption_factor, piston_pattern
 from ..scene import Scene
 from ..sensors import SensorArray
 from ..signals import envelope_noise_scale, signal_model
@@ -34,7 +34,7 @@ from .pillars import (
     point_reflectors,
 )
 from .points import densified, nonzero_cells
-from .strength import loud_beams, mirror_echo
+from .strength import circle_echo, loud_beams, mirror_echo
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
@@ -276,24 +276,6 @@ def _points(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndarr
 
     points = point_reflectors(T, R, s.a[loci], middles, _range_tolerance(scene, s, loci), admits)
     return {slots[n]: v for n, v in points.items()}
-
-
-def circle_echo(scene: Scene, T: np.ndarray, axes: np.ndarray, centre: np.ndarray,
-                radius: float) -> np.ndarray:
-    """[k] The echo amplitude a circle (``centre``, ``radius``: a pillar) returns to the
-    transducers at ``T`` [k, 2] with unit ``axes`` [k, 2], each its own receiver (T = R):
-    a flat mirror's A0·ρ times the two-way beam towards the circle's point nearest it, the
-    gain of the circle's curvature seen from the distance d to that point, sqrt(R/(R + d))
-    (``physics.curved_gain``; 1 without ``echo.curvature_gain``), and the absorption over
-    the path 2·d — the echo engine's specular amplitude of a convex circle."""
-    out = T - centre
-    far = np.maximum(np.hypot(out[:, 0], out[:, 1]), radius + 1e-12)
-    q = centre + radius * out / far[:, None]
-    d = far - radius
-    gain = (curved_gain(d, d, np.full(len(d), 1.0 / radius), np.ones(len(d)))
-            if scene.echo.curvature_gain else 1.0)
-    return (mirror_echo(scene) * two_way(q, T, axes, T, axes, scene.transducer.beam(
-        scene.medium.c)[1]) * gain * absorption_factor(2.0 * d, scene.echo.absorption_db_per_m))
 
 
 def envelope_noise(scene: Scene) -> float:
