@@ -533,14 +533,15 @@ def segment_distance(points: np.ndarray, polygon: np.ndarray, closed: bool = Tru
     (closed: the last vertex joined to the first)."""
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 2)
     a = np.asarray(polygon, dtype=np.float64)
-    b = np.roll(a, -1, axis=0)
-    if not closed:
-        a, b = a[:-1], b[:-1]
-    d = b - a
-    t = np.clip(np.einsum("mkj,kj->mk", pts[:, None] - a[None], d)
+    d = np.roll(a, -1, axis=0) - a
+    return np.min(segment_distances(pts, a if closed else a[:-1], d if closed else d[:-1]), 1)
+
+
+def segment_distances(points: np.ndarray, a: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """[M, K] the distance of each of ``points`` [M, 2] to each segment a[k] + t·d[k]."""
+    t = np.clip(np.einsum("mkj,kj->mk", points[:, None] - a[None], d)
                 / np.maximum(np.sum(d * d, 1), 1e-300), 0, 1)
-    near = a[None] + t[..., None] * d[None]
-    return np.min(np.hypot(*(pts[:, None] - near).transpose(2, 0, 1)), axis=1)
+    return np.hypot(*(points[:, None] - (a[None] + t[..., None] * d[None])).transpose(2, 0, 1))
 
 
 def ray_distance(geom: Geometry, origins: np.ndarray, directions: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ import numpy as np
 
 from ..scene import Scene
 from ..sensors import SensorArray
+from ..survey import group_centres, is_ring
 from .loci import Loci, as_loci
 
 #: How much nearer than its range an envelope point may be to a transducer (rounding).
@@ -99,14 +100,12 @@ class _Scan:
 
 
 def ringed(sensors: SensorArray) -> np.ndarray:
-    """[n] whether each transducer's group is a ring: its elements' axes average to less
-    than half a unit vector (a ring's to about zero, a linear array's to one)."""
-    groups = sensors.groups
-    sums = np.zeros((int(groups.max()) + 1 if len(groups) else 0, 2))
-    np.add.at(sums, groups, sensors.axes)
-    counts = np.bincount(groups, minlength=len(sums))
-    mean = np.hypot(*sums.T) / np.maximum(counts, 1)
-    return (mean < 0.5)[groups]
+    """[n] whether each transducer's group is a ring (:func:`~clsonar.survey.is_ring`, as
+    the survey of the scene names it)."""
+    out = np.zeros(len(sensors.groups), dtype=bool)
+    for members in group_centres(sensors)[1]:
+        out[members] = is_ring(sensors.positions[members], sensors.headings_deg[members])
+    return out
 
 
 #: An envelope point: (locus credited, locus circle's centre, its radius, the point).

@@ -219,6 +219,7 @@ def edge_distance(ratio: np.ndarray, T: np.ndarray, R: np.ndarray, q: np.ndarray
         lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
     return np.where(first == 0, 0.0, np.where(first == len(grid), float(reach), 0.5 * (lo + hi)))
 
+
 def circle_echo(scene: Scene, T: np.ndarray, axes: np.ndarray, centre: np.ndarray,
                 radius: float) -> np.ndarray:
     """[k] The echo amplitude a circle (``centre``, ``radius``: a pillar) returns to the

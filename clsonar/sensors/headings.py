@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry import Geometry
+from ..geometry import Geometry, segment_distances
 
 #: Walls whose normals agree within this (modulo the ring's symmetry) share a heading.
 SQUARE_TOL_DEG = 2.0
@@ -69,18 +69,12 @@ NEAREST_AT_ONCE = 1 << 18
 
 def nearest_walls(walls: np.ndarray, points: np.ndarray) -> np.ndarray:
     """[P] the index of the wall (segment of ``walls`` [S, 4]) nearest each of ``points``
-    [P, 2], for a block of points at a time (at most :data:`NEAREST_AT_ONCE` distances)."""
-    a, b = walls[:, :2], walls[:, 2:]
-    ab = b - a
-    length2 = np.maximum(np.einsum("sk,sk->s", ab, ab), 1e-300)
+    [P, 2] (:func:`~clsonar.geometry.segment_distances`), for a block of points at a time
+    (at most :data:`NEAREST_AT_ONCE` distances)."""
+    a, d = walls[:, :2], walls[:, 2:] - walls[:, :2]
     block = max(1, NEAREST_AT_ONCE // max(len(walls), 1))
-    out = np.zeros(len(points), dtype=np.int64)
-    for first in range(0, len(points), block):
-        rel = points[first:first + block, None, :] - a  # [p, S, 2]
-        t = np.clip(np.einsum("psk,sk->ps", rel, ab) / length2, 0.0, 1.0)
-        off = rel - t[..., None] * ab
-        out[first:first + block] = np.argmin(np.hypot(off[..., 0], off[..., 1]), axis=1)
-    return out
+    return np.concatenate([np.argmin(segment_distances(points[first:first + block], a, d), axis=1)
+                           for first in range(0, len(points), block)] or [np.zeros(0, np.int64)])
 
 
 def pose_headings(geom: Geometry, poses: np.ndarray, elements: int) -> np.ndarray:
