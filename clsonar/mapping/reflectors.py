@@ -33,16 +33,11 @@ from ..sensors import SensorArray
 from ..survey import DEFAULT_MIN_ENVELOPE, in_a_room
 from .crossings import crossing_points
 from .families import (
-    DETECTION_FLOOR_M,
     MIN_FAMILY,
     POINT_SPREAD,
-    SIMPLER_RMS_FACTOR,
     Family,
     Window,
-    _fit,
     _predict,
-    _strong,
-    _tolerance,
     _valid,
     find_families,
     outside_allowed,
@@ -53,12 +48,11 @@ from .heard import amplitude_noise, group_pairs, heard_index, loudest
 from .joins import END_AT_VERTEX_M, draw_families, draw_patches
 from .loci import Loci, _subset
 from .models import corner_images, corner_paths, dot2
-from .owners import a_corners_echoes, widened
+from .owners import a_corners_echoes, as_plane, fits_as_well, widened
 from .patches import Patches
-from .starts import MIN_CURVE, family_starts
+from .starts import MIN_CURVE
 from .strength import mirror_echo, strongest_echo, two_way
 from .tangents import tangent_map
-from .window import detection_noise
 
 #: Longest stretch of an array whose detections are fitted together, metres.
 WINDOW_M = 1.0
@@ -226,7 +220,7 @@ def corners_heard(families: list[Family], sensors: SensorArray, loci: Loci, scen
     for k in corners:
         f = out[k]
         if _heard_share(f, sensors, loci, heard, ka) < CORNER_HEARD_SHARE:
-            out[k] = _as_plane(f) or f
+            out[k] = as_plane(f) or f
     return out
 
 
@@ -278,18 +272,6 @@ def _corner_gain(params: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarr
     return two_way(at_t, T, axT, R, axR, ka, at_r)
 
 
-def _as_plane(f: Family) -> Family | None:
-    """Family ``f``'s echoes as a plane's, where a plane explains each of them within its
-    tolerance as strongly as a mirror's; None otherwise."""
-    w, rows = f.window, f.rows
-    fit = _fit(w, "plane", rows, family_starts(w, f.kind, f.params, rows)["plane"])
-    path, q = _predict(w, "plane", fit.params, rows)
-    if np.any(np.abs(path - w.paths[rows]) > _tolerance(w, "plane", rows)) \
-            or not np.all(_strong(w, "plane", rows, q, fit.params)):
-        return None
-    return Family("plane", fit.params, w.x0, rows, q, fit.rms, w, f.bend)
-
-
 def corners_own(families: list[Family]) -> list[Family]:
     """``families`` less those whose every echo a located corner of more rows explains
     (:func:`~clsonar.mapping.owners.a_corners_echoes`): pairs too close together for
@@ -297,27 +279,10 @@ def corners_own(families: list[Family]) -> list[Family]:
     plane through the vertex, square to their line of sight (the zoo's seed 3 corner-02,
     a 110° corner seen by a long array at 2.5 m and a short one at 7.7 m)."""
     corners = sorted((f for f in families if f.kind == "corner"), key=lambda f: -len(f.rows))
+    certain = [as_plane(c) is None for c in corners]
     return [f for f in families
-            if not any(a_corners_echoes(f, c) or _fits_as_well(f, c) for c in corners)]
-
-
-def _fits_as_well(f: Family, corner: Family) -> bool:
-    """Whether the located ``corner`` (of more rows) predicts the echoes of ``f`` (a
-    plane, point or curve), its vertex inside both beams, with an RMS within
-    :data:`~.families.SIMPLER_RMS_FACTOR` of ``f``'s own plus their noise, as
-    :func:`~.families._simplest` names a family: with noise more than a tenth of them may
-    leave their tolerance of either model (the zoo's unseen seed 19 corner-05, σ 0.6: a
-    plane of 51 echoes of a 2 cm-pitch array 7.4 m away, RMS 0.51 mm, the corner 250
-    echoes located 0.79 mm, 7 outside; the plane drawn through the vertex, 13.7 cm RMS)."""
-    if corner.kind != "corner" or f.kind == "corner" or len(corner.rows) <= len(f.rows):
-        return False
-    w = f.window
-    path, q = _predict(w, "corner", corner.params, f.rows)
-    if not np.all(_valid(w, "corner", corner.params, f.rows, q)):
-        return False
-    noise = detection_noise(w.tolerance[f.rows])
-    rms = math.sqrt(float(np.mean((path - w.paths[f.rows]) ** 2)))
-    return rms <= SIMPLER_RMS_FACTOR * f.rms + noise + DETECTION_FLOOR_M
+            if not any(a_corners_echoes(f, c) or fits_as_well(f, c, sure)
+                       for c, sure in zip(corners, certain, strict=True))]
 
 
 #: A family whose echoes a located vertex explains puts them elsewhere when some reflection
