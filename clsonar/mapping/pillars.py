@@ -355,42 +355,71 @@ def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
                          start)
 
 
+#: ``quiet(normal, explained)``: whether the loci ``explained`` (their indices) were all
+#: heard weaker than a plane of that unit normal (from the transducers towards it) would
+#: return them.
+Quiet = Callable[[np.ndarray, np.ndarray], bool]
+
+
+#: A point found after the cluster's best was refused explains at least this share of as
+#: many loci as that best (:func:`_best_point`).
+NEXT_POINT_SHARE = 0.5
+
+
 def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,
-                tol: np.ndarray, admits: Admits) -> tuple[np.ndarray, np.ndarray] | None:
+                tol: np.ndarray, admits: Admits, quiet: Quiet | None = None,
+                tight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
     """The point reflector that explains the most of the loci within ``tol``, from
     :data:`MIN_PILLAR_LOCI` transmitter positions or more, each explaining locus admitting
     it (``admits``: inside its beams): fitted from each of :func:`_seed_sets`, then again
-    to every locus it explains."""
+    to every locus it explains, the one that explains most first; not one a plane explains
+    as well (:func:`_a_plane`) unless its loci were all too ``quiet`` for that plane's
+    echoes, nor one from fewer positions, but then the next that shares no locus with
+    those refused and explains at least :data:`NEXT_POINT_SHARE` as many loci as the
+    first, each within ``tight`` (its range's noise; without it, none). The zoo's unseen seed 108
+    room-07: a wall's 13 loci, which a point at its foot explains too, hid a T room's
+    notch edge that 11 poses moving straight at it heard. A point that explains some of a
+    refused one's loci too is that plane's; a few loci from far apart, within their
+    tolerance, a coincidence (the bundled rooms at σ 0.6: 3–5 loci, 2–3 mm off, a point
+    3–6 cm from a corner)."""
 
     def explains(v: np.ndarray) -> np.ndarray:
         return (np.abs(_point_residual(v, T, R, a)) <= tol) & admits(v)
 
-    best = None
+    found: list[tuple[np.ndarray, np.ndarray]] = []
     for near in _seed_sets(middles):
         v, off = _point_from(T[near], R[near], a[near], middles[near].mean(axis=0))
         if np.count_nonzero(np.abs(off) <= tol[near]) < MIN_PILLAR_LOCI:
             continue
+        found.append((v, explains(v)))
+        if found[-1][1].all():  # no later seed set can explain more
+            break
+    refused = np.zeros(len(T), dtype=bool)  # the loci of the points refused so far
+    least = -1  # before the first is refused
+    for start, first in sorted(found, key=lambda f: -int(f[1].sum())):  # ties: first found
+        v, _ = _point_from(T[first], R[first], a[first], start)
         explained = explains(v)
-        if best is None or explained.sum() > best[1].sum():
-            best = (v, explained)
-            if explained.all():  # no later seed set can explain more
-                break
-    if best is None:
-        return None
-    v, _ = _point_from(T[best[1]], R[best[1]], a[best[1]], best[0])
-    explained = explains(v)
-    if (_positions(T[explained]) < MIN_PILLAR_LOCI
-            or _a_plane(0.5 * (T + R)[explained], a[explained], tol[explained])):
-        return None
-    return v, explained
+        if least >= 0 and (tight is None or np.any(explained & refused)
+                           or np.count_nonzero(explained) < least
+                           or np.any(np.abs(_point_residual(v, T, R, a)[explained])
+                                     > tight[explained])):
+            continue
+        if least < 0:
+            least = math.ceil(NEXT_POINT_SHARE * np.count_nonzero(explained))
+        if _positions(T[explained]) >= MIN_PILLAR_LOCI:
+            normal = _a_plane(0.5 * (T + R)[explained], a[explained], tol[explained])
+            if normal is None or (quiet is not None and quiet(normal, explained)):
+                return v, explained
+        refused |= explained
+    return None
 
 
-def _a_plane(centres: np.ndarray, a: np.ndarray, tol: np.ndarray) -> bool:
-    """Whether one plane explains the loci (centres, a) as well — n·c_k + a_k = d for a
-    unit normal n, each locus tangent to it: the loci of a ring moving straight at a wall,
-    or stepping little for its range, all pass through the foot of the wall as a point
-    reflector's would (Kleeman & Kuc 1995 tell the two apart by the same test). The
-    normal is scanned every degree, then refined."""
+def _a_plane(centres: np.ndarray, a: np.ndarray, tol: np.ndarray) -> np.ndarray | None:
+    """The unit normal n of one plane that explains the loci (centres, a) as well — n·c_k
+    + a_k = d, each locus tangent to it at c_k + a_k·n — or None: the loci of a ring
+    moving straight at a wall, or stepping little for its range, all pass through the foot
+    of the wall as a point reflector's would (Kleeman & Kuc 1995 tell the two apart by the
+    same test). The normal is scanned every degree, then refined."""
     def spread(theta: np.ndarray) -> np.ndarray:
         r = a[:, None] + centres @ np.stack([np.cos(theta), np.sin(theta)])
         return np.abs(r - r.mean(axis=0)).max(axis=0)
@@ -398,21 +427,28 @@ def _a_plane(centres: np.ndarray, a: np.ndarray, tol: np.ndarray) -> bool:
     grid = np.radians(np.arange(360.0))
     best = grid[int(np.argmin(spread(grid)))]
     found = minimize_bounded(lambda t: float(spread(np.array([t]))[0]), best - 0.02, best + 0.02)
-    return bool(spread(np.array([found]))[0] <= 2.0 * float(np.max(tol)))
+    if spread(np.array([found]))[0] > 2.0 * float(np.max(tol)):
+        return None
+    return np.array([math.cos(found), math.sin(found)])
 
 
 def point_reflectors(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,
-                     tol: np.ndarray, admits: Admits) -> dict[int, np.ndarray]:
+                     tol: np.ndarray, admits: Admits, quiet: Quiet | None = None,
+                     tight: np.ndarray | None = None) -> dict[int, np.ndarray]:
     """``{k: point}`` for the loci (T_k, R_k, a_k) that one point explains,
     (|V − T_k| + |V − R_k|)/2 = a_k within ``tol``, from :data:`MIN_PILLAR_LOCI`
     transmitter positions or more, each admitting it (``admits``: inside its beams): a
     room's corner (its retro-reflected double bounce) or a convex edge that a moving ring
     hears from several poses, whose loci cross there (Kleeman & Kuc 1995's point
     reflector, a pillar of radius 0). Cluster by cluster (:data:`CLUSTER_M`), point after
-    point, as :func:`pillar_arcs`."""
+    point, as :func:`pillar_arcs`. Loci a plane explains as well are a point's only where
+    they are too ``quiet`` for that plane; where the best is refused, the next within
+    ``tight`` (:func:`_best_point`)."""
 
     def best(m: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        return _best_point(T[m], R[m], a[m], middles[m], tol[m], lambda v: admits(v)[m])
+        return _best_point(T[m], R[m], a[m], middles[m], tol[m], lambda v: admits(v)[m],
+                           None if quiet is None else lambda n, e: quiet(n, np.asarray(m)[e]),
+                           None if tight is None else tight[m])
 
     return {int(k): v for (v, _), ks in _one_by_one(middles, best) for k in ks}
 

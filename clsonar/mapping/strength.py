@@ -68,6 +68,21 @@ def mirror_strong(amplitude: np.ndarray, q: np.ndarray, T: np.ndarray, axT: np.n
     return amplitude >= mirror_floor(q, T, axT, R, axR, mirror, ka, noise_std)
 
 
+def quieter_than_a_plane(scene: Scene, normal: np.ndarray, T: np.ndarray, axT: np.ndarray,
+                         R: np.ndarray, axR: np.ndarray, a: np.ndarray,
+                         amplitude: np.ndarray, noise_std: float) -> bool:
+    """Whether every echo (pairs (T, R), half paths ``a``, of ``amplitude``) is weaker
+    than a flat mirror of unit ``normal`` tangent to their loci would return it
+    (:func:`mirror_floor` at the loci's points c + a·n, c the pair's middle, with the
+    absorption over the path 2a): a convex edge heard by a ring moving straight at it
+    returns loci that one plane square to the motion touches too, but an edge's
+    diffraction is a fraction of a mirror's echo."""
+    q = 0.5 * (T + R) + a[:, None] * normal
+    mirror = mirror_echo(scene) * absorption_factor(2.0 * a, scene.echo.absorption_db_per_m)
+    ka = scene.transducer.beam(scene.medium.c)[1]
+    return bool(np.all(amplitude < mirror_floor(q, T, axT, R, axR, mirror, ka, noise_std)))
+
+
 def two_way(q: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarray, axR: np.ndarray,
             ka: float, q_r: np.ndarray | None = None) -> np.ndarray:
     """The two-way beam b(θ_T)·b(θ_R) of the pairs (T, R) with unit axes towards ``q``
@@ -252,6 +267,7 @@ __all__ = [
     "mirror_echo",
     "mirror_floor",
     "mirror_strong",
+    "quieter_than_a_plane",
     "strongest_echo",
     "two_way",
 ]

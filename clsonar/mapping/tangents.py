@@ -23,6 +23,7 @@ from .envelope import (
     two_pose_links,
 )
 from .families import two_way, window_tolerance
+from .heard import amplitude_noise
 from .loci import Loci, as_loci
 from .models import ellipse_axes
 from .pillars import (
@@ -34,7 +35,7 @@ from .pillars import (
     point_reflectors,
 )
 from .points import densified, nonzero_cells
-from .strength import circle_echo, loud_beams, mirror_echo
+from .strength import circle_echo, loud_beams, mirror_echo, quieter_than_a_plane
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
@@ -237,11 +238,15 @@ def _isolated_points(s: SampledLoci, isolated: np.ndarray, bias: float, linked: 
 
 
 def _range_tolerance(scene: Scene, s: SampledLoci, loci: np.ndarray) -> np.ndarray:
-    """How far the range of each of ``loci`` may be off, metres: half its detection
-    window's tolerance (noise), at least :data:`~.pillars.PILLAR_TOL_M`."""
-    return np.maximum(PILLAR_TOL_M, 0.5 * window_tolerance(
-        s.loci.amplitude[loci], scene.signal.noise_std, scene.medium.c,
-        scene.transducer.pulse_sigma_s))
+    """How far the range of each of ``loci`` may be off, metres: its noise
+    (:func:`_range_noise`), at least :data:`~.pillars.PILLAR_TOL_M`."""
+    return np.maximum(PILLAR_TOL_M, _range_noise(scene, s, loci))
+
+
+def _range_noise(scene: Scene, s: SampledLoci, loci: np.ndarray) -> np.ndarray:
+    """Half the detection window's tolerance of each of ``loci`` (its noise), metres."""
+    return 0.5 * window_tolerance(s.loci.amplitude[loci], scene.signal.noise_std,
+                                  scene.medium.c, scene.transducer.pulse_sigma_s)
 
 
 #: A locus drawn around its scan envelope's points is a point reflector's only where they
@@ -274,7 +279,13 @@ def _points(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndarr
                 & in_beams(v[None], R, r_axes, s.cut_sin2)
                 & (np.hypot(*(middles - v).T) <= reach))
 
-    points = point_reflectors(T, R, s.a[loci], middles, _range_tolerance(scene, s, loci), admits)
+    def quiet(normal: np.ndarray, m: np.ndarray) -> bool:
+        return quieter_than_a_plane(scene, normal, T[m], t_axes[m], R[m], r_axes[m],
+                                    s.a[loci][m], s.loci.amplitude[loci][m], noise)
+
+    noise = amplitude_noise(scene)
+    points = point_reflectors(T, R, s.a[loci], middles, _range_tolerance(scene, s, loci),
+                              admits, quiet, _range_noise(scene, s, loci))
     return {slots[n]: v for n, v in points.items()}
 
 
