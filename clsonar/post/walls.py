@@ -224,34 +224,47 @@ def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
 PASSES_M = 0.02
 
 
-def _passes_another(walls: list[Wall], k: int, pair: tuple[int, int],
-                    end: tuple[int, float, float], x: np.ndarray, join_m: float,
-                    least: float) -> bool:
-    """Whether wall ``k``, extended from its ``end`` (which end, the crossing's coordinate,
-    how far) to the crossing ``x``, would pass through the line of another wall at least
-    ``least`` long (not one of ``pair``) where that wall could meet it, within ``join_m``
-    of its span: it meets the wall it reaches first. A U room's notch (the zoo's unseen
-    seed 73 room-06): the two walls beside its mouth, each 1 m from its crossing with the
-    notch's far side as with its near one, were drawn across the mouth, 6.7 cm RMS. A
-    shorter wall, at least :data:`MIN_FACE_M` long, counts within its own length of its
-    span: a T room's notch side mapped over 0.35 m of its 1.55 m (the zoo's unseen seed
-    110 room-19), 0.2 m from where the wall beside it, extended 1.25 m past the notch's
-    edge to meet a box's side, crossed its line (16.9 cm RMS); the short stubs of a
-    slanted room's corners, 0.6–0.9 m from such crossings, do not."""
-    wall = walls[k]
+def _on_the_way(wall: Wall, end: tuple[int, float, float], x: np.ndarray, y: np.ndarray
+                ) -> bool:
+    """Whether ``y`` lies on ``wall``'s extension from its ``end`` (which end, the
+    crossing's coordinate, how far) to the crossing ``x``, short of ``x``."""
     start = wall.at((wall.lo, wall.hi)[end[0]])
-    if not (wall.lo < end[1] < wall.hi) and end[2] > PASSES_M:  # an extension, not a cut
-        for m, other in enumerate(walls):
-            if m in pair or other.length < min(least, MIN_FACE_M):
-                continue
-            y = _intersection(wall, other)
-            if y is None:
-                continue
-            along = float((y - start) @ (x - start))  # y on the way: 0 … |x − start|²
-            t = float((y - other.centre) @ other.direction)
-            near = join_m if other.length >= least else min(join_m, other.length)
-            if (0.0 <= along <= end[2] ** 2 and float(np.hypot(*(y - x))) > PASSES_M
-                    and other.lo - near <= t <= other.hi + near):
+    along = float((y - start) @ (x - start))  # 0 … |x − start|²
+    return 0.0 <= along <= end[2] ** 2 and float(np.hypot(*(y - x))) > PASSES_M
+
+
+def _passes_another(walls: list[Wall], pair: tuple[int, int],
+                    ends: list[tuple[int, float, float]], n: int, x: np.ndarray,
+                    join_m: float, least: float) -> bool:
+    """Whether wall ``pair[n]``, extended from its end ``ends[n]`` (which end, the
+    crossing's coordinate, how far) to the crossing ``x``, would pass through the line of
+    another wall at least ``least`` long (not one of ``pair``) where that wall could meet
+    it, within ``join_m`` of its span: it meets the wall it reaches first. A U room's notch
+    (the zoo's unseen seed 73 room-06): the two walls beside its mouth, each 1 m from its
+    crossing with the notch's far side as with its near one, were drawn across the mouth,
+    6.7 cm RMS. A shorter wall, at least :data:`MIN_FACE_M` long, counts within its own
+    length of its span, unless its line crosses the other wall's extension too (a chamfer
+    across the corner they meet at): a T room's notch side mapped over 0.35 m of its 1.55
+    m (the zoo's unseen seed 110 room-19), 0.2 m from where the wall beside it, extended
+    1.25 m past the notch's edge to meet a box's side, crossed its line (16.9 cm RMS); the
+    short stubs of a slanted room's corners, 0.6–0.9 m from such crossings, do not."""
+    k, partner = pair[n], pair[1 - n]
+    wall, end = walls[k], ends[n]
+    if (wall.lo < end[1] < wall.hi) or end[2] <= PASSES_M:
+        return False  # a cut, not an extension
+    for m, other in enumerate(walls):
+        if m in pair or other.length < min(least, MIN_FACE_M):
+            continue
+        y = _intersection(wall, other)
+        if y is None or not _on_the_way(wall, end, x, y):
+            continue
+        t = float((y - other.centre) @ other.direction)
+        if other.length >= least:
+            if other.lo - join_m <= t <= other.hi + join_m:
+                return True
+        elif other.lo - other.length <= t <= other.hi + other.length:
+            z = _intersection(walls[partner], other)
+            if z is None or not _on_the_way(walls[partner], ends[1 - n], x, z):
                 return True
     return False
 
@@ -311,9 +324,9 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
             near = join_m * _acute_reach(walls[i], walls[j], ends)
             if all(e[2] <= min(near, reach * w.length)
                    for e, w in zip(ends, (walls[i], walls[j]), strict=True)) and not any(
-                    _passes_another(walls, k, (i, j), ends[n], x, join_m,
+                    _passes_another(walls, (i, j), ends, n, x, join_m,
                                     max(longest, shortest))
-                    for n, k in enumerate((i, j))):
+                    for n in range(2)):
                 shorter = min(walls[i].length, walls[j].length)
                 candidates.append((-shorter, ends[0][2] + ends[1][2], i, j, x, ends))
     used: set[tuple[int, int]] = set()
