@@ -376,12 +376,12 @@ def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray
     as well (:func:`_a_plane`) unless its loci were all too ``quiet`` for that plane's
     echoes, nor one from fewer positions, but then the next that shares no locus with
     those refused and explains at least :data:`NEXT_POINT_SHARE` as many loci as the
-    first, each within ``tight`` (its range's noise; without it, none). The zoo's unseen seed 108
-    room-07: a wall's 13 loci, which a point at its foot explains too, hid a T room's
-    notch edge that 11 poses moving straight at it heard. A point that explains some of a
-    refused one's loci too is that plane's; a few loci from far apart, within their
-    tolerance, a coincidence (the bundled rooms at σ 0.6: 3–5 loci, 2–3 mm off, a point
-    3–6 cm from a corner)."""
+    first, each within ``tight`` (its range's noise; none is tried without ``tight``).
+    The zoo's unseen seed 108 room-07: a wall's 13 loci, which a point at its foot
+    explains too, hid a T room's notch edge that 11 poses moving straight at it heard. A
+    point that explains some of a refused one's loci too is that plane's; a few loci from
+    far apart, within their tolerance, a coincidence (the bundled rooms at σ 0.6: 3–5
+    loci, 2–3 mm off, a point 3–6 cm from a corner)."""
 
     def explains(v: np.ndarray) -> np.ndarray:
         return (np.abs(_point_residual(v, T, R, a)) <= tol) & admits(v)
