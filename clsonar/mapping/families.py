@@ -353,6 +353,13 @@ def _best_family(w: Window, seed: int, free: np.ndarray, turns: Budget) -> Famil
     return _simplest(w, *best)
 
 
+def as_well_limit(rms: float, noise: float) -> float:
+    """The RMS another model may have and still fit as well as one of RMS ``rms``:
+    :data:`SIMPLER_RMS_FACTOR` times it plus the detections' ``noise``
+    (:func:`~.window.detection_noise`) and :data:`DETECTION_FLOOR_M`."""
+    return SIMPLER_RMS_FACTOR * rms + noise + DETECTION_FLOOR_M
+
+
 def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
     """The family of ``members``: the free curve refitted, and the simplest of plane, point
     and corner (fewest parameters first, then in :data:`SIMPLEST`'s order) whose RMS is
@@ -376,7 +383,7 @@ def _simplest(w: Window, members: np.ndarray, fit: Fit, kind: str) -> Family:
             fits[other] = _fit(w, other, members, start)
     floor = min(f.rms for f in fits.values())
     noise = detection_noise(w.tolerance[members])
-    limit = SIMPLER_RMS_FACTOR * floor + noise + DETECTION_FLOOR_M
+    limit = as_well_limit(floor, noise)
     bend = _measured_bend(w, members, fits, first, noise)
     best = max(_parameters(name, f) for name, f in fits.items() if f.rms <= floor * (1 + 1e-9))
     for name in sorted(fits, key=lambda n: (_parameters(n, fits[n]), SIMPLEST.index(n))):
@@ -564,5 +571,6 @@ def find_families(w: Window, resolution: float) -> tuple[list[Family], np.ndarra
 
 
 __all__ = ["BASE_TOLERANCE_M", "CURVE_TOLERANCE_M", "KINDS", "MIN_FAMILY", "Family", "Window",
+           "as_well_limit",
            "detection_noise", "find_families", "outside_allowed", "predict", "shadowed",
            "window_tolerance"]

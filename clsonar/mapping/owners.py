@@ -6,14 +6,13 @@ and a family whose every echo is a located corner's double bounce
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
 
 from .families import (
-    DETECTION_FLOOR_M,
     GROW_ROUNDS,
-    SIMPLER_RMS_FACTOR,
     Family,
     Fit,
     Window,
@@ -24,6 +23,7 @@ from .families import (
     _strong,
     _tolerance,
     _valid,
+    as_well_limit,
     detection_noise,
     outside_allowed,
 )
@@ -111,11 +111,12 @@ def as_plane(f: Family) -> Family | None:
     return Family("plane", fit.params, w.x0, rows, q, fit.rms, w, f.bend)
 
 
-def fits_as_well(f: Family, corner: Family, certain: bool = False) -> bool:
-    """Whether the located ``corner`` (of more rows, or ``certain``: no plane explains its
-    own echoes, :func:`as_plane`) predicts the echoes of ``f`` (a plane, point or curve),
-    its vertex inside both beams, with an RMS within :data:`~.families.SIMPLER_RMS_FACTOR`
-    of ``f``'s own plus their noise, as :func:`~.families._simplest` names a family: with
+def fits_as_well(f: Family, corner: Family,
+                 certain: Callable[[], bool] = lambda: False) -> bool:
+    """Whether the located ``corner`` (of more rows, or ``certain()``: no plane explains
+    its own echoes, :func:`as_plane`, asked only then) predicts the echoes of ``f`` (a
+    plane, point or curve), its vertex inside both beams, with an RMS as good as ``f``'s
+    (:func:`~.families.as_well_limit`), as :func:`~.families._simplest` names a family: with
     noise more than a tenth of them may leave their tolerance of either model (the zoo's
     unseen seed 19 corner-05, σ 0.6: a plane of 51 echoes of a 2 cm-pitch array 7.4 m
     away, RMS 0.51 mm, the corner 250 echoes located 0.79 mm, 7 outside; the plane drawn
@@ -127,10 +128,10 @@ def fits_as_well(f: Family, corner: Family, certain: bool = False) -> bool:
     off, a plane of 15 through the vertex, 3.4 mm RMS from the corner as located, drawn
     8.6 cm RMS off the walls)."""
     if corner.kind != "corner" or f.kind == "corner" or (len(corner.rows) <= len(f.rows)
-                                                         and not certain):
+                                                         and not certain()):
         return False
     w = f.window
-    bar = SIMPLER_RMS_FACTOR * f.rms + detection_noise(w.tolerance[f.rows]) + DETECTION_FLOOR_M
+    bar = as_well_limit(f.rms, detection_noise(w.tolerance[f.rows]))
     if _explains(w, f.rows, corner.params, bar):
         return True
     both = _joined(corner, w, f.rows)
@@ -138,8 +139,7 @@ def fits_as_well(f: Family, corner: Family, certain: bool = False) -> bool:
     params = _fit(both, "corner", every, corner.params).params
     own = every[:len(corner.rows)]
     return _explains(both, every[len(own):], params, bar) and _explains(
-        both, own, params, SIMPLER_RMS_FACTOR * corner.rms
-        + detection_noise(both.tolerance[own]) + DETECTION_FLOOR_M)
+        both, own, params, as_well_limit(corner.rms, detection_noise(both.tolerance[own])))
 
 
 def _explains(w: Window, rows: np.ndarray, params: np.ndarray, bar: float) -> bool:

@@ -383,26 +383,26 @@ def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray
     far apart, within their tolerance, a coincidence (the bundled rooms at σ 0.6: 3–5
     loci, 2–3 mm off, a point 3–6 cm from a corner)."""
 
-    def explains(v: np.ndarray) -> np.ndarray:
-        return (np.abs(_point_residual(v, T, R, a)) <= tol) & admits(v)
+    def off_by(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # |residual|, explained
+        off = np.abs(_point_residual(v, T, R, a))
+        return off, (off <= tol) & admits(v)
 
     found: list[tuple[np.ndarray, np.ndarray]] = []
     for near in _seed_sets(middles):
         v, off = _point_from(T[near], R[near], a[near], middles[near].mean(axis=0))
         if np.count_nonzero(np.abs(off) <= tol[near]) < MIN_PILLAR_LOCI:
             continue
-        found.append((v, explains(v)))
+        found.append((v, off_by(v)[1]))
         if found[-1][1].all():  # no later seed set can explain more
             break
     refused = np.zeros(len(T), dtype=bool)  # the loci of the points refused so far
     least = -1  # before the first is refused
     for start, first in sorted(found, key=lambda f: -int(f[1].sum())):  # ties: first found
         v, _ = _point_from(T[first], R[first], a[first], start)
-        explained = explains(v)
+        off, explained = off_by(v)
         if least >= 0 and (tight is None or np.any(explained & refused)
                            or np.count_nonzero(explained) < least
-                           or np.any(np.abs(_point_residual(v, T, R, a)[explained])
-                                     > tight[explained])):
+                           or np.any(off[explained] > tight[explained])):
             continue
         if least < 0:
             least = math.ceil(NEXT_POINT_SHARE * np.count_nonzero(explained))

@@ -21,6 +21,7 @@ scene whose transducers stand inside a closed room are mapped as ``tangents`` ma
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import replace
 
@@ -279,7 +280,7 @@ def corners_own(families: list[Family]) -> list[Family]:
     plane through the vertex, square to their line of sight (the zoo's seed 3 corner-02,
     a 110° corner seen by a long array at 2.5 m and a short one at 7.7 m)."""
     corners = sorted((f for f in families if f.kind == "corner"), key=lambda f: -len(f.rows))
-    certain = [as_plane(c) is None for c in corners]
+    certain = [functools.cache(lambda c=c: as_plane(c) is None) for c in corners]
     return [f for f in families
             if not any(a_corners_echoes(f, c) or fits_as_well(f, c, sure)
                        for c, sure in zip(corners, certain, strict=True))]
@@ -308,9 +309,10 @@ def a_vertexs_distorted_echoes(f: Family, vertex: Family, resolution: float) -> 
     corner's double bounce merged with its wall's echo 4 cm of path later, which a plane
     through the vertex fitted to 0.1 mm and drew 25 cm past it, behind the other wall
     (the zoo's unseen seed 100 corner-00, 7.8 cm RMS)."""
-    if (f.kind not in ("curve", "point", "corner", "plane")
-            or vertex.kind not in ("corner", "point") or len(vertex.rows) <= len(f.rows)
-            or (f.kind == "plane" and vertex.kind != "corner")):
+    owned = ("curve", "point", "corner", "plane") if vertex.kind == "corner" else (
+        "curve", "point", "corner")
+    if (f.kind not in owned or vertex.kind not in ("corner", "point")
+            or len(vertex.rows) <= len(f.rows)):
         return False
     apart = np.hypot(*(f.q - vertex.params[:2]).T)
     return bool(np.max(apart) > ELSEWHERE_M

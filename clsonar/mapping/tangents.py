@@ -284,8 +284,9 @@ def _points(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndarr
                                     s.a[loci][m], s.loci.amplitude[loci][m], noise)
 
     noise = amplitude_noise(scene)
-    points = point_reflectors(T, R, s.a[loci], middles, _range_tolerance(scene, s, loci),
-                              admits, quiet, _range_noise(scene, s, loci))
+    tight = _range_noise(scene, s, loci)
+    points = point_reflectors(T, R, s.a[loci], middles, np.maximum(PILLAR_TOL_M, tight),
+                              admits, quiet, tight)
     return {slots[n]: v for n, v in points.items()}
 
 
