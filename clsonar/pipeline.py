@@ -438,7 +438,7 @@ def post_process(front: RunResult, *, progress: Progress | None = None,
                     and int(ends[-1]) == len(front.votes.points))
     tell = None if maps_done is None else lambda *maps: maps_done(scene, front.geometry, *maps)
     maps = _post_maps(scene, drawn, skips, clock, not only_patches, tell,
-                      mapping.open_gaps(scene, front.sensors, front.detections))
+                      mapping.scan_heard(scene, front.sensors, front.detections))
     profile = _reflectors_in(maps.profile, front.votes, drawn.seen, scene)
     clock.start("metrics")
     result_metrics = metrics.evaluate(scene, front.geometry, front.sensors, front.echoes,
@@ -526,12 +526,12 @@ class _PostMaps:
 
 def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch,
                trace: bool = True, maps_done: Callable[..., None] | None = None,
-               open_gap: mapping.OpenGap | None = None) -> _PostMaps:
+               heard: mapping.ScanHeard | None = None) -> _PostMaps:
     """Filter (eq. 2.4), threshold, thinning and profile of ``drawn``, within the cells
     that can hold anything (the points' window, then the voted box when
     ``skips.empty_cells``); the maps come back on the whole grid, told to ``maps_done``
     before the profile (which reads, never writes, them). Without ``trace`` the thin cells
-    are not traced (every point is a fitted patch's); ``open_gap``: gaps not to bridge."""
+    are not traced (every point is a fitted patch's); ``heard``: the scan along walls."""
     raw, point_sums, outer = drawn.raw, drawn.point_sums, drawn.window
     if point_sums is not None and outer is not None and not scene.post.subcell:
         # cell-centre profiles need the whole grid's indices: the sums on the whole grid
@@ -552,7 +552,7 @@ def _post_maps(scene: Scene, drawn: _Drawn, skips: Skips, clock: _Stopwatch,
              window[0].stop - window[0].start, window[1].stop - window[1].start)
     profile = (post.extract_profile(thin, scene.extent, scene.cell, scene.post, filtered,
                                     part if point_sums is not None else None, point_sums,
-                                    occupied=occupied, origin=inner[:2], open_gap=open_gap)
+                                    occupied=occupied, origin=inner[:2], heard=heard)
                if trace else post.Profile(()))
     occupied = post.embed(raw.shape, _slices(inner), occupied)
     return _PostMaps(

@@ -101,6 +101,7 @@ __all__ = [
     "MapMethod",
     "MapProblem",
     "OpenGap",
+    "ScanHeard",
     "TileBins",
     "Votes",
     "accumulate",
@@ -145,6 +146,7 @@ __all__ = [
     "reflector_points",
     "reflector_votes",
     "scan_envelope",
+    "scan_heard",
     "sounded_cells",
     "tangent_map",
     "tangent_points",
@@ -154,6 +156,7 @@ __all__ = [
     "work_items",
 ]
 
+from .along import ScanHeard, scan_heard
 from .arcs import arc_middles, cell_points, closed_arc_map
 from .crossings import arc_transversal_medians, triangulated_points
 from .directional import ArcMaxima, arc_maxima, arc_maxima_reference

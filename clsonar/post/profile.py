@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import cell_centres
-from ..mapping.openings import OpenGap
+from ..mapping.along import ScanHeard
 from ..scene import PostSettings
 from ..scene.settings import chosen
 from .curves import MIN_CURVE_CELLS, bridge_gaps, point_means, refine_cells, trace_curves
@@ -23,14 +23,14 @@ def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float
                     counts: np.ndarray | None = None,
                     sums: np.ndarray | None = None, occupied: np.ndarray | None = None,
                     origin: tuple[int, int] = (0, 0),
-                    open_gap: OpenGap | None = None) -> Profile:
+                    heard: ScanHeard | None = None) -> Profile:
     """Link the thin cells into curves, refine them to sub-cell positions (``subcell``: the
     mean of the mapped points around each cell when the map counts points, ``counts`` and
     ``sums``, else the centroid of the filtered map ``weights``), bridge gaps up to
     ``settings.max_gap_m`` and fit: one polynomial along the principal axis over the data's
     span (``polynomial``, the thesis), straight walls joined at corners and edges
-    (``walls``, :func:`~clsonar.post.walls.fit_walls`, not across gaps ``open_gap`` says
-    are free space), a smoothing spline per curve
+    (``walls``, :func:`~clsonar.post.walls.fit_walls`, with what the scan ``heard`` along
+    them), a smoothing spline per curve
     (``spline``) or the points as linked (``none``). With the ``occupied`` map (the maps'
     cell [0, 0] is cell ``origin`` of the scene's grid) the fitted profile is then bounded
     by :func:`bound_profile`."""
@@ -42,7 +42,7 @@ def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float
         fitted = Profile(tuple(fit_polynomial(np.concatenate(curves), settings.poly_order,
                                               cell)) if curves else ())
     elif fit == "walls":
-        fitted = fit_walls(curves, cell, settings, open_gap)
+        fitted = fit_walls(curves, cell, settings, heard)
     else:
         curves = bridge_gaps(curves, max_gap)
         if fit == "spline":

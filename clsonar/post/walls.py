@@ -12,10 +12,11 @@ of a cylinder, fitted as a circle (:func:`find_circles`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..mapping.along import ScanHeard
 from ..mapping.openings import OpenGap
 from ..mapping.pillars import fit_circle
 from ..scene import PostSettings
@@ -209,6 +210,18 @@ def _merges(a: Wall, b: Wall, cos_tol: float, max_gap: float,
         return True
     gap = (a.hi, first) if first > a.hi else (last, a.lo)
     return not open_gap(a.at(gap[0]), a.at(gap[1]))
+
+
+def heard_further(wall: Wall, heard: ScanHeard, max_gap: float) -> Wall:
+    """``wall`` (one at least :data:`MIN_JOIN_WALL_M` long) over its echoes beyond its
+    stretch, across gaps up to ``max_gap`` (:func:`~clsonar.mapping.along.heard_along`, its
+    line uncertain by three times its residual): a ring moving straight at it heard them
+    where no envelope could place them."""
+    if wall.length < MIN_JOIN_WALL_M:
+        return wall
+    lo, hi = heard.along(wall.centre, wall.direction, wall.lo, wall.hi, 3.0 * wall.residual,
+                         max_gap)
+    return replace(wall, lo=lo, hi=hi)
 
 
 def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
@@ -497,18 +510,21 @@ class _OnCircle:
 
 
 def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
-              open_gap: OpenGap | None = None) -> Profile:
+              heard: ScanHeard | None = None) -> Profile:
     """A room's profile from its linked, refined ``curves`` (metres): straight walls where
     the data are straight, joined at corners and edges (:func:`join_walls`, within
     ``settings.join_m``), circles where several short pieces are patches of one
     (:func:`find_circles`; gaps up to ``settings.max_gap_m`` of arc bridged), and a
     smoothing spline through each remaining piece that is not the rounding of a found
-    vertex. ``open_gap(p, q)``: whether a gap on a wall's line was heard as free space
-    (:func:`merge_collinear` does not bridge it)."""
+    vertex. ``heard``: what the scan heard along the walls — gaps heard as free space,
+    which :func:`merge_collinear` does not bridge, and each wall's echoes beyond its
+    stretch, which extend it (:func:`heard_further`)."""
     max_gap, join = chosen(settings.max_gap_m, "post.max_gap_m"), chosen(settings.join_m,
                                                                        "post.join_m")
     walls, bends = _pieces(curves)
-    walls = merge_collinear(walls, max_gap, open_gap)
+    walls = merge_collinear(walls, max_gap, None if heard is None else heard.open_gap)
+    if heard is not None:
+        walls = [heard_further(w, heard, max_gap) for w in walls]
     vertices = join_walls(walls, join)
 
     def rounding(points: np.ndarray) -> bool:
