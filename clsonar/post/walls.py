@@ -166,10 +166,11 @@ def merge_collinear(walls: list[Wall], max_gap: float,
                     ) -> list[Wall]:
     """Walls on one line (within :data:`COLLINEAR_DEG`, and the shorter's ends within
     :data:`COLLINEAR_M` of the longer's line) whose spans overlap or lie within ``max_gap``
-    of each other become one wall, refitted (:func:`_on_one_line`): the first such pair in order (by index, then
-    by the second's) each time, until none is left. A pair found apart stays apart until
-    one of its walls is refitted, so each pair is tested once per refit, and only those
-    whose directions are within a hair of parallel (:func:`_merges` decides)."""
+    of each other become one wall, refitted (:func:`_on_one_line`): the first such pair in
+    order (by index, then by the second's) each time, until none is left. A pair found
+    apart stays apart until one of its walls is refitted, so each pair is tested once per
+    refit, and only those whose directions are within a hair of parallel (:func:`_merges`
+    decides)."""
     walls = list(walls)
     cos_tol = math.cos(math.radians(COLLINEAR_DEG))
 
@@ -576,7 +577,8 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
     return Profile(tuple(out), vertices)
 
 
-__all__ = ["BENT_DEG", "CIRCLE_ABSORB_M", "CIRCLE_MAX_GAP_DEG", "CIRCLE_RADII_M", "CIRCLE_RESIDUAL_M",
-           "COLLINEAR_DEG", "COLLINEAR_M", "MIN_CIRCLE_PIECES", "MIN_JOIN_WALL_M",
-           "MIN_VERTEX_DEG", "MIN_WALL_M", "SPLIT_TOL_M", "WALL_RESIDUAL_M", "Arc", "Wall",
-           "find_circles", "fit_walls", "join_walls", "merge_collinear", "split_straight"]
+__all__ = ["BENT_DEG", "CIRCLE_ABSORB_M", "CIRCLE_MAX_GAP_DEG", "CIRCLE_RADII_M",
+           "CIRCLE_RESIDUAL_M", "COLLINEAR_DEG", "COLLINEAR_M", "MIN_CIRCLE_PIECES",
+           "MIN_JOIN_WALL_M", "MIN_VERTEX_DEG", "MIN_WALL_M", "SPLIT_TOL_M", "WALL_RESIDUAL_M",
+           "Arc", "Wall", "find_circles", "fit_walls", "join_walls", "merge_collinear",
+           "split_straight"]
