@@ -25,6 +25,7 @@ from .envelope import (
 from .families import two_way, window_tolerance
 from .heard import amplitude_noise
 from .loci import Loci, as_loci
+from .mirrored import on_the_surface
 from .models import ellipse_axes
 from .pillars import (
     MIN_PILLAR_LOCI,
@@ -482,11 +483,11 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
     stubs = [k for k in stubs if len(arcs[k])]
     mono = [k for k in stubs if s.loci.tx[isolated[k]] == s.loci.rx[isolated[k]]]
     pillars = _pillars(scene, s, isolated[mono], arcs, mono, bias)
-    # a point reflector's loci from consecutive poses have their scan envelope at the
-    # point itself, and the arc around it would stand across it: every drawn arc is a
-    # candidate
+    # a point reflector's loci from consecutive poses have their scan envelope at the point
+    # itself, and the arc around it would stand across it: every drawn arc is a candidate
     left = [k for k, arc in enumerate(arcs) if len(arc) and k not in pillars]
-    corners = _points(scene, s, isolated[left], arcs, left, set(stubs), env)
+    corners = on_the_surface(_points(scene, s, isolated[left], arcs, left, set(stubs), env),
+                             s.T[isolated], s.R[isolated], arcs, found)
     for k, drawn in [*pillars.items(), *((k, v[None]) for k, v in corners.items())]:
         arcs[k] = drawn
     vertices += list({v.tobytes(): v for v in corners.values()}.values())
