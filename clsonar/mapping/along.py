@@ -19,7 +19,6 @@ that wall's echo at that reflection point.
 from __future__ import annotations
 
 import functools
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -27,11 +26,9 @@ import numpy as np
 
 from ..scene import Scene
 from ..sensors import SensorArray
-from .envelope import in_beams
 from .heard import amplitude_noise
 from .loci import as_loci
-from .models import plane_points
-from .openings import OpenGap, open_gaps
+from .openings import OpenGap, line_mirrors, open_gaps
 from .strength import mirror_echo, mirror_floor
 from .window import heard_tolerance
 
@@ -85,11 +82,8 @@ def heard_along(scene: Scene, sensors: SensorArray, loci, open_gap: OpenGap | No
             return lo, hi
         T, R, axT, axR, path, amplitude, tol = indexed()
         found = []
-        for n in (np.array([direction[1], -direction[0]]), np.array([-direction[1], direction[0]])):
-            front = ((T - centre) @ n < 0) & ((R - centre) @ n < 0)
-            mirrored, x = plane_points(math.atan2(n[1], n[0]), float(centre @ n), T, R)
-            ok = (front & (np.abs(mirrored - path) <= tol + 2.0 * slack)
-                  & in_beams(x, T, axT, cut_sin2) & in_beams(x, R, axR, cut_sin2))
+        for seen, mirrored, x in line_mirrors(centre, direction, T, R, axT, axR, cut_sin2):
+            ok = seen & (np.abs(mirrored - path) <= tol + 2.0 * slack)
             ok[ok] = amplitude[ok] >= mirror_floor(x[ok], T[ok], axT[ok], R[ok], axR[ok],
                                                    mirror, ka, noise)
             found.append((x[ok] - centre) @ direction)

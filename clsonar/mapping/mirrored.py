@@ -50,23 +50,23 @@ def on_the_surface(points: dict[int, np.ndarray], T: np.ndarray, R: np.ndarray,
     (:data:`AROUND_M`, one line within :data:`WALL_RMS_M`, the image within
     :data:`ON_WALL_M` of it) — and the point does not (module docstring)."""
     out = dict(points)
-    if not points:
-        return out
-    parts = [*others, *(a for k, a in enumerate(arcs) if k not in points)]
-    surface = np.concatenate(parts) if parts else np.zeros((0, 2))
+    surface: np.ndarray | None = None  # gathered for the first point it may move
     groups: dict[bytes, list[int]] = {}
     for k, v in points.items():
         groups.setdefault(np.asarray(v).tobytes(), []).append(k)
     for ks in groups.values():
-        v = np.asarray(points[ks[0]], dtype=np.float64)
-        ends = np.concatenate([T[ks], R[ks]])
         if len(ks) < 2:
             continue
+        v = np.asarray(points[ks[0]], dtype=np.float64)
+        ends = np.concatenate([T[ks], R[ks]])
         centre, n, _ = _line(ends)
         if np.max(np.abs((ends - centre) @ n)) > ON_ONE_LINE_M:
             continue
         image = v - 2.0 * float((v - centre) @ n) * n
         middle = 0.5 * (v + image)
+        if surface is None:
+            parts = [*others, *(a for k, a in enumerate(arcs) if k not in points)]
+            surface = np.concatenate(parts) if parts else np.zeros((0, 2))
         near = surface[np.hypot(*(surface - middle).T) <= AROUND_M]
         if len(near) < LEAST_POINTS:
             continue

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -76,12 +76,9 @@ def open_gaps(scene: Scene, sensors: SensorArray, loci) -> OpenGap:
         heard, pairs, first, (T, R, axT, axR) = indexed()
         u = (q - p) / length
         facing = []
-        for n in (np.array([u[1], -u[0]]), np.array([-u[1], u[0]])):  # either side
-            front = ((T - p) @ n < 0) & ((R - p) @ n < 0)
-            path, x = plane_points(math.atan2(n[1], n[0]), float(p @ n), T, R)
+        for seen, path, x in line_mirrors(p, u, T, R, axT, axR, cut_sin2):
             s = (x - p) @ u
-            keep = (front & (s > GAP_MARGIN_M) & (s < length - GAP_MARGIN_M)
-                    & in_beams(x, T, axT, cut_sin2) & in_beams(x, R, axR, cut_sin2)
+            keep = (seen & (s > GAP_MARGIN_M) & (s < length - GAP_MARGIN_M)
                     & (first >= path - resolution)  # nothing heard nearer: a clear way
                     & (path <= 2.0 * GAP_REACH_M))
             keep[keep] = mirror_floor(x[keep], T[keep], axT[keep], R[keep], axR[keep],
@@ -93,6 +90,19 @@ def open_gaps(scene: Scene, sensors: SensorArray, loci) -> OpenGap:
                        for k, path in facing if len(k))
 
     return open_gap
+
+
+def line_mirrors(p: np.ndarray, u: np.ndarray, T: np.ndarray, R: np.ndarray, axT: np.ndarray,
+                 axR: np.ndarray, cut_sin2: float
+                 ) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """For each side of the line through ``p`` along the unit ``u``: ``(seen, path, x)``,
+    each pair's (T, R) mirror path off that line and reflection point on it
+    (:func:`~.models.plane_points`), and whether the pair stands on that side with ``x``
+    inside both of its beams."""
+    for n in (np.array([u[1], -u[0]]), np.array([-u[1], u[0]])):
+        front = ((T - p) @ n < 0) & ((R - p) @ n < 0)
+        path, x = plane_points(math.atan2(n[1], n[0]), float(p @ n), T, R)
+        yield (front & in_beams(x, T, axT, cut_sin2) & in_beams(x, R, axR, cut_sin2)), path, x
 
 
 def _first_paths(heard: Heard, pairs: np.ndarray) -> np.ndarray:
@@ -109,4 +119,4 @@ def _first_paths(heard: Heard, pairs: np.ndarray) -> np.ndarray:
     return out
 
 
-__all__ = ["GAP_MARGIN_M", "GAP_REACH_M", "OpenGap", "open_gaps"]
+__all__ = ["GAP_MARGIN_M", "GAP_REACH_M", "OpenGap", "line_mirrors", "open_gaps"]

@@ -178,10 +178,10 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
         w = replace(_window(scene, sensors, loci, rest, x0, math.inf),
                     max_failed=GLOBAL_MAX_FAILED, least_curve=SCATTERED_CURVE)
         found, free = find_families(w, resolution)
-        kept = [f for f in found if _scattered_enough(f, group_of)]
-        families += kept
+        scattered = [_scattered_enough(f, group_of) for f in found]
+        families += [f for f, ok in zip(found, scattered, strict=True) if ok]
         rest = np.union1d(rest[free], np.concatenate(
-            [f.loci for f in found if not any(f is k for k in kept)] or [rest[:0]]))
+            [rest[:0], *(f.loci for f, ok in zip(found, scattered, strict=True) if not ok)]))
     families = turned_corners(corners_heard(families, sensors, loci, scene), group_of,
                               lambda r: _window(scene, sensors, loci, r,
                                                 sensors.positions[loci.tx[r]].mean(axis=0),

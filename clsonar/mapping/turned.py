@@ -74,9 +74,9 @@ def _corner_of(parts: list[Family], start: np.ndarray, make_window: MakeWindow
     if _explains(w, "plane", plane.params, rows):
         return None  # one wall's echoes
     fit = _fit_corner(w, rows, np.asarray(start[:2], dtype=np.float64))
-    if not _explains(w, "corner", fit.params, rows):
-        return None
     kept = _inliers(w, "corner", fit.params, rows)
+    if len(kept) < len(rows) - outside_allowed(w, rows):  # as _explains
+        return None
     return Family("corner", fit.params, w.x0, kept, _predict(w, "corner", fit.params, kept)[1],
                   fit.rms, w)
 
