@@ -30,24 +30,22 @@ import gc
 import io
 import shlex
 import sys
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, TypeAlias
+from typing import TYPE_CHECKING, NoReturn, TypeAlias
 
-from . import heap, steps
-from .errors import ClsonarError, DeviceError, SceneError, one_line, save_traceback
+from . import heap
+from .errors import ClsonarError, DeviceError, one_line, save_traceback
 from .files import PNG_CHOICES
 from .opencl import INSTALL_HINT, PRECISIONS
 from .presets import PRESETS
-from .skips import SKIP_NAMES, Skips
+from .skips import SKIP_NAMES
 from .tools import defaults
 from .tools.defaults import ZOO_KINDS
 from .tools.progress import ProgressLine
 from .version import __version__
 
 if TYPE_CHECKING:
-    from .pipeline import RunResult
-    from .scene import Scene
 
     Subparsers: TypeAlias = argparse._SubParsersAction[argparse.ArgumentParser]
 
@@ -257,88 +255,9 @@ def _sizes(values: Sequence[float]) -> str:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from . import cost
-    from .scene import load_scene
+    from .tools.run import run_command
 
-    if args.out is None and not args.dry_run:
-        raise ClsonarError("run: --out DIR is needed (or --dry-run)")
-    scene = load_scene(args.scene)  # a bad scene fails here, before anything is written
-    try:
-        limit = None if args.max_memory is None else cost.parse_size(args.max_memory)
-    except ValueError:
-        raise ClsonarError(f"--max-memory {args.max_memory!r}: not a size (2G, 500M, "
-                           "1.5e9)") from None
-    with cost.memory_limit(limit), _named_by_file(scene, args.scene):
-        return _run_scene(args, scene)
-
-
-@contextlib.contextmanager
-def _named_by_file(scene: Scene, path: str) -> Iterator[None]:
-    """A :class:`~clsonar.errors.SceneError` about ``scene`` raised while it runs (beyond the
-    memory, a placement that cannot be made) names its file ``path``, as the loader's do."""
-    try:
-        yield
-    except SceneError as e:
-        if e.source != scene.name:
-            raise
-        raise SceneError(e.message, key=e.key, source=path) from None
-
-
-def _run_scene(args: argparse.Namespace, scene: Scene) -> int:
-    """``clsonar run`` of the loaded ``scene``: its cost (``--dry-run``) or the run, its
-    outputs written and summed up."""
-    from . import cost, outputs, pipeline
-
-    names = SKIP_NAMES
-    off = names if "all" in args.no_skip else args.no_skip
-    skips = Skips(**{name: name not in off for name in names})
-    if args.dry_run:  # (a run is checked by pipeline.run, before any work)
-        pipeline.check_work(pipeline.apply_preset(scene, args.preset), skips)
-        print("\n".join(f"{scene.name}: {line}"
-                        for line in cost.lines(cost.estimate(scene, args.preset))))
-        return 0
-    outputs.check_out(args.out)  # and so does an --out that cannot be written
-    worker = outputs.run_worker(args.png, scene, args.preset, skips)  # no OpenCL yet
-    with worker or contextlib.nullcontext(), outputs.EarlyFiles(args.png, worker) as early:
-        line = ProgressLine(not args.quiet)
-        try:
-            with steps.watching(line.step):
-                result = pipeline.run(scene, device=args.device, preset=args.preset,
-                                      progress=line.stage, skips=skips,
-                                      cache=outputs.early_plots(worker, scene, args.preset),
-                                      placement=None if worker is None else worker.first,
-                                      maps_done=early.maps_done)
-        finally:
-            line.done()
-        paths = outputs.write_outputs(result, args.out, png=args.png, worker=worker,
-                                      early=early, extra={
-            "cost": cost.record(cost.of_run(result), cost.peak_bytes())})
-    for warning in result.warnings:  # report.json's "warnings", also with --quiet
-        print(f"clsonar: warning: {args.scene}: {warning}", file=sys.stderr)
-    if not args.quiet:
-        _print_run_summary(result, args.out, paths)
-    return 0
-
-
-def _print_run_summary(result: RunResult, out: str, paths: list[Path]) -> None:
-    """What ``clsonar run`` found and wrote, in three lines (four when settings were chosen
-    from the scene)."""
-    from . import outputs
-
-    m = result.metrics
-    rms, acc, done = (outputs.metric(m, k) for k in ("rms_m", "accuracy_m.rms", "completeness.2cm"))
-    print(f"{result.scene.name}: {result.counts['echoes']} echoes, "
-          f"{result.counts['detections']} detections, "
-          f"{sum(result.seconds.values()):.2f} s on {result.device}")
-    print("  " + ", ".join(x for x in (
-        None if rms is None else f"RMS (eq. 2.6) {rms * 100:.2f} cm",
-        None if acc is None else f"accuracy RMS {acc * 100:.2f} cm",
-        None if done is None else f"completeness within 2 cm {done * 100:.0f} %",
-    ) if x))
-    chosen = outputs.chosen_settings(result)
-    if chosen:
-        print(f"  {chosen}")
-    print(f"  outputs in {out}/: " + ", ".join(p.name for p in paths))
+    return run_command(args)
 
 
 def _cmd_reproduce(args: argparse.Namespace) -> int:
@@ -570,12 +489,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     an internal fault; 130: interrupted). Every failure is one line on stderr. Without
     ``argv`` (the process's own command) the garbage collector leaves alone what exists
     before and after the command (``gc.freeze``): a full collection of 18-21 ms in a run of
-    the room, 15-40 ms of the interpreter's exit."""
+    the room, 15-40 ms of the interpreter's exit; and ``clsonar run`` then ends the
+    process at once (:func:`_exit_now`)."""
     args = build_parser().parse_args(argv)
     whole = argv is None  # this process's own command line: it ends when main returns
     if whole:  # what it imported lives to its exit: no collection of cycles searches it
         gc.freeze()
         heap.settle()  # and its arrays come from the heap, not from fresh mappings
+    status = _command(args, whole)
+    if whole and args.func is _cmd_run:
+        _exit_now(status)
+    return status
+
+
+def _command(args: argparse.Namespace, whole: bool) -> int:
+    """The command ``args`` names, run: its exit status, every failure one line on stderr
+    (``whole``: the process's own command line, :func:`main`)."""
     try:
         return args.func(args)
     except ClsonarError as e:
@@ -595,3 +524,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     finally:
         if whole:  # nor does the interpreter's exit search what the command made
             gc.freeze()
+
+
+def _exit_now(status: int) -> NoReturn:
+    """End this process with ``status`` now, its standard streams flushed: what ``clsonar
+    run`` leaves — its folder written (or not at all), its worker and thread closed — the
+    interpreter's exit would only tear down (20-40 ms of a 0.6 s run of the room: every
+    module, pyopencl's context and PoCL's threads). No ``atexit`` handler runs; clsonar
+    registers none, and no command a run starts outlives it."""
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):  # a closed pipe: nothing to flush
+            stream.flush()
+    os._exit(status)

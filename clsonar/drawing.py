@@ -43,7 +43,11 @@ import sys
 import time
 import warnings
 from collections.abc import Callable, Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from .scene import Scene
+    from .skips import Skips
 
 #: One plot to draw: the name of a :mod:`clsonar.pictures` function and its arguments.
 Job = tuple[str, tuple[Any, ...]]
@@ -156,6 +160,25 @@ def start(*, if_busy: bool = False, plots: bool = True,
     os.close(done_w)
     os.set_blocking(jobs_w, False)  # a send waits no longer than the time limit
     return PlotWorker(pid, jobs_w, done_r, plots=plots, first=first is not None)
+
+
+def run_worker(png: str, scene: Scene, preset: str | None, skips: Skips, *,
+               if_busy: bool = False) -> PlotWorker | None:
+    """The worker of one ``clsonar run`` of ``scene``, where one can help (a core free now,
+    unless ``if_busy``): it places the transducers (the sensors stage,
+    :func:`clsonar.placing.placement`: ``pipeline.run``'s ``placement`` is its
+    :meth:`PlotWorker.first`) while this process imports the pipeline and pyopencl and
+    sets up the device; then, where ``png`` asks for scene.png and profile.png, draws them
+    (``plots``), else scores the truth the metrics read. Start it as soon as the scene is
+    read — the worker imports only what placing needs, this process the rest meanwhile —
+    and close it on every exit path (a context manager)."""
+
+    def first() -> object:
+        from .placing import placement  # in the worker: a tenth of the pipeline's imports
+
+        return placement(scene, preset, skips)
+
+    return start(if_busy=if_busy, plots=png == "all", first=first)
 
 
 def _serve(jobs_fd: int, done_fd: int, with_plots: bool = True,
@@ -434,4 +457,4 @@ class PlotWorker:
 
 
 __all__ = ["LOADAVG", "MAX_CELLS", "Job", "PlotWorker", "cells", "core_free", "draw",
-           "fork_is_safe", "start", "time_limit"]
+           "fork_is_safe", "run_worker", "start", "time_limit"]

@@ -11,7 +11,7 @@ or not at all, and two runs writing the same DIR leave one run's outputs, never 
 
 Every PNG is drawn straight from the arrays (:mod:`clsonar.pictures`, no matplotlib).
 ``clsonar run`` has scene.png and profile.png drawn by a worker process on a free core
-while the pipeline runs (:func:`run_worker`, :mod:`clsonar.drawing`): the same bytes.
+while the pipeline runs (:func:`clsonar.drawing.run_worker`): the same bytes.
 matplotlib (``clsonar[plots]``) draws only the tools' figures (:func:`require_plots`).
 """
 
@@ -33,7 +33,7 @@ from . import drawing
 from .drawing import Job, PlotWorker, draw
 from .errors import ClsonarError
 from .files import write_folder
-from .pipeline import RunResult, Skips, StageCache, apply_preset, check_work, placed_sensors
+from .pipeline import RunResult, StageCache, apply_preset
 from .pipeline import metrics as run_metrics  # the module whose lit_truth the run scores by
 
 if TYPE_CHECKING:  # the pipeline's own imports of them
@@ -182,30 +182,6 @@ def profile_png(result: RunResult) -> bytes:
     return draw({"profile.png": plot_jobs(result)["profile.png"]})["profile.png"]
 
 
-def run_worker(png: str, scene: Scene, preset: str | None, skips: Skips, *,
-               if_busy: bool = False) -> PlotWorker | None:
-    """The worker of one ``clsonar run`` of ``scene`` (:mod:`clsonar.drawing`), where one
-    can help (a core free now, unless ``if_busy``): it places the transducers (the sensors
-    stage, :func:`placement`: ``pipeline.run``'s ``placement`` is its
-    :meth:`~clsonar.drawing.PlotWorker.first`) while this process imports pyopencl and
-    sets up the device; then, where ``png`` asks for scene.png and profile.png, draws them
-    (``plots``), else scores the truth the metrics read. Start it before the run's OpenCL
-    context exists, close it on every exit path (a context manager)."""
-    return drawing.start(if_busy=if_busy, plots=png == "all",
-                         first=lambda: placement(scene, preset, skips))
-
-
-def placement(scene: Scene, preset: str | None = None, skips: Skips | None = None
-              ) -> tuple[Geometry, SensorArray] | None:
-    """The sensors stage of ``pipeline.run(scene, preset=preset, skips=skips)``
-    (:func:`~clsonar.pipeline.placed_sensors` of the scene with the preset applied); None
-    where the scene is mapped room by room, whose rooms are placed apart."""
-    scene = apply_preset(scene, preset)
-    if check_work(scene, skips or Skips()) is not None:
-        return None
-    return placed_sensors(scene)
-
-
 class EarlyPlots(StageCache):
     """A stage cache that keeps nothing (every stage is computed, the same results) and,
     as soon as the pipeline puts the echoes, sends ``worker`` what needs only them and the
@@ -280,10 +256,10 @@ class EarlyFiles:
     whole by :func:`write_outputs`, or not at all. A context manager: a run that fails
     waits for the thread, so none outlives the command.
 
-    Not beside a ``worker`` that draws the plots (:func:`run_worker`): there the files
-    are built after the run, while that worker draws profile.png, which keeps both cores
-    busy; during the run the thread would take a core from this process or the worker,
-    and one would idle at the end."""
+    Not beside a ``worker`` that draws the plots (:func:`clsonar.drawing.run_worker`):
+    there the files are built after the run, while that worker draws profile.png, which
+    keeps both cores busy; during the run the thread would take a core from this process
+    or the worker, and one would idle at the end."""
 
     def __init__(self, png: str = "none", worker: PlotWorker | None = None) -> None:
         self.png = png
@@ -361,7 +337,7 @@ def write_outputs(result: RunResult, out: str | os.PathLike[str], *,
                   early: EarlyFiles | None = None) -> list[Path]:
     """Write every output of ``result`` into folder ``out``, with the PNGs ``png`` asks
     for (:func:`stage_pngs`) and ``extra`` keys in report.json; returns the paths
-    written. A ``worker`` (:func:`run_worker`) draws scene.png and profile.png while
+    written. A ``worker`` (:func:`clsonar.drawing.run_worker`) draws scene.png and profile.png while
     this process builds the other files (a map above :data:`~clsonar.drawing.MAX_CELLS`
     is drawn here); where it fails they are drawn here, the same bytes. ``early``: the
     files :class:`EarlyFiles` built during the run (the same bytes as building them here).

@@ -26,11 +26,13 @@ from . import checks, mapping, metrics, post, regions, sight, signals, steps
 from . import rooms as roomwork
 from .cache import StageCache as StageCache  # re-exported: pipeline.StageCache
 from .cache import stage_keys
-from .echoes import EchoTable, check_sequences, compute_echoes
+from .echoes import EchoTable, compute_echoes
 from .errors import ClsonarError, SceneError
 from .geometry import Geometry, build_geometry
 from .mapping import Votes
 from .opencl import device_name, get_context
+from .placing import check_work as check_work  # re-exported: pipeline.check_work
+from .placing import placed_sensors as placed_sensors  # re-exported
 from .presets import PRESETS as PRESETS  # re-exported: pipeline.PRESETS
 from .presets import Preset as Preset
 from .presets import apply_preset
@@ -40,7 +42,7 @@ from .scene import (
     Scene,
     scene_to_dict,
 )
-from .sensors import SensorArray, pairs, place_sensors, place_sensors_together
+from .sensors import SensorArray, pairs, place_sensors_together
 from .signals import Detections
 from .skips import SKIP_NAMES as SKIP_NAMES  # re-exported: pipeline.SKIP_NAMES
 from .skips import Skips
@@ -143,16 +145,6 @@ def run(scene: Scene, *, device: str | None = None, context=None, preset: str | 
         return _run_rooms(scene, rooms, ctx, skips, progress, given)
     return _run_whole(scene, ctx, skips, cache, progress, given, placement=placement,
                       maps_done=maps_done)
-
-
-def check_work(scene: Scene, skips: Skips = Skips()) -> list[regions.Region] | None:
-    """The rooms ``scene`` is mapped by (:func:`clsonar.regions.split_rooms`; None: whole),
-    once each map's echo model is known to fit (:func:`~clsonar.echoes.check_sequences`):
-    refused before any work."""
-    rooms = regions.split_rooms(scene) if skips.rooms else None
-    for part in [scene] if rooms is None else [room.scene for room in rooms]:
-        check_sequences(part)
-    return rooms
 
 
 def _run_whole(scene: Scene, ctx, skips: Skips, cache: StageCache | None,
@@ -340,12 +332,6 @@ def _map_room(ctx, job: _Job, progress: Progress | None = None
     scene, skips, given, placed = job
     r = _run_whole(scene, ctx, skips, None, progress, given, placed)
     return roomwork.without_maps(r), roomwork.sparse_maps(r)
-
-
-def placed_sensors(scene: Scene) -> tuple[Geometry, SensorArray]:
-    """The sensors stage of ``scene`` as one map: its geometry and its transducers."""
-    geom = build_geometry(scene)
-    return geom, place_sensors(scene, geom)
 
 
 def _sensors_together(scenes: list[Scene], pool: roomwork.Workers | None = None

@@ -123,3 +123,33 @@ def test_a_boxs_faces_seen_over_centimetres_close_it():
     vertices = fit_walls(curves, 0.005, WALLS).vertices
     for corner in ((0.0, 0.0), (0.7, 0.0), (0.7, 0.6), (0.0, 0.6)):
         assert np.min(np.hypot(*(vertices - corner).T)) < 1e-9
+
+
+def test_a_boxs_far_face_is_no_rounding_of_its_near_faces_vertices():
+    """The zoo's unseen seed 120 room-19: a 0.8 × 0.4 m box whose top face (0.8 m) met its
+    two sides, seen over 0.3 and 0.4 m from the top; its bottom face, seen over 0.55 m,
+    lies within post.join_m of both top vertices, which once dropped it as their rounding
+    (10.9 cm from its corner). It lies across the top face's points, not between a wall's
+    last point and a vertex: kept, and its ends meet the sides' free ends at the box's
+    bottom vertices."""
+    curves = [_segment((0.0, 0.4), (0.8, 0.4)), _segment((0.0, 0.38), (0.0, 0.1)),
+              _segment((0.8, 0.38), (0.8, 0.0)), _segment((0.05, 0.0), (0.6, 0.0))]
+    profile = fit_walls(curves, 0.005, WALLS)
+    for corner in ((0.0, 0.0), (0.8, 0.0), (0.8, 0.4), (0.0, 0.4)):
+        assert np.min(np.hypot(*(profile.vertices - corner).T)) < 1e-9
+    drawn = np.concatenate(profile.curves)
+    assert np.max(np.hypot(*(drawn - (0.4, 0.2)).T)) < 0.46  # nothing beyond the box
+    along = drawn[np.abs(drawn[:, 1]) < 1e-9, 0]
+    assert along.min() < 1e-9 and along.max() > 0.8 - 1e-9  # the bottom face, whole
+
+
+def test_a_chamfer_between_two_walls_is_their_corners_rounding():
+    """A 0.2 m chamfer across a room's square corner, its points between each wall's last
+    point and the vertex the walls meet at: dropped, the corner drawn square."""
+    curves = [_segment((0.15, 0.0), (2.0, 0.0)), _segment((0.0, 0.15), (0.0, 2.0)),
+              _segment((0.14, 0.01), (0.01, 0.14))]
+    profile = fit_walls(curves, 0.005, WALLS)
+    assert len(profile.vertices) == 1
+    np.testing.assert_allclose(profile.vertices[0], (0.0, 0.0), atol=1e-9)
+    drawn = np.concatenate(profile.curves)
+    assert np.min(np.abs(drawn).min(axis=1).max()) < 1e-9  # every point on a wall's line

@@ -23,14 +23,11 @@ from clsonar.mapping.strength import mirror_echo
 from clsonar.mapping.tangents import _facing_too_weak, sample_loci
 from clsonar.metrics import VERTEX_FOUND_M, cylinder_coverage, evaluate, vertex_errors
 from clsonar.physics import piston_pattern
+from clsonar.post.circles import CIRCLE_RESIDUAL_M, Arc, _OnCircle, find_circles
 from clsonar.post.walls import (
-    CIRCLE_RESIDUAL_M,
     COLLINEAR_DEG,
-    Arc,
     Wall,
     _merges,
-    _OnCircle,
-    find_circles,
     join_walls,
     merge_collinear,
     split_straight,

@@ -15,7 +15,7 @@ from clsonar.files import bundled_scenes
 from clsonar.mapping import pillars, tangents
 from clsonar.mapping.envelope import in_beams
 from clsonar.pipeline import run
-from clsonar.post.walls import _refine_circle
+from clsonar.post.circles import _refine_circle
 from clsonar.scene import load_scene
 from clsonar.tools.variants import with_seed
 

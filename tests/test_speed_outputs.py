@@ -1,7 +1,7 @@
 """Issue 16's work beside the pipeline in ``clsonar run``: stages.npz and the map pictures
 built in a thread while the profile and the metrics are computed
 (:class:`clsonar.outputs.EarlyFiles`), and the transducers placed by the run's worker
-process while this one sets up the device (:func:`clsonar.outputs.run_worker`,
+process while this one sets up the device (:func:`clsonar.drawing.run_worker`,
 :meth:`clsonar.drawing.PlotWorker.first`). Both give the bytes and bits of the work done in
 order; a thread or worker that fails leaves the work to the run, which meets any error
 itself; a run that fails writes no folder and leaves no process or thread behind.
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from test_plot_worker import CHILDREN  # the child processes a fresh process has
 
-from clsonar import outputs, pipeline
+from clsonar import outputs, pipeline, placing
 from clsonar.files import bundled_scenes
 from clsonar.scene import load_scene
 from clsonar.tools.floors import floor_scene
@@ -123,13 +123,13 @@ def test_a_thread_that_fails_leaves_the_files_to_the_run(monkeypatch, tmp_path):
 
 
 def test_a_placement_made_elsewhere_gives_the_same_run():
-    """The run with the placement given (:func:`outputs.placement`, as the worker
+    """The run with the placement given (:func:`placing.placement`, as the worker
     computes it), and with a placement that answers None (computed in the run): the same
     transducers, maps, profile and metrics as the plain run; a floor mapped room by room
     has no whole-scene placement."""
     scene = load_scene(ROOM)
     plain = pipeline.run(scene, preset="thesis")
-    given = outputs.placement(scene, "thesis")
+    given = placing.placement(scene, "thesis")
     assert given is not None
     here = pipeline.placed_sensors(pipeline.apply_preset(scene, "thesis"))
     assert pickle.dumps(given) == pickle.dumps(here)  # (the run's geometry holds caches)
@@ -144,7 +144,7 @@ def test_a_placement_made_elsewhere_gives_the_same_run():
         assert np.array_equal(r.profile.points, plain.profile.points)
         assert r.metrics == plain.metrics and r.counts == plain.counts
     assert asked == [1]
-    assert outputs.placement(floor_scene(size_m=10.0)) is None
+    assert placing.placement(floor_scene(size_m=10.0)) is None
 
 
 def _python(code: str) -> dict:
@@ -164,16 +164,16 @@ def test_the_worker_places_the_transducers_first_then_answers_calls():
     and is closed (it takes no call). ``close`` leaves no process."""
     found = _python(CHILDREN + f"""
 import json, os, pickle, signal
-from clsonar import drawing, metrics, outputs, pipeline
+from clsonar import drawing, metrics, outputs, pipeline, placing
 from clsonar.scene import load_scene
 scene = load_scene({ROOM!r})
 def boom():
     raise ValueError("no placement")
 workers = [drawing.start(if_busy=True, plots=False, first=f)
-           for f in (lambda: outputs.placement(scene), boom, lambda: outputs.placement(scene))]
+           for f in (lambda: placing.placement(scene), boom, lambda: placing.placement(scene))]
 os.kill(workers[2].pid, signal.SIGKILL)
 answers = [w.first() for w in workers]
-here = outputs.placement(scene)
+here = placing.placement(scene)
 forked = children() == [workers[0].pid] and workers[1].pid == workers[2].pid == 0
 result = pipeline.run(scene)
 truth = metrics.lit_truth(scene, *here, result.echoes)
@@ -200,14 +200,20 @@ print(json.dumps({{"same": pickle.dumps(answers[0]) == pickle.dumps(here), "trut
 def _cli_run(out: str, png: str, worker: bool, fail: bool = False) -> dict:
     """``clsonar run ROOM --out out --png png -q`` in a fresh process, its worker started
     as where a core is free (``worker``) or never; ``fail``: its metrics raise. Its exit
-    status, whether a worker started (and for plots), and the child processes and threads
-    left after it."""
+    status, whether a worker started (and for plots), which of the pipeline's modules this
+    process had imported when it forked, and the child processes and threads left after
+    it."""
     return _python(CHILDREN + f"""
-import json, os, threading
+import json, os, sys, threading
 from clsonar import cli, drawing, metrics
 drawing.core_free = lambda: True  # as on an idle machine
-started, start = [], drawing.start
-drawing.start = lambda **k: started.append(start(**k) if {worker!r} else None) or started[-1]
+started, start, imported = [], drawing.start, []
+def counted(**k):
+    imported.extend(m for m in ("clsonar.pipeline", "clsonar.mapping", "pyopencl")
+                    if m in sys.modules)
+    started.append(start(**k) if {worker!r} else None)
+    return started[-1]
+drawing.start = counted
 def fails(*a, **k):
     raise ValueError("metrics failed")
 if {fail!r}:
@@ -216,7 +222,8 @@ if {fail!r}:
     tempfile.tempdir = {os.path.dirname(out)!r}
 code = cli.main(['run', {ROOM!r}, '--out', {out!r}, '-q', '--png', {png!r}])
 print(json.dumps({{"code": code, "started": [w is not None for w in started],
-                  "plots": [w.plots for w in started if w], "left": children(),
+                  "plots": [w.plots for w in started if w], "imported": imported,
+                  "left": children(),
                   "threads": threading.active_count()}}))
 """)
 
@@ -226,10 +233,13 @@ print(json.dumps({{"code": code, "started": [w is not None for w in started],
 def test_clsonar_run_with_its_worker_writes_the_files_written_without(tmp_path, png):
     """``clsonar run --png none`` and ``stages`` of the room with the worker placing the
     transducers (as where a core is free) and without any worker: the same bytes but
-    report.json's seconds and memory; no child process or thread left."""
+    report.json's seconds and memory; no child process or thread left. The worker is
+    forked as soon as the scene is read, before the pipeline's imports (which this
+    process makes while the worker places)."""
     found = [_cli_run(str(tmp_path / str(w)), png, w) for w in (True, False)]
     assert [f["code"] for f in found] == [0, 0]
     assert [f["started"] for f in found] == [[True], [False]]
+    assert [f["imported"] for f in found] == [[], []]
     assert found[0]["plots"] == [False]
     assert all(f["left"] == [] and f["threads"] == 1 for f in found)
     _same_files(tmp_path / "True", tmp_path / "False")

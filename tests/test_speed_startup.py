@@ -86,9 +86,29 @@ def test_the_process_command_freezes_the_collector_and_a_call_with_argv_does_not
             "n = gc.get_freeze_count(); sys.argv = {argv!r}\n"
             "status = main({given})\n"
             "print(json.dumps([status, gc.get_freeze_count() - n > 1000]))")
-    args = ["run", ROOM, "--dry-run"]
+    args = ["devices"]
     assert _fresh(code.format(argv=["clsonar", *args], given="")) == [0, True]
     assert _fresh(code.format(argv=["python"], given=repr(args))) == [0, False]
+
+
+@pytest.mark.parametrize("scene, status", [(ROOM, 0), ("/nonexistent/room.json", 2)])
+def test_clsonar_run_as_the_process_command_ends_the_process_with_its_status(scene, status):
+    """``clsonar run`` as the process's own command ends the process when it is done
+    (``cli._exit_now``: nothing after ``main`` runs), its lines written out first; called
+    with ``argv`` it returns as any command does."""
+    code = ("import sys; from clsonar.cli import main\n"
+            "sys.argv = {argv!r}\n"
+            "status = main({given})\n"
+            "print('returned', status)")
+    args = ["run", scene, "--dry-run"]
+    done = [subprocess.run([sys.executable, "-c", code.format(argv=argv, given=given)],
+                           capture_output=True, text=True, timeout=300)
+            for argv, given in ((["clsonar", *args], ""), (["python"], repr(args)))]
+    assert [d.returncode for d in done] == [status, 0]
+    assert "returned" not in done[0].stdout
+    assert done[1].stdout.splitlines()[-1] == f"returned {status}"
+    assert done[0].stdout == done[1].stdout.replace(f"returned {status}\n", "")
+    assert done[0].stderr == done[1].stderr and len(done[0].stderr.splitlines()) == status // 2
 
 
 def _profile_csv_before(points: np.ndarray) -> str:

@@ -355,6 +355,25 @@ def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
                          start)
 
 
+class _Fits:
+    """:func:`_point_from` of each set of loci and start fitted once: a cluster searched
+    again once a reflector took some of its loci (:func:`_one_by_one`) fits most of the
+    same seed sets again, the same rows from the same start (the room: 173 of 371 point
+    fits). Called as :func:`_point_from`: the first fit's point (a copy: each caller's
+    own) and residuals (read only)."""
+
+    def __init__(self) -> None:
+        self.done: dict[tuple[bytes, ...], tuple[np.ndarray, np.ndarray]] = {}
+
+    def __call__(self, T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        key = (T.tobytes(), R.tobytes(), a.tobytes(), np.asarray(start, np.float64).tobytes())
+        found = self.done.get(key)
+        if found is None:
+            found = self.done[key] = _point_from(T, R, a, start)
+        return found[0].copy(), found[1]
+
+
 #: ``quiet(normal, explained)``: whether the loci ``explained`` (their indices) were all
 #: heard weaker than a plane of that unit normal (from the transducers towards it) would
 #: return them.
@@ -368,7 +387,8 @@ NEXT_POINT_SHARE = 0.5
 
 def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray,
                 tol: np.ndarray, admits: Admits, quiet: Quiet | None = None,
-                tight: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+                tight: np.ndarray | None = None, fits: _Fits | None = None
+                ) -> tuple[np.ndarray, np.ndarray] | None:
     """The point reflector that explains the most of the loci within ``tol``, from
     :data:`MIN_PILLAR_LOCI` transmitter positions or more, each explaining locus admitting
     it (``admits``: inside its beams): fitted from each of :func:`_seed_sets`, then again
@@ -381,7 +401,9 @@ def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray
     explains too, hid a T room's notch edge that 11 poses moving straight at it heard. A
     point that explains some of a refused one's loci too is that plane's; a few loci from
     far apart, within their tolerance, a coincidence (the bundled rooms at σ 0.6: 3–5
-    loci, 2–3 mm off, a point 3–6 cm from a corner)."""
+    loci, 2–3 mm off, a point 3–6 cm from a corner). ``fits``: the point fits made so
+    far (:class:`_Fits`), shared by the searches of one cluster."""
+    fit = fits if fits is not None else _Fits()
 
     def off_by(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # |residual|, explained
         off = np.abs(_point_residual(v, T, R, a))
@@ -389,7 +411,7 @@ def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray
 
     found: list[tuple[np.ndarray, np.ndarray]] = []
     for near in _seed_sets(middles):
-        v, off = _point_from(T[near], R[near], a[near], middles[near].mean(axis=0))
+        v, off = fit(T[near], R[near], a[near], middles[near].mean(axis=0))
         if np.count_nonzero(np.abs(off) <= tol[near]) < MIN_PILLAR_LOCI:
             continue
         found.append((v, off_by(v)[1]))
@@ -398,7 +420,7 @@ def _best_point(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.ndarray
     refused = np.zeros(len(T), dtype=bool)  # the loci of the points refused so far
     least = -1  # before the first is refused
     for start, first in sorted(found, key=lambda f: -int(f[1].sum())):  # ties: first found
-        v, _ = _point_from(T[first], R[first], a[first], start)
+        v, _ = fit(T[first], R[first], a[first], start)
         off, explained = off_by(v)
         if least >= 0 and (tight is None or np.any(explained & refused)
                            or np.count_nonzero(explained) < least
@@ -445,10 +467,12 @@ def point_reflectors(T: np.ndarray, R: np.ndarray, a: np.ndarray, middles: np.nd
     they are too ``quiet`` for that plane; where the best is refused, the next within
     ``tight`` (:func:`_best_point`)."""
 
+    fits = _Fits()
+
     def best(m: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
         return _best_point(T[m], R[m], a[m], middles[m], tol[m], lambda v: admits(v)[m],
                            None if quiet is None else lambda n, e: quiet(n, np.asarray(m)[e]),
-                           None if tight is None else tight[m])
+                           None if tight is None else tight[m], fits)
 
     return {int(k): v for (v, _), ks in _one_by_one(middles, best) for k in ks}
 

@@ -26,6 +26,7 @@ gap between supported stretches. Maps are indexed ``[iy, ix]`` with ``iy`` growi
 (docs/design.md).
 """
 
+from .circles import Arc, find_circles
 from .curves import MIN_CURVE_CELLS, bridge_gaps, refine_cells, refine_to_points, trace_curves
 from .filters import (
     AUTO_LEVEL_POINTS,
@@ -51,7 +52,7 @@ from .profile import (
     within_extent,
 )
 from .thinning import along_x, thin, thin_map, thin_oriented, thin_thesis
-from .walls import Arc, Wall, find_circles, fit_walls, join_walls, merge_collinear, split_straight
+from .walls import Wall, fit_walls, join_walls, merge_collinear, split_straight
 
 __all__ = [
     "AUTO_LEVEL_POINTS", "AUTO_LEVEL_VOTES", "BOX_MARGIN", "MIN_CURVE_CELLS", "NEAR_CELLS", "Arc",

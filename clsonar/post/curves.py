@@ -23,40 +23,42 @@ MIN_CURVE_CELLS = 5
 
 _STEPS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx]
 
-Cell = tuple[int, int]
-
-
 def trace_curves(thin_map: np.ndarray, min_cells: int = MIN_CURVE_CELLS) -> list[np.ndarray]:
     """Link the cells of a thinned map into ordered curves ([n, 2] ``(iy, ix)`` each).
 
     Cells with one neighbour are curve ends, cells with three or more are junctions; each
     run between ends and junctions becomes a curve (a closed loop without junctions is one
     curve, its first cell repeated at its end). Curves of fewer than ``min_cells`` cells
-    (spurs, specks) are dropped.
+    (spurs, specks) are dropped. A cell is walked as one integer, ``iy·w + ix`` (w one more
+    than the map's width: a step off either side lands on no cell), whose order is the
+    ``(iy, ix)`` order.
     """
     t = np.asarray(thin_map, dtype=bool)
     rows, cols = voted_box(t, margin=1)  # only the set cells' box is looked at
     part = t[rows, cols]
     iy, ix = nonzero_cells(part)
     codes = _codes(part, iy, ix)
-    cells = dict(zip(zip((iy + rows.start).tolist(), (ix + cols.start).tolist(), strict=True),
-                     codes.tolist(), strict=True))
+    w = t.shape[1] + 1
+    keys = (iy + rows.start) * w + (ix + cols.start)
+    cells = dict(zip(keys.tolist(), codes.tolist(), strict=True))
+    steps = _steps(w)
     node = {c for c, code in cells.items() if len(_OFFSETS[code]) != 2}
-    used_edges: set[tuple[Cell, Cell]] = set()
+    used_edges: set[tuple[int, int]] = set()
     curves = []
     for start in sorted(node):
-        for first in _neighbours(start, cells):
+        for first in _neighbours(start, cells, steps):
             if (start, first) not in used_edges:
-                curves.append(_walk(start, first, cells, node, used_edges))
+                curves.append(_walk(start, first, cells, node, used_edges, steps))
     visited = {c for curve in curves for c in curve}
     for start in sorted(cells.keys() - visited - node):  # closed loops without junctions
         if start in visited:
             continue
-        first = _neighbours(start, cells)[0]
-        loop = _walk(start, first, cells, node, used_edges)
+        first = _neighbours(start, cells, steps)[0]
+        loop = _walk(start, first, cells, node, used_edges, steps)
         visited.update(loop)
         curves.append(loop)
-    return [np.asarray(c) for c in curves if len(c) >= min_cells]
+    return [np.stack(np.divmod(np.array(c, dtype=np.int64), w), axis=-1)
+            for c in curves if len(c) >= min_cells]
 
 
 #: Per 8-bit code (bit s set: the neighbour ``_STEPS[s]`` is set), those neighbours' steps,
@@ -64,6 +66,12 @@ def trace_curves(thin_map: np.ndarray, min_cells: int = MIN_CURVE_CELLS) -> list
 _OFFSETS = [tuple(st for bit, st in enumerate(_STEPS) if code >> bit & 1) for code in range(256)]
 _BY_NEARNESS = [tuple(sorted(steps, key=lambda st: abs(st[0]) + abs(st[1])))
                 for steps in _OFFSETS]
+
+
+def _steps(w: int) -> tuple[list[tuple[int, ...]], list[tuple[int, ...]]]:
+    """:data:`_OFFSETS` and :data:`_BY_NEARNESS` as steps between cell numbers ``iy·w + ix``."""
+    return ([tuple(dy * w + dx for dy, dx in steps) for steps in _OFFSETS],
+            [tuple(dy * w + dx for dy, dx in steps) for steps in _BY_NEARNESS])
 
 
 def _codes(part: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
@@ -75,20 +83,22 @@ def _codes(part: np.ndarray, iy: np.ndarray, ix: np.ndarray) -> np.ndarray:
                 for bit, (dy, dx) in enumerate(_STEPS)), start=np.zeros(len(iy), dtype=np.int64))
 
 
-def _walk(start: Cell, first: Cell, cells: dict[Cell, int], node: set[Cell],
-          used_edges: set[tuple[Cell, Cell]]) -> list[Cell]:
+def _walk(start: int, first: int, cells: dict[int, int], node: set[int],
+          used_edges: set[tuple[int, int]],
+          steps: tuple[list[tuple[int, ...]], list[tuple[int, ...]]]) -> list[int]:
     """The cells from ``start`` through its neighbour ``first`` on to the next end or
     junction (``node``), or back to ``start``; marks each step taken in ``used_edges``.
     Each step goes to the first neighbour not come from nor stepped to before, the
-    4-neighbours first (the curve's next cell at a staircase), in ``_STEPS`` order."""
+    4-neighbours first (the curve's next cell at a staircase), in ``_STEPS`` order
+    (``steps``: :func:`_steps`)."""
+    nearness = steps[1]
     path = [start, first]
     used_edges.add((start, first))
     used_edges.add((first, start))
     prev, here = start, first
     while here not in node and here != start:
-        y, x = here
-        for dy, dx in _BY_NEARNESS[cells[here]]:
-            n = (y + dy, x + dx)
+        for d in nearness[cells[here]]:
+            n = here + d
             if n != prev and (here, n) not in used_edges:
                 break
         else:
@@ -100,11 +110,11 @@ def _walk(start: Cell, first: Cell, cells: dict[Cell, int], node: set[Cell],
     return path
 
 
-def _neighbours(c: Cell, cells: dict[Cell, int]) -> list[Cell]:
-    """The 8-neighbours of ``c`` among ``cells`` (each cell's code of :func:`_codes`), in
-    the order of ``_STEPS``."""
-    y, x = c
-    return [(y + dy, x + dx) for dy, dx in _OFFSETS[cells[c]]]
+def _neighbours(c: int, cells: dict[int, int],
+                steps: tuple[list[tuple[int, ...]], list[tuple[int, ...]]]) -> list[int]:
+    """The 8-neighbours of cell ``c`` among ``cells`` (each cell's code of :func:`_codes`),
+    in the order of ``_STEPS``."""
+    return [c + d for d in steps[0][cells[c]]]
 
 
 def bridge_gaps(curves: list[np.ndarray], max_gap: float) -> list[np.ndarray]:

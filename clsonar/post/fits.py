@@ -1,9 +1,11 @@
 """The fitted profile (thesis §2.1.1, part 5): the thesis' polynomial along the points'
 principal axis (:func:`fit_polynomial`), a smoothing spline per curve (:func:`fit_spline`),
-and the :class:`Profile` a fit yields."""
+the :class:`Profile` a fit yields, and a straight piece's line (:class:`Wall`, what
+:mod:`~clsonar.post.walls` joins and :mod:`~clsonar.post.circles` reads patches of)."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -79,4 +81,56 @@ def fit_spline(curve: np.ndarray, spacing: float, noise: float) -> np.ndarray:
     return np.stack(list(spline_values(samples, spline)), axis=-1)
 
 
-__all__ = ["Profile", "fit_polynomial", "fit_spline"]
+@dataclass
+class Wall:
+    """A straight wall: the total-least-squares line of its ``points`` through ``centre``
+    along unit ``direction``, spanning ``[lo, hi]`` of the coordinate along it."""
+
+    points: np.ndarray
+    centre: np.ndarray
+    direction: np.ndarray
+    lo: float
+    hi: float
+    residual: float
+    #: which ends (lo, hi) were extended or trimmed to a vertex
+    met: list[bool] = field(default_factory=lambda: [False, False])
+
+    @classmethod
+    def fit(cls, points: np.ndarray) -> Wall:
+        p = np.asarray(points, dtype=np.float64)
+        centre = p.mean(axis=0)
+        _, sv, vt = np.linalg.svd(p - centre, full_matrices=False)
+        u = vt[0]
+        t = (p - centre) @ u
+        residual = float(sv[1] / math.sqrt(len(p))) if len(sv) > 1 else 0.0
+        return cls(p, centre, u, float(t.min()), float(t.max()), residual)
+
+    @property
+    def length(self) -> float:
+        return self.hi - self.lo
+
+    @property
+    def joins(self) -> int:
+        """How many of its ends met a vertex."""
+        return sum(self.met)
+
+    @property
+    def seen(self) -> float:
+        """How long a stretch its points cover (its span before any join)."""
+        t = (self.points - self.centre) @ self.direction
+        return float(t.max() - t.min())
+
+    def at(self, t: float) -> np.ndarray:
+        return self.centre + t * self.direction
+
+    def offset(self, q: np.ndarray) -> float:
+        """Distance of point ``q`` from the wall's line."""
+        d = q - self.centre
+        return abs(d[0] * self.direction[1] - d[1] * self.direction[0])
+
+    def sample(self, spacing: float) -> np.ndarray:
+        n = max(2, math.ceil(self.length / spacing) + 1)
+        return self.at(0.0)[None] + np.linspace(self.lo, self.hi, n)[:, None] * self.direction
+
+
+__all__ = ["Profile", "Wall", "fit_polynomial", "fit_spline"]

@@ -6,22 +6,22 @@
 and smoothing splines elsewhere (sinusoids); adjoining walls are extended to their
 intersection, which locates the corners and edges that the arcs themselves round off (the
 thesis' maps lost them, §3.6); short pieces whose normals meet at one point are the patches
-of a cylinder, fitted as a circle (:func:`find_circles`).
+of a cylinder, fitted as a circle (:func:`~clsonar.post.circles.find_circles`).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 
 from ..mapping.along import ScanHeard
 from ..mapping.openings import OpenGap
-from ..mapping.pillars import fit_circle
 from ..scene import PostSettings
 from ..scene.settings import chosen
-from .fits import Profile, fit_spline
+from .circles import find_circles
+from .fits import Profile, Wall, fit_spline
 
 # --------------------------------------------------------------------------- walls
 
@@ -59,58 +59,6 @@ MIN_JOIN_WALL_M = 0.5
 #: radius R, R·tan(θ/2) − ℓ/2 from their crossing, stay apart.
 MIN_FACE_M = 0.2
 SHORT_REACH = 1.5
-
-
-@dataclass
-class Wall:
-    """A straight wall: the total-least-squares line of its ``points`` through ``centre``
-    along unit ``direction``, spanning ``[lo, hi]`` of the coordinate along it."""
-
-    points: np.ndarray
-    centre: np.ndarray
-    direction: np.ndarray
-    lo: float
-    hi: float
-    residual: float
-    #: which ends (lo, hi) were extended or trimmed to a vertex
-    met: list[bool] = field(default_factory=lambda: [False, False])
-
-    @classmethod
-    def fit(cls, points: np.ndarray) -> Wall:
-        p = np.asarray(points, dtype=np.float64)
-        centre = p.mean(axis=0)
-        _, sv, vt = np.linalg.svd(p - centre, full_matrices=False)
-        u = vt[0]
-        t = (p - centre) @ u
-        residual = float(sv[1] / math.sqrt(len(p))) if len(sv) > 1 else 0.0
-        return cls(p, centre, u, float(t.min()), float(t.max()), residual)
-
-    @property
-    def length(self) -> float:
-        return self.hi - self.lo
-
-    @property
-    def joins(self) -> int:
-        """How many of its ends met a vertex."""
-        return sum(self.met)
-
-    @property
-    def seen(self) -> float:
-        """How long a stretch its points cover (its span before any join)."""
-        t = (self.points - self.centre) @ self.direction
-        return float(t.max() - t.min())
-
-    def at(self, t: float) -> np.ndarray:
-        return self.centre + t * self.direction
-
-    def offset(self, q: np.ndarray) -> float:
-        """Distance of point ``q`` from the wall's line."""
-        d = q - self.centre
-        return abs(d[0] * self.direction[1] - d[1] * self.direction[0])
-
-    def sample(self, spacing: float) -> np.ndarray:
-        n = max(2, math.ceil(self.length / spacing) + 1)
-        return self.at(0.0)[None] + np.linspace(self.lo, self.hi, n)[:, None] * self.direction
 
 
 def split_straight(curve: np.ndarray, tol: float = SPLIT_TOL_M) -> list[tuple[int, int]]:
@@ -326,15 +274,16 @@ def _acute_reach(a: Wall, b: Wall, ends: list[tuple[int, float, float]]) -> floa
 
 
 def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_M,
-               reach: float = math.inf, shortest: float = 0.0, free: bool = False
-               ) -> np.ndarray:
+               reach: float = math.inf, shortest: float = 0.0, free: bool = False,
+               met: list[tuple[Wall, Wall]] | None = None) -> np.ndarray:
     """Extend or trim adjoining walls to the intersection of their lines — a corner or an
     edge — when it lies within ``join_m`` of an end of each, and within ``reach`` times
     its length (pairs of long walls first, then the nearest, each end at most once: a
     short chamfer across a corner must not take the ends of the two walls that meet
     there); two walls meet only if one of them is at least ``longest`` long and both at
     least ``shortest``, and with ``free`` only at ends that met no wall before. Changes the
-    walls' spans; returns the vertices [k, 2]."""
+    walls' spans; returns the vertices [k, 2] (and appends to ``met`` the two walls that
+    meet at each)."""
     candidates = []
     for i in range(len(walls)):
         for j in range(i + 1, len(walls)):
@@ -372,158 +321,36 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
             else:
                 walls[k].hi = t
         vertices.append(x)
+        if met is not None:
+            met.append((walls[i], walls[j]))
     return np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
 
 
-# --------------------------------------------------------------------------- circles
-
-#: Pieces whose points lie within this median distance of a circle belong to it.
-CIRCLE_RESIDUAL_M = 0.008
-
-#: Gaps between a circle's patches up to this angle are bridged (besides ``max_gap_m``):
-#: a fitted circle says what lies between patches seen all around it.
-CIRCLE_MAX_GAP_DEG = 60.0
-
-#: Pieces wholly this close to a found circle, but not on it, are dropped with it.
-CIRCLE_ABSORB_M = 0.25
-
-#: A circle needs at least this many pieces (patches seen from different poses).
-MIN_CIRCLE_PIECES = 3
-
-#: Radii considered for cylinders, metres.
-CIRCLE_RADII_M = (0.05, 20.0)
+#: A rounding's points lie between the walls' ends and their vertex (:func:`_rounding`) to
+#: within this, metres.
+ROUNDING_SPAN_M = 0.02
 
 
-@dataclass
-class Arc:
-    """A circle (``centre``, ``radius``) fitted to the ``points`` of several pieces."""
-
-    centre: np.ndarray
-    radius: float
-    points: np.ndarray
-
-    def holds(self, points: np.ndarray) -> bool:
-        """Whether ``points`` lie wholly within :data:`CIRCLE_ABSORB_M` of the circle: a
-        locus's tangent stretch drawn through it, not a surface of its own."""
-        d = np.abs(np.hypot(*(points - self.centre).T) - self.radius)
-        return bool(np.all(d <= CIRCLE_ABSORB_M))
-
-    def sample(self, spacing: float, max_gap: float) -> list[np.ndarray]:
-        """The arcs the points cover, gaps up to ``max_gap`` of arc length or
-        :data:`CIRCLE_MAX_GAP_DEG` bridged, sampled every ``spacing``."""
-        d = self.points - self.centre
-        theta = np.sort(np.arctan2(d[:, 1], d[:, 0]))
-        gaps = np.diff(np.r_[theta, theta[0] + 2 * math.pi])
-        open_gaps = np.flatnonzero((gaps * self.radius > max_gap)
-                                   & (gaps > math.radians(CIRCLE_MAX_GAP_DEG)))
-        if len(open_gaps) == 0:
-            runs = [(theta[0], theta[0] + 2 * math.pi)]
-        else:
-            starts = theta[(open_gaps + 1) % len(theta)]
-            ends = theta[open_gaps]
-            ends = np.roll(ends, -1)
-            runs = [(a, b if b >= a else b + 2 * math.pi) for a, b in zip(starts, ends,
-                                                                          strict=True)]
-        out = []
-        for a, b in runs:
-            n = max(2, math.ceil((b - a) * self.radius / spacing) + 1)
-            t = np.linspace(a, b, n)
-            out.append(self.centre + self.radius * np.stack([np.cos(t), np.sin(t)], axis=-1))
-        return out
-
-
-def _circle_through(a: Wall, b: Wall) -> tuple[np.ndarray, float] | None:
-    """The circle that both pieces would be patches of: their normals' crossing and the
-    mean distance to it (None when the normals are nearly parallel or the distances
-    disagree)."""
-    na = np.array([-a.direction[1], a.direction[0]])
-    nb = np.array([-b.direction[1], b.direction[0]])
-    cross = na[0] * nb[1] - na[1] * nb[0]
-    if abs(cross) < math.sin(math.radians(3.0)):
-        return None
-    d = b.centre - a.centre
-    s = (d[0] * nb[1] - d[1] * nb[0]) / cross
-    centre = a.centre + s * na
-    ra, rb = math.hypot(*(a.centre - centre)), math.hypot(*(b.centre - centre))
-    if abs(ra - rb) > 4 * CIRCLE_RESIDUAL_M or not CIRCLE_RADII_M[0] <= ra <= CIRCLE_RADII_M[1]:
-        return None
-    return centre, 0.5 * (ra + rb)
-
-
-def _refine_circle(points: np.ndarray, centre: np.ndarray, radius: float
-                   ) -> tuple[np.ndarray, float]:
-    """Geometric least-squares circle through ``points`` from a first guess: |C − p_k| = R
-    by Gauss–Newton (:func:`~clsonar.mapping.pillars.fit_circle` with ρ = 0; it spares a
-    run with a cylinder the 0.35–0.5 s import of ``scipy.optimize``)."""
-    fitted, r, _ = fit_circle(points, np.zeros(len(points)), centre, radius)
-    return fitted, float(abs(r))
-
-
-def find_circles(pieces: list[np.ndarray]) -> tuple[list[Arc], list[np.ndarray]]:
-    """Cylinders among short, unjoined ``pieces`` (the patches a moving ring sees of a
-    convex curved surface, each around a specular point whose normal points at the ring):
-    the normals of patches of one circle meet at its centre. Each pair of pieces proposes
-    the circle through both; the circle that most pieces agree with (median distance
-    within :data:`CIRCLE_RESIDUAL_M`) is refined by least squares on their points and kept
-    if at least :data:`MIN_CIRCLE_PIECES` agree; repeated on the rest. Pieces lying
-    wholly within :data:`CIRCLE_ABSORB_M` of a kept circle but not on it — a locus's
-    tangent stretch drawn through a curved surface — are dropped with it. Returns the
-    circles and the pieces left over."""
-    fits = {k: Wall.fit(p) for k, p in enumerate(pieces) if len(p) >= 3}
-    left = list(fits)
-    arcs = []
-    while len(left) >= MIN_CIRCLE_PIECES:
-        best: list[int] = []
-        best_circle = None
-        on_circle = _OnCircle([pieces[k] for k in left])
-        for n, i in enumerate(left):
-            for j in left[n + 1:]:
-                circle = _circle_through(fits[i], fits[j])
-                if circle is None:
-                    continue
-                members = [k for k, on in zip(left, on_circle(*circle), strict=True) if on]
-                if len(members) > len(best):
-                    best, best_circle = members, circle
-        if len(best) < MIN_CIRCLE_PIECES or best_circle is None:
-            break
-        centre, radius = _refine_circle(np.concatenate([pieces[k] for k in best]),
-                                        *best_circle)
-        on = [k for k, yes in zip(left, on_circle(centre, radius), strict=True) if yes]
-        arc = Arc(centre, radius, np.concatenate([pieces[k] for k in on or best]))
-        near = [k for k in left if arc.holds(pieces[k])]
-        arcs.append(arc)
-        left = [k for k in left if k not in set(best) | set(on) | set(near)]
-    used = set(fits) - set(left)
-    return arcs, [p for k, p in enumerate(pieces) if k not in used]
-
-
-class _OnCircle:
-    """Which of some pieces (each of 1 point or more) lie on a circle: the median distance
-    of each piece's points to it within :data:`CIRCLE_RESIDUAL_M`, every piece at once.
-    The median is decided by counting the points within (more than half: on; fewer than
-    half: not), and only for a piece of an even count with exactly half within, from its
-    two middle distances' mean as :func:`numpy.median` takes it: the same answer as
-    ``np.median(d) <= CIRCLE_RESIDUAL_M`` piece by piece."""
-
-    def __init__(self, pieces: list[np.ndarray]) -> None:
-        self.points = np.concatenate(pieces) if pieces else np.zeros((0, 2))
-        self.counts = np.array([len(p) for p in pieces], dtype=np.int64)
-        self.starts = np.r_[0, np.cumsum(self.counts)[:-1]].astype(np.int64)
-
-    def __call__(self, centre: np.ndarray, radius: float) -> np.ndarray:
-        """[pieces] bool: each piece on the circle of ``centre`` and ``radius``."""
-        if len(self.counts) == 0:
-            return np.zeros(0, dtype=bool)
-        d = np.abs(np.hypot(*(self.points - centre).T) - radius)
-        within = d <= CIRCLE_RESIDUAL_M
-        twice = 2 * np.add.reduceat(within.astype(np.int64), self.starts)
-        on = twice > self.counts
-        tie = twice == self.counts
-        if tie.any():
-            below = np.maximum.reduceat(np.where(within, d, -np.inf), self.starts)[tie]
-            above = np.minimum.reduceat(np.where(within, np.inf, d), self.starts)[tie]
-            on[tie] = np.mean(np.stack([below, above]), axis=0) <= CIRCLE_RESIDUAL_M
-        return on
+def _rounding(points: np.ndarray, vertices: np.ndarray, met: list[tuple[Wall, Wall]],
+              join: float) -> bool:
+    """Whether ``points`` are the rounded-off or chamfered corner or edge that a vertex
+    replaces: each within ``join`` of a vertex, and between the two walls that meet there
+    (``met``, as :func:`join_walls` gives them): its foot on either wall's line between
+    the last of that wall's points and the vertex. A box's far face lies within ``join``
+    of the near face's vertices too, but across the near face's points (the zoo's unseen
+    seed 120 room-19: a 0.8 × 0.4 m box's face a T room's rings saw, dropped as a
+    rounding)."""
+    if len(vertices) == 0:
+        return False
+    near = np.hypot(*(points[:, None] - vertices[None]).transpose(2, 0, 1)) <= join
+    for k, walls in enumerate(met):
+        for w in walls:
+            at = float((vertices[k] - w.centre) @ w.direction)  # an end of its span now
+            seen = (w.points - w.centre) @ w.direction
+            ends = sorted([at, float(seen.max() if at - w.lo > w.hi - at else seen.min())])
+            t = (points - w.centre) @ w.direction
+            near[:, k] &= (t >= ends[0] - ROUNDING_SPAN_M) & (t <= ends[1] + ROUNDING_SPAN_M)
+    return bool(np.all(near.any(axis=1)))
 
 
 def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
@@ -542,15 +369,11 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
     walls = merge_collinear(walls, max_gap, None if heard is None else heard.open_gap)
     if heard is not None:
         walls = [heard_further(w, heard, max_gap) for w in walls]
-    vertices = join_walls(walls, join)
+    pairs: list[tuple[Wall, Wall]] = []
+    vertices = join_walls(walls, join, met=pairs)
 
     def rounding(points: np.ndarray) -> bool:
-        """All within join_m of a vertex: the rounded-off or chamfered corner or edge that
-        the vertex replaces."""
-        if len(vertices) == 0:
-            return False
-        d = np.hypot(*(points[:, None] - vertices[None]).transpose(2, 0, 1))
-        return bool(np.all(d.min(axis=1) <= join))
+        return _rounding(points, vertices, pairs, join)
 
     long = [w for w in walls if w.joins or w.length >= MIN_JOIN_WALL_M]
     short = [w for w in walls if not (w.joins or w.length >= MIN_JOIN_WALL_M)]
@@ -566,10 +389,14 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
     long += [w for w in faces if id(w.points) in met]
     rest = [p for p in rest if id(p) not in met]
     # a box's faces seen over a few centimetres, each met at its other end (a chain round
-    # the box): their free ends meet as a box's faces do
+    # the box), and a face met nowhere (its far side): their free ends meet as a box's do
     chain = [w for w in long if w.joins == 1 and w.seen < MIN_JOIN_WALL_M]
-    vertices = np.concatenate([vertices, join_walls(chain, join, 0.0, SHORT_REACH, MIN_WALL_M,
-                                                    free=True)])
+    alone = [w for w in faces if not w.joins and w.length >= MIN_FACE_M]
+    vertices = np.concatenate([vertices, join_walls(chain + alone, join, 0.0, SHORT_REACH,
+                                                    MIN_WALL_M, free=True)])
+    met = {id(w.points) for w in alone if w.joins}
+    long += [w for w in alone if id(w.points) in met]
+    rest = [p for p in rest if id(p) not in met]
     out = [w.sample(spacing) for w in long]
     for arc in arcs:
         out += arc.sample(spacing, max_gap)
@@ -577,8 +404,6 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
     return Profile(tuple(out), vertices)
 
 
-__all__ = ["BENT_DEG", "CIRCLE_ABSORB_M", "CIRCLE_MAX_GAP_DEG", "CIRCLE_RADII_M",
-           "CIRCLE_RESIDUAL_M", "COLLINEAR_DEG", "COLLINEAR_M", "MIN_CIRCLE_PIECES",
-           "MIN_JOIN_WALL_M", "MIN_VERTEX_DEG", "MIN_WALL_M", "SPLIT_TOL_M", "WALL_RESIDUAL_M",
-           "Arc", "Wall", "find_circles", "fit_walls", "join_walls", "merge_collinear",
-           "split_straight"]
+__all__ = ["BENT_DEG", "COLLINEAR_DEG", "COLLINEAR_M", "MIN_JOIN_WALL_M", "MIN_VERTEX_DEG",
+           "MIN_WALL_M", "ROUNDING_SPAN_M", "SPLIT_TOL_M", "WALL_RESIDUAL_M", "Wall",
+           "fit_walls", "join_walls", "merge_collinear", "split_straight"]

@@ -14,7 +14,7 @@ profile.png are drawn as the command draws them where a core is free, by a worke
 on the other core (:mod:`clsonar.drawing`; here even on a busy machine), whose own
 seconds are listed after the table: they overlap its phases; ``--no-worker`` draws them
 in the process, each a phase. With ``--png none`` or ``stages`` the worker places the
-transducers and scores the truth (:func:`clsonar.outputs.run_worker`; the sensors stage
+transducers and scores the truth (:func:`clsonar.drawing.run_worker`; the sensors stage
 and part of the metrics are then waits for it), and stages.npz and the map pictures are
 built in a thread (:class:`clsonar.outputs.EarlyFiles`, waited for as a phase) whatever
 ``--no-worker`` says. Compare tables taken in one session: the machine's load moves every
@@ -70,16 +70,17 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
 
     gc.freeze()  # as the command's cli.main does once its line is read
     clock.mark("command line imports")
-    from .. import outputs, pipeline  # (imported by the command line's run)
-    from ..files import write_folder
+    from ..drawing import run_worker
     from ..scene import load_scene
+    from ..skips import Skips
 
-    clock.mark("pipeline imports (scipy)")
     scene = load_scene(scene_path)
-    helper = outputs.run_worker(png, scene, None, pipeline.Skips(),
-                                if_busy=True) if worker else None
-    if helper is not None:
-        clock.mark("scene file read, worker forked")
+    helper = run_worker(png, scene, None, Skips(), if_busy=True) if worker else None
+    clock.mark("scene file read, worker forked" if helper is not None else "scene file read")
+    from .. import outputs, pipeline  # noqa: F401  (imported by the command line's run)
+    from ..files import write_folder
+
+    clock.mark("pipeline imports")
     with helper or contextlib.nullcontext():
         files = _run_and_write(scene, png, out, helper, clock)
     write_folder(outputs.check_out(out), files, outputs.OUTPUT_NAMES)
@@ -90,7 +91,7 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
 
 def _run_and_write(scene, png: str, out: str, helper, clock: _Clock) -> dict[str, bytes]:
     """The pipeline and every file of :func:`measure`, each step a phase (``helper``: the
-    run's worker, :func:`clsonar.outputs.run_worker`, or None)."""
+    run's worker, :func:`clsonar.drawing.run_worker`, or None)."""
     from .. import outputs, pipeline
     from ..opencl import get_context
 
