@@ -12,7 +12,7 @@ from clsonar import pipeline
 from clsonar.mapping.joins import CROSSED_INSIDE_M, crossed_faces
 from clsonar.mapping.patches import Patch
 from clsonar.opencl import get_context
-from clsonar.post.walls import MIN_FACE_M, SHORT_REACH, fit_walls
+from clsonar.post.walls import MIN_FACE_M, ROUNDING_OFF_M, SHORT_REACH, fit_walls
 from clsonar.scene import PostSettings
 from clsonar.tools.zoo.cases import draw
 from clsonar.tools.zoo.score import score
@@ -129,8 +129,8 @@ def test_a_boxs_far_face_is_no_rounding_of_its_near_faces_vertices():
     """The zoo's unseen seed 120 room-19: a 0.8 × 0.4 m box whose top face (0.8 m) met its
     two sides, seen over 0.3 and 0.4 m from the top; its bottom face, seen over 0.55 m,
     lies within post.join_m of both top vertices, which once dropped it as their rounding
-    (10.9 cm from its corner). It lies across the top face's points, not between a wall's
-    last point and a vertex: kept, and its ends meet the sides' free ends at the box's
+    (10.9 cm from its corner). It lies 0.4 m from the top face and up to 0.4 m from the
+    sides (ROUNDING_OFF_M): kept, and its ends meet the sides' free ends at the box's
     bottom vertices."""
     curves = [_segment((0.0, 0.4), (0.8, 0.4)), _segment((0.0, 0.38), (0.0, 0.1)),
               _segment((0.8, 0.38), (0.8, 0.0)), _segment((0.05, 0.0), (0.6, 0.0))]
@@ -144,10 +144,12 @@ def test_a_boxs_far_face_is_no_rounding_of_its_near_faces_vertices():
 
 
 def test_a_chamfer_between_two_walls_is_their_corners_rounding():
-    """A 0.2 m chamfer across a room's square corner, its points between each wall's last
-    point and the vertex the walls meet at: dropped, the corner drawn square."""
+    """A 0.2 m chamfer across a room's square corner and a stray 11 cm piece 5-10 cm off a
+    wall beside it, within ROUNDING_OFF_M of the walls that meet at the vertex: dropped,
+    the corner drawn square."""
     curves = [_segment((0.15, 0.0), (2.0, 0.0)), _segment((0.0, 0.15), (0.0, 2.0)),
-              _segment((0.14, 0.01), (0.01, 0.14))]
+              _segment((0.14, 0.01), (0.01, 0.14)), _segment((0.3, 0.05), (0.4, 0.1))]
+    assert 0.2 / math.sqrt(8) < ROUNDING_OFF_M
     profile = fit_walls(curves, 0.005, WALLS)
     assert len(profile.vertices) == 1
     np.testing.assert_allclose(profile.vertices[0], (0.0, 0.0), atol=1e-9)

@@ -155,3 +155,25 @@ def test_the_heap_thresholds_are_set_once_and_handed_to_children(monkeypatch):
     monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "1000")
     monkeypatch.delenv("MALLOC_MMAP_THRESHOLD_")
     assert heap.settle() is False and "MALLOC_MMAP_THRESHOLD_" not in os.environ
+
+
+def test_a_point_fit_made_again_is_the_first_fits_bits(monkeypatch):
+    """``pillars._Fits``: the same loci (rows, not indices) from the same start fitted once
+    — the room's clusters searched again once a reflector took some of their loci repeated
+    173 of 371 point fits — each answer the bits of a fit made afresh, its point a copy."""
+    rng = np.random.default_rng(43)
+    T, R = rng.uniform(-3.0, 3.0, (9, 2)), rng.uniform(-3.0, 3.0, (9, 2))
+    v = np.array([0.4, -0.2])
+    a = 0.5 * (np.hypot(*(v - T).T) + np.hypot(*(v - R).T)) + rng.normal(0.0, 1e-3, 9)
+    made = []
+    fresh = pillars._point_from
+    monkeypatch.setattr(pillars, "_point_from", lambda *x: made.append(1) or fresh(*x))
+    fits = pillars._Fits()
+    rows = np.arange(9)
+    for near, start in [(rows[:6], (0.0, 0.0)), (rows[:6].copy(), (0.0, 0.0)),
+                        (rows[3:], (0.0, 0.0)), (rows[:6], (0.1, 0.0)), (rows, (0.0, 0.0))]:
+        got = fits(T[near], R[near], a[near], np.array(start))
+        want = fresh(T[near], R[near], a[near], np.array(start))
+        assert [g.tobytes() for g in got] == [w.tobytes() for w in want]
+        got[0][:] = np.nan  # the caller's own copy
+    assert len(made) == 4  # the second is the first's rows from the same start

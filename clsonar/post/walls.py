@@ -326,30 +326,31 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
     return np.asarray(vertices, dtype=np.float64).reshape(-1, 2)
 
 
-#: A rounding's points lie between the walls' ends and their vertex (:func:`_rounding`) to
-#: within this, metres.
-ROUNDING_SPAN_M = 0.02
+#: A rounding's points lie within this of one of the two walls that meet at its vertex, or
+#: it passes within this of the vertex (:func:`_rounding`), metres: a chamfer up to 0.5 m
+#: across a square corner; an edge's loci drawn through it.
+ROUNDING_OFF_M = 0.2
 
 
 def _rounding(points: np.ndarray, vertices: np.ndarray, met: list[tuple[Wall, Wall]],
               join: float) -> bool:
     """Whether ``points`` are the rounded-off or chamfered corner or edge that a vertex
-    replaces: each within ``join`` of a vertex, and between the two walls that meet there
-    (``met``, as :func:`join_walls` gives them): its foot on either wall's line between
-    the last of that wall's points and the vertex. A box's far face lies within ``join``
-    of the near face's vertices too, but across the near face's points (the zoo's unseen
-    seed 120 room-19: a 0.8 × 0.4 m box's face a T room's rings saw, dropped as a
-    rounding)."""
+    replaces, a stretch drawn through it, or a stray piece of one of its walls: each
+    within ``join`` of a vertex, and within :data:`ROUNDING_OFF_M` of the line of one of
+    the two walls that meet there (``met``, as :func:`join_walls` gives them) unless the
+    piece passes that near the vertex. A box's far face lies within ``join`` of the near
+    face's vertices too, but off the near face and its sides, and away from their
+    vertices (the zoo's unseen seed 120 room-19: a 0.8 × 0.4 m box's face that a T room's
+    rings saw, dropped as a rounding)."""
     if len(vertices) == 0:
         return False
-    near = np.hypot(*(points[:, None] - vertices[None]).transpose(2, 0, 1)) <= join
-    for k, walls in enumerate(met):
-        for w in walls:
-            at = float((vertices[k] - w.centre) @ w.direction)  # an end of its span now
-            seen = (w.points - w.centre) @ w.direction
-            ends = sorted([at, float(seen.max() if at - w.lo > w.hi - at else seen.min())])
-            t = (points - w.centre) @ w.direction
-            near[:, k] &= (t >= ends[0] - ROUNDING_SPAN_M) & (t <= ends[1] + ROUNDING_SPAN_M)
+    d = np.hypot(*(points[:, None] - vertices[None]).transpose(2, 0, 1))
+    near = d <= join
+    for k, (a, b) in enumerate(met):
+        if d[:, k].min() > ROUNDING_OFF_M:
+            near[:, k] &= np.minimum(*(np.abs((points - w.centre) @ (w.direction[1],
+                                                                    -w.direction[0]))
+                                       for w in (a, b))) <= ROUNDING_OFF_M
     return bool(np.all(near.any(axis=1)))
 
 
@@ -405,5 +406,5 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
 
 
 __all__ = ["BENT_DEG", "COLLINEAR_DEG", "COLLINEAR_M", "MIN_JOIN_WALL_M", "MIN_VERTEX_DEG",
-           "MIN_WALL_M", "ROUNDING_SPAN_M", "SPLIT_TOL_M", "WALL_RESIDUAL_M", "Wall",
+           "MIN_WALL_M", "ROUNDING_OFF_M", "SPLIT_TOL_M", "WALL_RESIDUAL_M", "Wall",
            "fit_walls", "join_walls", "merge_collinear", "split_straight"]
