@@ -12,7 +12,7 @@ from clsonar import pipeline
 from clsonar.mapping.joins import CROSSED_INSIDE_M, crossed_faces
 from clsonar.mapping.patches import Patch
 from clsonar.opencl import get_context
-from clsonar.post.walls import MIN_FACE_M, ROUNDING_OFF_M, SHORT_REACH, fit_walls
+from clsonar.post.walls import MAX_TRIM_M, MIN_FACE_M, ROUNDING_OFF_M, SHORT_REACH, fit_walls
 from clsonar.scene import PostSettings
 from clsonar.tools.zoo.cases import draw
 from clsonar.tools.zoo.score import score
@@ -155,3 +155,35 @@ def test_a_chamfer_between_two_walls_is_their_corners_rounding():
     np.testing.assert_allclose(profile.vertices[0], (0.0, 0.0), atol=1e-9)
     drawn = np.concatenate(profile.curves)
     assert np.min(np.abs(drawn).min(axis=1).max()) < 1e-9  # every point on a wall's line
+
+
+def test_a_stub_at_a_notch_corner_cuts_no_wall_short():
+    """The zoo's unseen seed 125 room-05 (an L room at σ 0.6, rings): a 14 cm stub at the
+    notch's concave corner met the wall below at the corner, and the far wall's line 1.1 m
+    inside that wall's points (within the room's post.join_m, 1.68 m), which cut the far
+    wall back past the notch's edge (90 cm from anything drawn). Two walls meet only where
+    neither loses more than MAX_TRIM_M of its own points: the far wall keeps its span to
+    its last point, past the notch's edge."""
+    below = _segment((-9.386, -3.328), (-11.016, 0.23))
+    stub = _segment((-11.047, 0.261), (-10.996, 0.387))
+    far = _segment((-10.061, 0.556), (-11.997, 4.786))
+    assert 1.0 < np.hypot(*(far[0] - (-10.524, 1.566))) < 1.5  # where the stub's line meets
+    assert MAX_TRIM_M < 1.0
+    profile = fit_walls([below, stub, far], 0.005,
+                        PostSettings(fit="walls", max_gap_m=1.0, join_m=1.68))
+    drawn = np.concatenate(profile.curves)
+    assert np.min(np.hypot(*(drawn - far[0]).T)) < 0.005
+    assert np.min(np.hypot(*(profile.vertices - (-11.039, 0.279)).T)) < 0.01  # the corner
+
+
+def test_a_walls_end_drawn_bent_by_three_degrees_is_that_wall():
+    """The zoo's unseen seed 128 room-25 (a slanted room, rings): the last 0.5 m of a
+    wall, drawn 3° off it (the middles of the loci of a ring moving towards the corner),
+    met the next wall 4.7 cm from the corner; its far end lies 2.2 cm off the wall's line,
+    past COLLINEAR_M but within COLLINEAR_M + its length × sin(COLLINEAR_DEG). Now that
+    wall's, its points taken onto the wall's line: the corner within 2 mm."""
+    wall = _segment((3.871, -1.956), (7.819, -2.238))
+    bent = _segment((7.622, -2.229), (8.126, -2.238))
+    side = _segment((8.604, -1.759), (8.745, 5.115))
+    vertices = fit_walls([wall, bent, side], 0.005, WALLS).vertices
+    assert np.min(np.hypot(*(vertices - (8.593, -2.293)).T)) < 0.002

@@ -37,7 +37,10 @@ WALL_RESIDUAL_M = 0.004
 MIN_WALL_M = 0.1
 
 #: Pieces within this angle and distance of each other's line are one wall (4°: a wall's
-#: end a ring moving straight at it drew bent by 3.2°, the zoo's unseen seed 122 room-27);
+#: end a ring moving straight at it drew bent by 3.2°, the zoo's unseen seed 122 room-27;
+#: the shorter's farther end within the distance plus its length × sin of the angle: the
+#: last 0.5 m of a slanted room's wall drawn 3° off, 2.2 cm off at its far end, unseen
+#: seed 128 room-25);
 #: beyond :data:`BENT_DEG` the shorter is the longer's end drawn bent, its points taken
 #: onto the longer's line (:func:`merge_collinear`).
 COLLINEAR_DEG = 4.0
@@ -112,8 +115,9 @@ def _pieces(curves: list[np.ndarray]) -> tuple[list[Wall], list[np.ndarray]]:
 def merge_collinear(walls: list[Wall], max_gap: float,
                     open_gap: OpenGap | None = None
                     ) -> list[Wall]:
-    """Walls on one line (within :data:`COLLINEAR_DEG`, and the shorter's ends within
-    :data:`COLLINEAR_M` of the longer's line) whose spans overlap or lie within ``max_gap``
+    """Walls on one line (within :data:`COLLINEAR_DEG`, and the shorter's nearer end within
+    :data:`COLLINEAR_M` of the longer's line, its farther within that plus its length ×
+    sin :data:`COLLINEAR_DEG`) whose spans overlap or lie within ``max_gap``
     of each other become one wall, refitted (:func:`_on_one_line`): the first such pair in
     order (by index, then by the second's) each time, until none is left. A pair found
     apart stays apart until one of its walls is refitted, so each pair is tested once per
@@ -165,7 +169,8 @@ def _merges(a: Wall, b: Wall, cos_tol: float, max_gap: float,
     if abs(a.direction @ b.direction) < cos_tol:
         return False
     long, short = (a, b) if a.length >= b.length else (b, a)
-    if max(long.offset(short.at(short.lo)), long.offset(short.at(short.hi))) > COLLINEAR_M:
+    near, far = sorted([long.offset(short.at(short.lo)), long.offset(short.at(short.hi))])
+    if near > COLLINEAR_M or far > COLLINEAR_M + short.length * (1.0 - cos_tol * cos_tol) ** 0.5:
         return False
     t = (b.points - a.centre) @ a.direction
     first, last = float(t.min()), float(t.max())
@@ -273,6 +278,18 @@ def _acute_reach(a: Wall, b: Wall, ends: list[tuple[int, float, float]]) -> floa
     return 1.0 / math.tan(math.radians(0.5 * theta))
 
 
+#: Two walls do not meet where that would cut more than this off either one's points,
+#: metres (the zoo's unseen seed 125 room-05: a 14 cm stub at an L room's notch corner met
+#: the far wall 1.1 m inside its points, and the notch's edge went unmapped, 90 cm off).
+MAX_TRIM_M = 0.3
+
+
+def _seen_span(w: Wall) -> tuple[float, float]:
+    """The span of ``w``'s own points along it (its coordinate's least and greatest)."""
+    t = (w.points - w.centre) @ w.direction
+    return float(t.min()), float(t.max())
+
+
 def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_M,
                reach: float = math.inf, shortest: float = 0.0, free: bool = False,
                met: list[tuple[Wall, Wall]] | None = None) -> np.ndarray:
@@ -285,6 +302,7 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
     walls' spans; returns the vertices [k, 2] (and appends to ``met`` the two walls that
     meet at each)."""
     candidates = []
+    seen = [_seen_span(w) for w in walls]
     for i in range(len(walls)):
         for j in range(i + 1, len(walls)):
             if (max(walls[i].length, walls[j].length) < longest
@@ -300,6 +318,9 @@ def join_walls(walls: list[Wall], join_m: float, longest: float = MIN_JOIN_WALL_
                 ends.append((end, t, abs(t - (w.lo, w.hi)[end])))
             if free and (walls[i].met[ends[0][0]] or walls[j].met[ends[1][0]]):
                 continue
+            if any((t - seen[k][0] if end == 0 else seen[k][1] - t) > MAX_TRIM_M
+                   for k, (end, t, _) in zip((i, j), ends, strict=True)):
+                continue  # the vertex would leave a wall's own points behind
             near = join_m * _acute_reach(walls[i], walls[j], ends)
             if all(e[2] <= min(near, reach * w.length)
                    for e, w in zip(ends, (walls[i], walls[j]), strict=True)) and not any(
@@ -405,6 +426,6 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
     return Profile(tuple(out), vertices)
 
 
-__all__ = ["BENT_DEG", "COLLINEAR_DEG", "COLLINEAR_M", "MIN_JOIN_WALL_M", "MIN_VERTEX_DEG",
-           "MIN_WALL_M", "ROUNDING_OFF_M", "SPLIT_TOL_M", "WALL_RESIDUAL_M", "Wall",
-           "fit_walls", "join_walls", "merge_collinear", "split_straight"]
+__all__ = ["BENT_DEG", "COLLINEAR_DEG", "COLLINEAR_M", "MAX_TRIM_M", "MIN_JOIN_WALL_M",
+           "MIN_VERTEX_DEG", "MIN_WALL_M", "ROUNDING_OFF_M", "SPLIT_TOL_M", "WALL_RESIDUAL_M",
+           "Wall", "fit_walls", "join_walls", "merge_collinear", "split_straight"]
