@@ -28,6 +28,7 @@ from clsonar.post.walls import (
     COLLINEAR_DEG,
     Wall,
     _merges,
+    _on_one_line,
     join_walls,
     merge_collinear,
     split_straight,
@@ -282,7 +283,8 @@ def test_merge_collinear_bridges_gaps_up_to_max_gap_only():
 
 
 def merge_collinear_by_rescans(walls: list[Wall], max_gap: float) -> list[Wall]:
-    """merge_collinear as it was written first: every pair tested again after each merge."""
+    """merge_collinear as it was written first: every pair tested again after each merge
+    (each pair's points refitted as merge_collinear does, a bent end onto the wall)."""
     walls = list(walls)
     cos_tol = math.cos(math.radians(COLLINEAR_DEG))
     merged = True
@@ -291,7 +293,7 @@ def merge_collinear_by_rescans(walls: list[Wall], max_gap: float) -> list[Wall]:
         for i in range(len(walls)):
             for j in range(i + 1, len(walls)):
                 if _merges(walls[i], walls[j], cos_tol, max_gap):
-                    walls[i] = Wall.fit(np.concatenate([walls[i].points, walls[j].points]))
+                    walls[i] = Wall.fit(np.concatenate(_on_one_line(walls[i], walls[j])))
                     del walls[j]
                     merged = True
                     break
