@@ -187,3 +187,15 @@ def test_a_walls_end_drawn_bent_by_three_degrees_is_that_wall():
     side = _segment((8.604, -1.759), (8.745, 5.115))
     vertices = fit_walls([wall, bent, side], 0.005, WALLS).vertices
     assert np.min(np.hypot(*(vertices - (8.593, -2.293)).T)) < 0.002
+
+
+def test_a_bit_of_a_face_by_a_sides_far_end_is_no_rounding():
+    """The zoo's seed 123 room-05 (σ 0.6): a 0.44 × 0.84 m box whose bottom face met both
+    sides; 9 cm of its top face, seen by the right side's far end, lay within post.join_m
+    of the bottom vertices and 10 cm off the right side's line: it lies by that side's
+    other end, and is kept."""
+    curves = [_segment((0.0, 0.0), (0.44, 0.0)), _segment((0.0, 0.0), (0.0, 0.8)),
+              _segment((0.44, 0.0), (0.44, 0.84)), _segment((0.3, 0.84), (0.39, 0.84))]
+    profile = fit_walls(curves, 0.005, WALLS)
+    drawn = np.concatenate(profile.curves)
+    assert np.min(np.hypot(*(drawn - (0.345, 0.84)).T)) < 0.005

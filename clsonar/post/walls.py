@@ -358,21 +358,30 @@ def _rounding(points: np.ndarray, vertices: np.ndarray, met: list[tuple[Wall, Wa
     """Whether ``points`` are the rounded-off or chamfered corner or edge that a vertex
     replaces, a stretch drawn through it, or a stray piece of one of its walls: each
     within ``join`` of a vertex, and within :data:`ROUNDING_OFF_M` of the line of one of
-    the two walls that meet there (``met``, as :func:`join_walls` gives them) unless the
-    piece passes that near the vertex. A box's far face lies within ``join`` of the near
-    face's vertices too, but off the near face and its sides, and away from their
-    vertices (the zoo's unseen seed 120 room-19: a 0.8 × 0.4 m box's face that a T room's
-    rings saw, dropped as a rounding)."""
+    the two walls that meet there (``met``, as :func:`join_walls` gives them), nearer the
+    vertex's end of that wall than its other end, unless the piece passes that near the
+    vertex. A box's far face lies within ``join`` of the near face's vertices too, but off
+    the near face and its sides, and away from their vertices (the zoo's unseen seed 120
+    room-19: a 0.8 × 0.4 m box's face that a T room's rings saw, dropped as a rounding);
+    a bit of it seen near a side's far end lies by that end (seed 123 room-05)."""
     if len(vertices) == 0:
         return False
     d = np.hypot(*(points[:, None] - vertices[None]).transpose(2, 0, 1))
     near = d <= join
-    for k, (a, b) in enumerate(met):
+    for k, walls in enumerate(met):
         if d[:, k].min() > ROUNDING_OFF_M:
-            near[:, k] &= np.minimum(*(np.abs((points - w.centre) @ (w.direction[1],
-                                                                    -w.direction[0]))
-                                       for w in (a, b))) <= ROUNDING_OFF_M
+            near[:, k] &= np.any([_by_its_end(points, w, vertices[k]) for w in walls], axis=0)
     return bool(np.all(near.any(axis=1)))
+
+
+def _by_its_end(points: np.ndarray, w: Wall, vertex: np.ndarray) -> np.ndarray:
+    """[n] which ``points`` lie within :data:`ROUNDING_OFF_M` of ``w``'s line, their feet
+    nearer its end at ``vertex`` than its other end."""
+    t = (points - w.centre) @ w.direction
+    at = float((vertex - w.centre) @ w.direction)
+    other = w.lo if at - w.lo > w.hi - at else w.hi
+    off = np.abs((points - w.centre) @ (w.direction[1], -w.direction[0]))
+    return (off <= ROUNDING_OFF_M) & (np.abs(t - at) <= np.abs(t - other))
 
 
 def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
