@@ -12,7 +12,14 @@ from clsonar import pipeline
 from clsonar.mapping.joins import CROSSED_INSIDE_M, crossed_faces
 from clsonar.mapping.patches import Patch
 from clsonar.opencl import get_context
-from clsonar.post.walls import MAX_TRIM_M, MIN_FACE_M, ROUNDING_OFF_M, SHORT_REACH, fit_walls
+from clsonar.post.walls import (
+    MAX_TRIM_M,
+    MIN_FACE_M,
+    OUTSIDE_M,
+    ROUNDING_OFF_M,
+    SHORT_REACH,
+    fit_walls,
+)
 from clsonar.scene import PostSettings
 from clsonar.tools.zoo.cases import draw
 from clsonar.tools.zoo.score import score
@@ -199,3 +206,22 @@ def test_a_bit_of_a_face_by_a_sides_far_end_is_no_rounding():
     profile = fit_walls(curves, 0.005, WALLS)
     drawn = np.concatenate(profile.curves)
     assert np.min(np.hypot(*(drawn - (0.345, 0.84)).T)) < 0.005
+
+
+def test_walls_meet_inside_the_map_only():
+    """The zoo's unseen seed 131 room-25: a hexagonal room's two long walls, the short wall
+    between them seen over 16 cm; the long walls' lines cross 0.35 m outside the map's
+    extent (within post.join_m of both), where they met and were drawn across the short
+    wall (8.6 cm RMS). A vertex lies inside the map (to OUTSIDE_M): the short wall meets
+    both, at the room's corners."""
+    upper = _segment((-5.787, 2.435), (-1.743, -0.067))
+    stub = _segment((-1.275, -0.823), (-1.344, -0.68))
+    lower = _segment((-2.622, -3.914), (-1.325, -2.392))
+    settings = PostSettings(fit="walls", max_gap_m=1.0, join_m=1.62)
+    extent = (-9.528, -5.778, -0.518, 3.489)
+    loose = fit_walls([upper, stub, lower], 0.005, settings).vertices
+    assert np.max(loose[:, 0]) > extent[2] + 0.3  # where the long walls' lines cross
+    vertices = fit_walls([upper, stub, lower], 0.005, settings, extent=extent).vertices
+    assert np.all(vertices[:, 0] <= extent[2] + OUTSIDE_M)
+    for corner in ((-1.582, -0.166), (-0.818, -1.797)):
+        assert np.min(np.hypot(*(vertices - corner).T)) < 0.05

@@ -117,8 +117,13 @@ class Wall:
     @property
     def seen(self) -> float:
         """How long a stretch its points cover (its span before any join)."""
+        first, last = self.seen_span()
+        return last - first
+
+    def seen_span(self) -> tuple[float, float]:
+        """The span of its own points along it: their coordinates' least and greatest."""
         t = (self.points - self.centre) @ self.direction
-        return float(t.max() - t.min())
+        return float(t.min()), float(t.max())
 
     def at(self, t: float) -> np.ndarray:
         return self.centre + t * self.direction

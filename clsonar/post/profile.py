@@ -42,7 +42,7 @@ def extract_profile(thin_map: np.ndarray, extent: tuple[float, ...], cell: float
         fitted = Profile(tuple(fit_polynomial(np.concatenate(curves), settings.poly_order,
                                               cell)) if curves else ())
     elif fit == "walls":
-        fitted = fit_walls(curves, cell, settings, heard)
+        fitted = fit_walls(curves, cell, settings, heard, extent)
     else:
         curves = bridge_gaps(curves, max_gap)
         if fit == "spline":
