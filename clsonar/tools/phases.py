@@ -77,11 +77,11 @@ def measure(scene_path: str, png: str, out: str, worker: bool = True
     scene = load_scene(scene_path)
     helper = run_worker(png, scene, None, Skips(), if_busy=True) if worker else None
     clock.mark("scene file read, worker forked" if helper is not None else "scene file read")
-    from .. import outputs, pipeline  # noqa: F401  (imported by the command line's run)
-    from ..files import write_folder
+    with helper or contextlib.nullcontext():  # closed on every exit path from here
+        from .. import outputs, pipeline  # noqa: F401  (imported by the command line's run)
+        from ..files import write_folder
 
-    clock.mark("pipeline imports")
-    with helper or contextlib.nullcontext():
+        clock.mark("pipeline imports")
         files = _run_and_write(scene, png, out, helper, clock)
     write_folder(outputs.check_out(out), files, outputs.OUTPUT_NAMES)
     clock.mark("writing the files")
