@@ -15,6 +15,7 @@ from clsonar.opencl import get_context
 from clsonar.post.walls import (
     MAX_TRIM_M,
     MIN_FACE_M,
+    MIN_JOIN_WALL_M,
     OUTSIDE_M,
     ROUNDING_OFF_M,
     SHORT_REACH,
@@ -134,13 +135,15 @@ def test_a_boxs_faces_seen_over_centimetres_close_it():
 
 def test_a_boxs_far_face_is_no_rounding_of_its_near_faces_vertices():
     """The zoo's unseen seed 120 room-19: a 0.8 × 0.4 m box whose top face (0.8 m) met its
-    two sides, seen over 0.3 and 0.4 m from the top; its bottom face, seen over 0.55 m,
-    lies within post.join_m of both top vertices, which once dropped it as their rounding
+    two sides, seen over 0.3 and 0.4 m from the top; its bottom face, seen over 0.43 m
+    (short of MIN_JOIN_WALL_M), lies within post.join_m of both top vertices, which once
+    dropped it as their rounding
     (10.9 cm from its corner). It lies 0.4 m from the top face and up to 0.4 m from the
     sides (ROUNDING_OFF_M): kept, and its ends meet the sides' free ends at the box's
     bottom vertices."""
     curves = [_segment((0.0, 0.4), (0.8, 0.4)), _segment((0.0, 0.38), (0.0, 0.1)),
-              _segment((0.8, 0.38), (0.8, 0.0)), _segment((0.05, 0.0), (0.6, 0.0))]
+              _segment((0.8, 0.38), (0.8, 0.0)), _segment((0.05, 0.0), (0.48, 0.0))]
+    assert 0.43 < MIN_JOIN_WALL_M
     profile = fit_walls(curves, 0.005, WALLS)
     for corner in ((0.0, 0.0), (0.8, 0.0), (0.8, 0.4), (0.0, 0.4)):
         assert np.min(np.hypot(*(profile.vertices - corner).T)) < 1e-9
