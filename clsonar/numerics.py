@@ -62,6 +62,16 @@ _THPIO4 = 2.35619449019234492885  # 3π/4
 _SQ2OPI = 7.9788456080286535587989E-1  # √(2/π)
 
 
+def principal_axes(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """``(centre, axes, rms)`` of the points [n, 2]: their mean, the rows of V of the SVD of
+    the centred points (``axes[0]`` along their total-least-squares line, ``axes[-1]``
+    across it) and their RMS distance from that line (0 for a single point)."""
+    p = np.asarray(points, dtype=np.float64)
+    centre = p.mean(axis=0)
+    _, sv, vt = np.linalg.svd(p - centre, full_matrices=False)
+    return centre, vt, float(sv[1] / math.sqrt(len(p))) if len(sv) > 1 else 0.0
+
+
 def _polynomial(z: np.ndarray, coefficients: tuple[float, ...]) -> np.ndarray:
     """Horner's rule, highest power first; a leading 1 is Cephes' ``p1evl`` (the first
     product skipped, as there)."""

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..numerics import principal_axes
+
 #: Loci's centres are on one line when each lies within this of their least-squares line
 #: (metres): a ring's element moved along a straight path.
 ON_ONE_LINE_M = 0.001
@@ -35,10 +37,8 @@ LEAST_POINTS = 10
 
 def _line(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """``(centre, unit normal, RMS distance)`` of the points' total-least-squares line."""
-    centre = points.mean(axis=0)
-    _, sv, vt = np.linalg.svd(points - centre, full_matrices=False)
-    rms = float(sv[1] / np.sqrt(len(points))) if len(sv) > 1 else 0.0
-    return centre, vt[-1], rms
+    centre, axes, rms = principal_axes(points)
+    return centre, axes[-1], rms
 
 
 def on_the_surface(points: dict[int, np.ndarray], T: np.ndarray, R: np.ndarray,

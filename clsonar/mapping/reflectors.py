@@ -28,6 +28,7 @@ from dataclasses import replace
 import numpy as np
 
 from .. import steps
+from ..numerics import principal_axes
 from ..scene import Scene
 from ..scene.settings import chosen
 from ..sensors import SensorArray
@@ -74,8 +75,7 @@ def linear_groups(sensors: SensorArray) -> dict[int, tuple[np.ndarray, np.ndarra
         pos = sensors.positions[sensors.groups == g]
         if len(pos) < 2:
             continue
-        centre = pos.mean(axis=0)
-        _, _, vt = np.linalg.svd(pos - centre, full_matrices=False)
+        centre, vt, _ = principal_axes(pos)
         along = dot2(pos - centre, vt[0])
         across = np.abs(dot2(pos - centre, vt[1])) if len(vt) > 1 else np.zeros(len(pos))
         length = float(along.max() - along.min())

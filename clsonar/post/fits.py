@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..numerics import parametric_spline, spline_values
+from ..numerics import parametric_spline, principal_axes, spline_values
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,8 +42,7 @@ def fit_polynomial(points: np.ndarray, order: int, spacing: float) -> list[np.nd
     p = np.asarray(points, dtype=np.float64)
     if len(p) <= order:
         return [p]
-    centre = p.mean(axis=0)
-    _, _, vt = np.linalg.svd(p - centre, full_matrices=False)
+    centre, vt, _ = principal_axes(p)
     u_axis, v_axis = vt[0], vt[1]
     u = (p - centre) @ u_axis
     v = (p - centre) @ v_axis
@@ -98,12 +97,9 @@ class Wall:
     @classmethod
     def fit(cls, points: np.ndarray) -> Wall:
         p = np.asarray(points, dtype=np.float64)
-        centre = p.mean(axis=0)
-        _, sv, vt = np.linalg.svd(p - centre, full_matrices=False)
-        u = vt[0]
-        t = (p - centre) @ u
-        residual = float(sv[1] / math.sqrt(len(p))) if len(sv) > 1 else 0.0
-        return cls(p, centre, u, float(t.min()), float(t.max()), residual)
+        centre, axes, residual = principal_axes(p)
+        t = (p - centre) @ axes[0]
+        return cls(p, centre, axes[0], float(t.min()), float(t.max()), residual)
 
     @property
     def length(self) -> float:

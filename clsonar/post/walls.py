@@ -387,11 +387,21 @@ def _rounding(points: np.ndarray, vertices: np.ndarray, met: list[tuple[Wall, Wa
 def _by_its_end(points: np.ndarray, w: Wall, vertex: np.ndarray) -> np.ndarray:
     """[n] which ``points`` lie within :data:`ROUNDING_OFF_M` of ``w``'s line, their feet
     nearer its end at ``vertex`` than its other end."""
-    t = (points - w.centre) @ w.direction
+    d = points - w.centre
+    t = d @ w.direction
     at = float((vertex - w.centre) @ w.direction)
     other = w.lo if at - w.lo > w.hi - at else w.hi
-    off = np.abs((points - w.centre) @ (w.direction[1], -w.direction[0]))
+    off = np.abs(d @ (w.direction[1], -w.direction[0]))
     return (off <= ROUNDING_OFF_M) & (np.abs(t - at) <= np.abs(t - other))
+
+
+def _walls_of_met(faces: list[Wall], long: list[Wall], rest: list[np.ndarray]
+                  ) -> list[np.ndarray]:
+    """The ``faces`` that met a wall appended to ``long`` (drawn as walls); ``rest`` less
+    their points (no longer a spline's)."""
+    met = {id(w.points) for w in faces if w.joins}
+    long += [w for w in faces if id(w.points) in met]
+    return [p for p in rest if id(p) not in met]
 
 
 def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
@@ -414,32 +424,24 @@ def fit_walls(curves: list[np.ndarray], spacing: float, settings: PostSettings,
         walls = [heard_further(w, heard, max_gap) for w in walls]
     pairs: list[tuple[Wall, Wall]] = []
     vertices = join_walls(walls, join, met=pairs, extent=extent)
-
-    def rounding(points: np.ndarray) -> bool:
-        return _rounding(points, vertices, pairs, join)
-
     long = [w for w in walls if w.joins or w.length >= MIN_JOIN_WALL_M]
     short = [w for w in walls if not (w.joins or w.length >= MIN_JOIN_WALL_M)]
     arcs, rest = find_circles([p for p in [w.points for w in short] + bends
-                               if not rounding(p)])
+                               if not _rounding(p, vertices, pairs, join)])
     long = [w for w in long if w.joins or not any(arc.holds(w.points) for arc in arcs)]
     # a box's faces: short walls that no circle took meet where they reach each other
     left = {id(p) for p in rest}
     faces = [w for w in short if id(w.points) in left]
     vertices = np.concatenate([vertices, join_walls(faces, join, 0.0, SHORT_REACH,
                                                     MIN_FACE_M, extent=extent)])
-    met = {id(w.points) for w in faces if w.joins}
-    long += [w for w in faces if id(w.points) in met]
-    rest = [p for p in rest if id(p) not in met]
+    rest = _walls_of_met(faces, long, rest)
     # a box's faces seen over a few centimetres, each met at its other end (a chain round
     # the box), and a face met nowhere (its far side): their free ends meet as a box's do
     chain = [w for w in long if w.joins == 1 and w.seen < MIN_JOIN_WALL_M]
     alone = [w for w in faces if not w.joins and w.length >= MIN_FACE_M]
     vertices = np.concatenate([vertices, join_walls(chain + alone, join, 0.0, SHORT_REACH,
                                                     MIN_WALL_M, free=True, extent=extent)])
-    met = {id(w.points) for w in alone if w.joins}
-    long += [w for w in alone if id(w.points) in met]
-    rest = [p for p in rest if id(p) not in met]
+    rest = _walls_of_met(alone, long, rest)
     out = [w.sample(spacing) for w in long]
     for arc in arcs:
         out += arc.sample(spacing, max_gap)
