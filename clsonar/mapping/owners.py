@@ -111,7 +111,7 @@ def as_plane(f: Family) -> Family | None:
     return Family("plane", fit.params, w.x0, rows, q, fit.rms, w, f.bend)
 
 
-def fits_as_well(f: Family, corner: Family,
+def fits_as_well(f: Family, corner: Family, resolution: float,
                  certain: Callable[[], bool] = lambda: False) -> bool:
     """Whether the located ``corner`` (of more rows, or ``certain()``: no plane explains
     its own echoes, :func:`as_plane`, asked only then) predicts the echoes of ``f`` (a
@@ -126,7 +126,13 @@ def fits_as_well(f: Family, corner: Family,
     double bounce of an array that sees it from elsewhere by twice that along its line of
     sight (the zoo's unseen seed 105 corner-02, σ 0.3: a corner of 10 echoes located 5 mm
     off, a plane of 15 through the vertex, 3.4 mm RMS from the corner as located, drawn
-    8.6 cm RMS off the walls)."""
+    8.6 cm RMS off the walls). Refitted, the vertex may move by no more than
+    ``resolution`` (the pulse's, c·σ): a corner of a few echoes far away is located
+    loosely across its line of sight, and refitted with a family of many more it becomes
+    that family's fit, wherever it lies (the zoo's unseen seed 130 edge-02, σ 0.3: an edge
+    7.4 m from a 16-element array, a corner of 5 echoes located 35 cm off, refitted 37 cm
+    onto the point of 54 echoes, which it then claimed; the edge was mapped 35 cm off).
+    The refits this is for moved 3–6 mm (seeds 105 and 112)."""
     if corner.kind != "corner" or f.kind == "corner" or (len(corner.rows) <= len(f.rows)
                                                          and not certain()):
         return False
@@ -137,6 +143,8 @@ def fits_as_well(f: Family, corner: Family,
     both = _joined(corner, w, f.rows)
     every = np.arange(len(both.paths))
     params = _fit(both, "corner", every, corner.params).params
+    if math.hypot(*(params[:2] - corner.params[:2])) > resolution:
+        return False  # f's own fit, not the corner's
     own = every[:len(corner.rows)]
     return _explains(both, every[len(own):], params, bar) and _explains(
         both, own, params, as_well_limit(corner.rms, detection_noise(both.tolerance[own])))

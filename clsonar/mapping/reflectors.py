@@ -186,7 +186,7 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
                               lambda r: _window(scene, sensors, loci, r,
                                                 sensors.positions[loci.tx[r]].mean(axis=0),
                                                 math.inf))
-    families, dropped = planes_own(vertices_own(corners_own(families), resolution))
+    families, dropped = planes_own(vertices_own(corners_own(families, resolution), resolution))
     families, rest = _widened(scene, sensors, loci, families, np.union1d(rest, dropped))
     return families, _unshadowed(scene, sensors, loci, families, rest, resolution)
 
@@ -291,7 +291,7 @@ def _corner_gain(params: np.ndarray, T: np.ndarray, axT: np.ndarray, R: np.ndarr
     return two_way(at_t, T, axT, R, axR, ka, at_r)
 
 
-def corners_own(families: list[Family]) -> list[Family]:
+def corners_own(families: list[Family], resolution: float) -> list[Family]:
     """``families`` less those whose every echo a located corner of more rows explains
     (:func:`~clsonar.mapping.owners.a_corners_echoes`): pairs too close together for
     their range, or too noisy, to tell its double bounce from a plane's echo name it a
@@ -300,7 +300,7 @@ def corners_own(families: list[Family]) -> list[Family]:
     corners = sorted((f for f in families if f.kind == "corner"), key=lambda f: -len(f.rows))
     certain = [functools.cache(lambda c=c: as_plane(c) is None) for c in corners]
     return [f for f in families
-            if not any(a_corners_echoes(f, c) or fits_as_well(f, c, sure)
+            if not any(a_corners_echoes(f, c) or fits_as_well(f, c, resolution, sure)
                        for c, sure in zip(corners, certain, strict=True))]
 
 
