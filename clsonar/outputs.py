@@ -235,10 +235,10 @@ def map_pngs(result: RunResult, png: str = "all",
 
 def _map_pngs(s: Scene, g: Geometry, raw: np.ndarray, filtered: np.ndarray,
               thin: np.ndarray, png: str) -> dict[str, bytes]:
+    if png == "none":  # (nor are the pictures imported)
+        return {}
     from . import pictures
 
-    if png == "none":
-        return {}
     return {"raw.png": pictures.map_picture(s, g, raw),
             "filtered.png": pictures.map_picture(s, g, filtered),
             "thin.png": pictures.map_picture(s, g, thin, binary=True)}
