@@ -296,7 +296,9 @@ def corners_own(families: list[Family], resolution: float) -> list[Family]:
     (:func:`~clsonar.mapping.owners.a_corners_echoes`): pairs too close together for
     their range, or too noisy, to tell its double bounce from a plane's echo name it a
     plane through the vertex, square to their line of sight (the zoo's seed 3 corner-02,
-    a 110° corner seen by a long array at 2.5 m and a short one at 7.7 m)."""
+    a 110° corner seen by a long array at 2.5 m and a short one at 7.7 m), or that it
+    predicts as well once refitted to both, moving by at most ``resolution`` (the
+    pulse's, c·σ: :func:`~clsonar.mapping.owners.fits_as_well`)."""
     corners = sorted((f for f in families if f.kind == "corner"), key=lambda f: -len(f.rows))
     certain = [functools.cache(lambda c=c: as_plane(c) is None) for c in corners]
     return [f for f in families
