@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .. import steps
 from ..scene import Scene
 from ..sensors import SensorArray
 from .loci import as_loci
@@ -75,7 +76,7 @@ def arc_transversal_medians(scene: Scene, sensors: SensorArray, loci
     boxes = _arc_boxes(s)
     some = s.inside.any(axis=1)
     points, source = [], []
-    for i in np.flatnonzero(some).tolist():
+    for i in steps.each("arc-transversal medians", np.flatnonzero(some).tolist()):
         others = _overlapping(boxes, i, np.flatnonzero(some & (np.arange(len(loci)) != i)))
         q, k, _ = locus_crossings(s, i, others)
         if len(q):
@@ -116,7 +117,7 @@ def _intersections(s: SampledLoci, baseline_m: float) -> tuple[np.ndarray, np.nd
     boxes = _arc_boxes(s)
     some = s.inside.any(axis=1)
     q_all, pairs = [], []
-    for i in np.flatnonzero(some).tolist():
+    for i in steps.each("locus intersections", np.flatnonzero(some).tolist()):
         near = np.hypot(*(s.T - s.T[i]).T) <= baseline_m
         others = _overlapping(boxes, i, np.flatnonzero(some & near & (np.arange(len(s.a)) > i)))
         q, _, b = locus_crossings(s, i, others)
