@@ -124,10 +124,11 @@ class Wall:
     def at(self, t: float) -> np.ndarray:
         return self.centre + t * self.direction
 
-    def offset(self, q: np.ndarray) -> float:
-        """Distance of point ``q`` from the wall's line."""
+    def offset(self, q: np.ndarray) -> np.ndarray:
+        """Distance of the point ``q`` [2] (or of each of the points [n, 2]) from the wall's
+        line."""
         d = q - self.centre
-        return abs(d[0] * self.direction[1] - d[1] * self.direction[0])
+        return np.abs(d[..., 0] * self.direction[1] - d[..., 1] * self.direction[0])
 
     def sample(self, spacing: float) -> np.ndarray:
         n = max(2, math.ceil(self.length / spacing) + 1)

@@ -387,12 +387,10 @@ def _rounding(points: np.ndarray, vertices: np.ndarray, met: list[tuple[Wall, Wa
 def _by_its_end(points: np.ndarray, w: Wall, vertex: np.ndarray) -> np.ndarray:
     """[n] which ``points`` lie within :data:`ROUNDING_OFF_M` of ``w``'s line, their feet
     nearer its end at ``vertex`` than its other end."""
-    d = points - w.centre
-    t = d @ w.direction
+    t = (points - w.centre) @ w.direction
     at = float((vertex - w.centre) @ w.direction)
     other = w.lo if at - w.lo > w.hi - at else w.hi
-    off = np.abs(d @ (w.direction[1], -w.direction[0]))
-    return (off <= ROUNDING_OFF_M) & (np.abs(t - at) <= np.abs(t - other))
+    return (w.offset(points) <= ROUNDING_OFF_M) & (np.abs(t - at) <= np.abs(t - other))
 
 
 def _walls_of_met(faces: list[Wall], long: list[Wall], rest: list[np.ndarray]

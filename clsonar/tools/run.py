@@ -30,9 +30,8 @@ def run_command(args: argparse.Namespace) -> int:
     if args.out is None and not args.dry_run:
         raise ClsonarError("run: --out DIR is needed (or --dry-run)")
     scene = load_scene(args.scene)
-    names = SKIP_NAMES
-    off = names if "all" in args.no_skip else args.no_skip
-    skips = Skips(**{name: name not in off for name in names})
+    off = SKIP_NAMES if "all" in args.no_skip else args.no_skip
+    skips = Skips(**{name: name not in off for name in SKIP_NAMES})
     worker = None
     if not args.dry_run:  # placing on the other core while the pipeline is imported
         from ..drawing import run_worker
