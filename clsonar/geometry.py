@@ -39,6 +39,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .numerics import union1d, unique
 from .outlines import sensor_anchors, solid_surfaces
 from .scene import Circle, Polyline, Scene, Sinusoid
 
@@ -128,8 +129,8 @@ def build_geometry(scene: Scene) -> Geometry:
     right = np.asarray(parts.vright, dtype=np.int8)
     corner_idx = np.flatnonzero((left == CORNER) | (right == CORNER))
     corners = _corners(walls, vertices, vertex_walls, left, corner_idx)
-    diff_idx = np.union1d(np.flatnonzero((left == EDGE) | (right == EDGE)),
-                          free_ends(scene.extent, walls, vertices, vertex_walls))
+    diff_idx = union1d(np.flatnonzero((left == EDGE) | (right == EDGE)),
+                       free_ends(scene.extent, walls, vertices, vertex_walls))
     circles = [(s.center[0], s.center[1], s.radius) for s in scene.surfaces
                if isinstance(s, Circle)]
     circle_surface = [i for i, s in enumerate(scene.surfaces) if isinstance(s, Circle)]
@@ -170,7 +171,7 @@ def meet_at_corner(geom: Geometry, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     drawn with 45,000 walls)."""
     n = len(geom.walls) + 1
     w = geom.corner_walls
-    keys = np.unique(np.r_[w[:, 0] * n + w[:, 1], w[:, 1] * n + w[:, 0]])
+    keys = unique(np.r_[w[:, 0] * n + w[:, 1], w[:, 1] * n + w[:, 0]])
     want = np.asarray(a, dtype=np.int64) * n + np.asarray(b, dtype=np.int64)
     at = np.minimum(np.searchsorted(keys, want), max(len(keys) - 1, 0))
     return (keys[at] == want) if len(keys) else np.zeros(want.shape, dtype=bool)
@@ -204,9 +205,8 @@ def free_ends(extent: tuple[float, ...], walls: np.ndarray, vertices: np.ndarray
     continue beyond the map, and one on another wall (a partition's foot, a box drawn as
     an open polyline back to its start) is a junction."""
     ends = np.flatnonzero(np.any(vertex_walls < 0, axis=1))
-    x0, y0, x1, y1 = extent
-    p = vertices[ends]
-    ends = ends[(p[:, 0] > x0) & (p[:, 0] < x1) & (p[:, 1] > y0) & (p[:, 1] < y1)]
+    x, y = vertices[ends].T
+    ends = ends[(x > extent[0]) & (x < extent[2]) & (y > extent[1]) & (y < extent[3])]
     a, d = walls[:, :2], walls[:, 2:] - walls[:, :2]
     q = vertices[ends][:, None]
     t = np.clip(np.sum((q - a) * d, -1) / np.maximum(np.sum(d * d, -1), 1e-300), 0.0, 1.0)

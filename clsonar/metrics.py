@@ -30,6 +30,7 @@ from . import physics, steps
 from .echoes import EDGE
 from .geometry import Geometry, curve_point, nearest_surface_point, point_cells, true_vertices
 from .neighbours import nearest, nearest_within
+from .numerics import percentile, unique
 from .scene import Polyline, Scene, Sinusoid
 from .sensors import SensorArray
 from .signals import envelope_noise_scale, signal_model
@@ -259,7 +260,7 @@ def _sensor_views(pts: np.ndarray, sensors: SensorArray, tx: np.ndarray, rx: np.
     np.maximum.at(reach, rx, path)
     seen: dict[int, tuple[np.ndarray, np.ndarray]] = {}
     axes, x = sensors.axes, pts[:, 0]
-    for s in np.unique(np.concatenate([tx, rx])):
+    for s in unique(np.concatenate([tx, rx])):
         steps.poll()
         origin, axis, far = sensors.positions[s], axes[s], float(reach[s])
         lo, hi = np.searchsorted(x, [origin[0] - far, origin[0] + far], side="left")
@@ -330,7 +331,7 @@ def _views_by_tiles(pts: np.ndarray, tiles: TruthTiles, sensors: SensorArray, tx
     reach = np.zeros(len(sensors.positions))
     np.maximum.at(reach, tx, path)
     np.maximum.at(reach, rx, path)
-    used = np.unique(np.concatenate([tx, rx]))
+    used = unique(np.concatenate([tx, rx]))
     origin, axis, far = sensors.positions[used], sensors.axes[used], reach[used]
     bounds = _beam_boxes(origin, axis, far + 2 * LOCUS_TOL_M + 1e-6, cut_sin2)
     slice_lo, slice_hi = origin[:, 0] - far, origin[:, 0] + far
@@ -526,7 +527,7 @@ def evaluate(scene: Scene, geom: Geometry, sensors: SensorArray, echoes,
     if len(points) and len(truth):
         dist, _ = nearest_surface_point(geom, points)
         out["accuracy_m"] = {"rms": float(np.sqrt(np.mean(dist**2))),
-                             "p95": float(np.percentile(dist, 95))}
+                             "p95": float(percentile(dist, 95))}
         out["spurious_share"] = float(np.mean(dist > SPURIOUS_M))
     else:
         out["accuracy_m"] = {"rms": None, "p95": None}

@@ -20,6 +20,8 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from .numerics import unique
+
 #: Query-point pairs held at once: about 4 million (tens of MB).
 _CHUNK_PAIRS = 1 << 22
 
@@ -60,7 +62,7 @@ class _Cells:
         keys = cells[:, 0] * self.width + cells[:, 1]
         self.order = np.argsort(keys, kind="stable")
         self.keys, self.points = keys[self.order], points[self.order]
-        per_cell = len(points) / len(np.unique(keys))
+        per_cell = len(points) / len(unique(keys))
         self.chunk = max(1, int(_CHUNK_PAIRS / (9 * per_cell)))
 
     def candidates(self, q: np.ndarray) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from .geometry import Geometry, build_geometry, nearest_surface_point
+from .numerics import median
 from .outlines import inside_polygon
 from .scene import Polyline, Scene, WallFollowing
 from .sensors import SensorArray, square_to_walls, walls_share_heading
@@ -183,8 +184,8 @@ def survey(scene: Scene, sensors: SensorArray, geom: Geometry | None = None) -> 
     clearance = step = None
     if path:
         geom = build_geometry(scene) if geom is None else geom
-        clearance = float(np.median(nearest_surface_point(geom, poses)[0]))
-        step = float(np.median(np.hypot(*np.diff(poses, axis=0).T)))
+        clearance = float(median(nearest_surface_point(geom, poses)[0]))
+        step = float(median(np.hypot(*np.diff(poses, axis=0).T)))
     return Survey(kind, len(members), sum(rings), int(arrays), room, path, clearance, step)
 
 

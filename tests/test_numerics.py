@@ -14,9 +14,14 @@ from scipy import optimize, special
 from clsonar.numerics import (
     fitpack_release,
     j1,
+    median,
     minimize_bounded,
     parametric_spline,
+    percentile,
+    setdiff1d,
     spline_values,
+    union1d,
+    unique,
 )
 
 #: The installed scipy; its j1 and FITPACK wrappers are matched to the bit only by the
@@ -147,3 +152,45 @@ def test_another_scipy_release_gets_the_public_functions(monkeypatch) -> None:
     assert numerics._fitpack.__wrapped__() is None
     monkeypatch.setattr(importlib.metadata, "version", lambda name: "1.17.9")
     assert numerics._fitpack.__wrapped__() is not None
+
+
+_REALS = st.one_of(st.floats(-1e6, 1e6, allow_nan=False), st.sampled_from([0.0, 0.5, -2.0]))
+
+
+def _same(ours, numpy_s) -> None:
+    """The same value, type, dtype and shape, to the bit (NaN where NumPy has NaN)."""
+    assert type(ours) is type(numpy_s)
+    assert np.asarray(ours).dtype == np.asarray(numpy_s).dtype
+    assert np.array_equal(ours, numpy_s, equal_nan=True)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(_REALS, min_size=1, max_size=40), st.booleans(),
+       st.lists(st.floats(0.0, 100.0), min_size=1, max_size=3), st.booleans())
+def test_median_and_percentile_are_numpys(values: list[float], nan: bool, qs: list[float],
+                                          one: bool) -> None:
+    """numerics.median and numerics.percentile give NumPy's answers to the bit (and NaN
+    where a value is NaN), one percentile or several."""
+    a = np.array(values + [math.nan] * nan)
+    _same(median(a), np.median(a))
+    q = qs[0] if one else qs
+    _same(percentile(a, q), np.percentile(a, q))
+    m = np.resize(a, (len(a), 3)) * np.array([1.0, -1.0, 0.5])
+    _same(median(m, axis=0), np.median(m, axis=0))
+    _same(median(m, axis=1), np.median(m, axis=1))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.integers(-5, 5), max_size=30), st.lists(st.integers(-5, 5), max_size=10),
+       st.lists(_REALS, max_size=10))
+def test_unique_union_and_difference_are_numpys(ints: list[int], others: list[int],
+                                                reals: list[float]) -> None:
+    """numerics.unique, union1d and setdiff1d give NumPy's sorted arrays, of its dtype."""
+    i, j, r = np.array(ints, dtype=np.int64), np.array(others, dtype=np.int64), np.array(reals)
+    _same(unique(i), np.unique(i))
+    _same(unique(r), np.unique(r))
+    _same(union1d(i, j), np.union1d(i, j))
+    _same(union1d(i, r), np.union1d(i, r))
+    _same(setdiff1d(i, j), np.setdiff1d(i, j))
+    rows = np.resize(i, (len(i) // 2, 2)) if len(i) >= 2 else np.zeros((0, 2), np.int64)
+    _same(unique(rows, axis=0), np.unique(rows, axis=0))

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import steps
+from ..numerics import median
 from ..scene import Scene
 from ..sensors import SensorArray
 from .loci import as_loci
@@ -54,7 +55,7 @@ def _median_on_arc(s: SampledLoci, i: int, q: np.ndarray, k: np.ndarray) -> np.n
     p = s.p[i]
     step = np.hypot(*(p[(k + 1) % LOCUS_SAMPLES] - p[k]).T)
     t = np.hypot(*(q - p[k]).T) / np.maximum(step, 1e-300)
-    m = float(np.median((k - first) % LOCUS_SAMPLES + t))
+    m = float(median((k - first) % LOCUS_SAMPLES + t))
     j = (first + int(np.floor(m))) % LOCUS_SAMPLES
     return p[j] + (m - np.floor(m)) * (p[(j + 1) % LOCUS_SAMPLES] - p[j])
 

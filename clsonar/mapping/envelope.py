@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics import unique
 from ..scene import Scene
 from ..sensors import SensorArray
 from ..survey import group_centres, is_ring
@@ -117,7 +118,7 @@ def _first_echoes(sensors: SensorArray, loci: Loci,
     """``{(group, element): [locus]}``: the nearest T = R echo of each element of each pose
     (element: its index within its group)."""
     groups = sensors.groups
-    starts = {int(g): int(np.flatnonzero(groups == g)[0]) for g in np.unique(groups)}
+    starts = {int(g): int(np.flatnonzero(groups == g)[0]) for g in unique(groups)}
     element = np.arange(len(groups)) - np.array([starts[int(g)] for g in groups], dtype=int)
     by_key: dict[tuple[int, int], list[int]] = {}
     for i in np.flatnonzero(loci.tx == loci.rx):

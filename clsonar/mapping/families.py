@@ -22,6 +22,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..numerics import median
 from .envelope import in_beams
 from .models import (
     CURVE_STEPS,
@@ -132,7 +133,7 @@ def _strong(w: Window, kind: str, rows: np.ndarray, q: np.ndarray,
         # one point reflector's echoes differ by their beams only: not by 20 dB (a face's
         # specular echo beside its edge's diffraction, 40 dB weaker, fits a point too)
         seen = w.amplitude[rows] / np.maximum(two_way(*beams, w.ka), 1e-3)
-        middle = float(np.median(seen))
+        middle = float(median(seen))
         return (seen <= POINT_SPREAD * middle) & (seen >= middle / POINT_SPREAD)
     return np.ones(len(rows), dtype=bool)
 

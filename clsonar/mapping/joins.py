@@ -20,6 +20,7 @@ from dataclasses import replace
 import numpy as np
 
 from .. import steps
+from ..numerics import unique
 from ..scene import Scene
 from ..sensors import SensorArray
 from .ends import heard_ends
@@ -191,7 +192,7 @@ def silence_clamp(scene: Scene, sensors: SensorArray, heard: Heard
     nearest the edge had found (unseen seed 60 edge-02, σ 0.3: two families of one array
     on one face, the joined face cut 2.4 cm short of the edge its second part reached)."""
     def clamp(p: Patch) -> Patch:
-        if len(np.unique(sensors.groups[np.concatenate([p.tx, p.rx])])) == 1:
+        if len(unique(sensors.groups[np.concatenate([p.tx, p.rx])])) == 1:
             return p
         lo, hi = clamp_to_silence(p, scene, sensors, heard, p.lo, p.hi)
         return replace(p, lo=lo, hi=hi)

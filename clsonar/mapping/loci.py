@@ -13,6 +13,7 @@ from typing import get_args
 import numpy as np
 
 from .. import physics
+from ..numerics import unique
 from ..scene import MappingSettings, Scene
 from ..scene.settings import VoteWeight
 from ..sensors import SensorArray
@@ -158,7 +159,7 @@ def count_viewpoints(scene: Scene, sensors: SensorArray, loci,
     loci = as_loci(loci)
     groups = sensors.groups[loci.tx]
     total = np.zeros(scene.grid_shape, dtype=np.float32)
-    for g in np.unique(groups):
+    for g in unique(groups):
         total += draw(_subset(loci, groups == g)) > 0
     return total
 

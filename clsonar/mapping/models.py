@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics import median
+
 #: Below this |ψ| (1/m) the curve model is the plane itself (a circle of radius 10⁶ m
 #: leaves its tangent by 0.5 µm over 1 m).
 PSI_PLANE = 1e-6
@@ -398,9 +400,9 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
     support = (n[:, None, 0] * centre[None, :, 0] + n[:, None, 1] * centre[None, :, 1]).T \
         + np.sqrt((a[:, None] * along.T) ** 2
                                          + (b[:, None] ** 2) * (1 - along.T**2))
-    spread = np.median(np.abs(support - np.median(support, axis=0)), axis=0)
+    spread = median(np.abs(support - median(support, axis=0)), axis=0)
     best = int(np.argmin(spread))
-    return np.array([phis[best], float(np.median(support[:, best])), 0.0])
+    return np.array([phis[best], float(median(support[:, best])), 0.0])
 
 
 __all__ = ["CORNER_STEPS", "CURVE_STEPS", "FRAME_M", "PSI_PLANE", "SPECULAR_STEPS", "Fit",

@@ -21,6 +21,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from ..numerics import unique
 from ..scene import Scene
 from ..sensors import SensorArray
 from .envelope import in_beams
@@ -62,7 +63,7 @@ def open_gaps(scene: Scene, sensors: SensorArray, loci) -> OpenGap:
     def indexed() -> tuple[Heard, np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
         """The detections, every pair, its shortest path heard, and (T, R, axT, axR):
         made at the first gap tested."""
-        pairs = [k for g in np.unique(sensors.groups) for k in group_pairs(sensors, int(g))]
+        pairs = [k for g in unique(sensors.groups) for k in group_pairs(sensors, int(g))]
         every = np.concatenate(pairs) if pairs else np.zeros((0, 2), np.int64)
         heard = heard_index(as_loci(loci), sensors, c)
         ends = (sensors.positions[every[:, 0]], sensors.positions[every[:, 1]],

@@ -29,6 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import steps
+from ..numerics import median, percentile, unique
 from ..physics import wavenumber
 from ..scene import Scene
 from ..sensors import SensorArray
@@ -155,8 +156,7 @@ END_DETECTIONS = 8
 def extents(p: Patch, sensors: SensorArray, cut_sin2: float, resolution: float
             ) -> tuple[float, float]:
     """``(lo, hi)``: the union of the patch's detections' regions of constant depth (module
-    docstring) along its carrier, from the :data:`END_DETECTIONS` detections nearest each
-    end."""
+    docstring) along its carrier, from the :data:`END_DETECTIONS` detections nearest each end."""
     order = np.argsort(p.u, kind="stable")
     m = min(END_DETECTIONS, len(order))
     k = np.concatenate([order[:m], order[-m:]])
@@ -204,7 +204,7 @@ def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
     weakest = two_way(*beams, ka).min()
     own_pairs = np.sort(np.stack([p.tx, p.rx], axis=-1), axis=-1)
     found = [(p.u, *_strength(p, scene, heard, own_pairs, p.paths, beams, ka), p.T, p.R)]
-    middle = float(np.median(found[0][1]))  # the patch's own echoes over the surface's
+    middle = float(median(found[0][1]))  # the patch's own echoes over the surface's
     for own, pairs in _listeners(p, sensors):
         steps.poll()
         u, ratio, loud, spread, T, R = _beyond(p, scene, sensors, heard, pairs, weakest)
@@ -320,7 +320,7 @@ def _fading_end(scene: Scene, q: np.ndarray, t: np.ndarray, along: np.ndarray,
     k = np.flatnonzero(weak & (along > 0))
     s = _to_edge(scene, ratio[k], T[k], R[k], q + along[k][:, None] * t, t,
                  max(reach - float(along[last]), 0.0))
-    return max(float(np.median(along[k] + s)), float(along[last]))
+    return max(float(median(along[k] + s)), float(along[last]))
 
 
 def _to_edge(scene: Scene, ratio: np.ndarray, T: np.ndarray, R: np.ndarray, q: np.ndarray,
@@ -432,7 +432,7 @@ def _listeners(p: Patch, sensors: SensorArray) -> Iterator[tuple[bool, np.ndarra
         yield True, pairs
     if not p.straight:
         return
-    for other in np.unique(sensors.groups):
+    for other in unique(sensors.groups):
         if other != group:
             for pairs in group_pairs(sensors, other):
                 yield False, pairs
@@ -486,13 +486,13 @@ def weakened_ends(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.nd
     echo = np.maximum(_surface_echo(p, scene, beams, scene.transducer.beam(scene.medium.c)[1]),
                       1e-300)
     ratio, spread = amplitude / echo, _spread(scene, echo)
-    middle = float(np.median(ratio))
+    middle = float(median(ratio))
     weak = _weakened(ratio, spread, middle)
     off = weak.copy()
     # raised: where a mirror's echo is the surface's within 5 % (κ·r ≤ 0.1), and steady
-    low, high = np.percentile(ratio, [10, 90])  # (not a sinusoid's stretch named a plane)
-    if (0.5 * float(np.median(p.paths)) <= 0.1 * abs(curve_geometry(p.params, p.x0)[1])
-            and high - low <= 0.05 * middle + 2.0 * float(np.median(spread))):
+    low, high = percentile(ratio, [10, 90])  # (not a sinusoid's stretch named a plane)
+    if (0.5 * float(median(p.paths)) <= 0.1 * abs(curve_geometry(p.params, p.x0)[1])
+            and high - low <= 0.05 * middle + 2.0 * float(median(spread))):
         off |= ratio - spread > middle * END_RAISED
     ends: list[float | None] = []
     for i, reach in ((int(np.argmin(p.u)), p.lo - span[0]), (int(np.argmax(p.u)), span[1] - p.hi)):
@@ -547,10 +547,10 @@ def strength_bend(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.nd
     # a curvature the echoes show (beyond 3σ) that would bend the wall more than
     # PATCH_BIAS_M over a region of constant depth, sqrt(c·τ·c·σ/2) (docs/mapping.md):
     # a curved reflector, whose reflection points and beams a plane misplaces
-    region2 = float(np.median(p.paths)) * scene.medium.c * scene.transducer.pulse_sigma_s / 2
+    region2 = float(median(p.paths)) * scene.medium.c * scene.transducer.pulse_sigma_s / 2
     if abs(mean) > 3.0 * max(noise, spread) and abs(mean) > 2.0 * PATCH_BIAS_M / region2:
         return math.inf
-    return bound if bound < 2.0 / float(np.median(p.paths)) else math.inf
+    return bound if bound < 2.0 / float(median(p.paths)) else math.inf
 
 
 #: A patch is extended only as far as a surface of the curvature its detections allow
@@ -563,7 +563,7 @@ def trusted_reach(p: Patch) -> float:
     curve bent by ``p.bend`` more than the fitted one leaves it by :data:`PATCH_BIAS_M`;
     with the bend unknown, as far as a surface of radius no less than the range stays
     within that of the tangent (the tangent stretch of :mod:`.tangents`)."""
-    bend = p.bend if math.isfinite(p.bend) else 2.0 / float(np.median(p.paths))
+    bend = p.bend if math.isfinite(p.bend) else 2.0 / float(median(p.paths))
     reach = math.sqrt(2.0 * PATCH_BIAS_M / max(bend, 1e-12))
     if p.straight:
         return reach

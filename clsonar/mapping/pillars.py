@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from .. import steps
-from ..numerics import minimize_bounded
+from ..numerics import minimize_bounded, unique
 from .strength import EDGE_SHARE
 
 #: Candidate loci whose middle-of-arc points lie within this of each other are fitted
@@ -336,7 +336,7 @@ def _point_residual(v: np.ndarray, T: np.ndarray, R: np.ndarray, a: np.ndarray,
 
 def _positions(T: np.ndarray) -> int:
     """How many different transducer positions ``T`` [k, 2] holds (to a micrometre)."""
-    return len(np.unique(np.round(T, 6), axis=0))
+    return len(unique(np.round(T, 6), axis=0))
 
 
 def _point_from(T: np.ndarray, R: np.ndarray, a: np.ndarray, start: np.ndarray

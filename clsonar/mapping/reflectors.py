@@ -28,7 +28,7 @@ from dataclasses import replace
 import numpy as np
 
 from .. import steps
-from ..numerics import principal_axes
+from ..numerics import median, principal_axes, setdiff1d, union1d, unique
 from ..scene import Scene
 from ..scene.settings import chosen
 from ..sensors import SensorArray
@@ -71,7 +71,7 @@ def linear_groups(sensors: SensorArray) -> dict[int, tuple[np.ndarray, np.ndarra
     lie on one line (a linear array): within :data:`LINEAR_TOL_M` (or
     :data:`LINEAR_TOL_SHARE` of the length, if less) of their principal axis."""
     out = {}
-    for g in np.unique(sensors.groups):
+    for g in unique(sensors.groups):
         pos = sensors.positions[sensors.groups == g]
         if len(pos) < 2:
             continue
@@ -129,8 +129,8 @@ def _windows(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
     count = max(1, math.ceil((hi - lo) / (0.5 * WINDOW_M)) - 1)
     starts = (np.linspace(lo, max(lo, hi - WINDOW_M), count) if hi - lo > WINDOW_M
               else np.array([lo]))
-    elements = np.unique(np.round(np.r_[sT, sR], 9))
-    pitch = float(np.median(np.diff(elements))) if len(elements) > 1 else 1.0
+    elements = unique(np.round(np.r_[sT, sR], 9))
+    pitch = float(median(np.diff(elements))) if len(elements) > 1 else 1.0
     out = []
     for s0 in starts:
         inside = ((np.minimum(sT, sR) >= s0 - 1e-9)
@@ -171,8 +171,8 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
         left[-len(windows):] = [r[~explained[r]] for r in left[-len(windows):]]
         # pairs farther apart than any stretch (an off-square corner's double bounce)
         covered = np.concatenate([w.rows for w in windows]) if windows else rows[:0]
-        left.append(np.setdiff1d(rows, covered))
-    rest = np.unique(np.concatenate(left)) if left else np.zeros(0, np.int64)
+        left.append(setdiff1d(rows, covered))
+    rest = unique(np.concatenate(left)) if left else np.zeros(0, np.int64)
     if len(rest) >= MIN_FAMILY:
         x0 = sensors.positions[loci.tx[rest]].mean(axis=0)
         w = replace(_window(scene, sensors, loci, rest, x0, math.inf),
@@ -180,14 +180,14 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
         found, free = find_families(w, resolution)
         scattered = [_scattered_enough(f, group_of) for f in found]
         families += [f for f, ok in zip(found, scattered, strict=True) if ok]
-        rest = np.union1d(rest[free], np.concatenate(
+        rest = union1d(rest[free], np.concatenate(
             [rest[:0], *(f.loci for f, ok in zip(found, scattered, strict=True) if not ok)]))
     families = turned_corners(corners_heard(families, sensors, loci, scene), group_of,
                               lambda r: _window(scene, sensors, loci, r,
                                                 sensors.positions[loci.tx[r]].mean(axis=0),
                                                 math.inf))
     families, dropped = planes_own(vertices_own(corners_own(families, resolution), resolution))
-    families, rest = _widened(scene, sensors, loci, families, np.union1d(rest, dropped))
+    families, rest = _widened(scene, sensors, loci, families, union1d(rest, dropped))
     return families, _unshadowed(scene, sensors, loci, families, rest, resolution)
 
 
@@ -200,7 +200,7 @@ def _scattered_enough(f: Family, group_of: np.ndarray) -> bool:
     arriving with it, fitted to a micrometre by a circle whose reflection points ran 14 cm
     past the located edge: 9.6 cm RMS)."""
     return (f.kind != "curve" or len(f.rows) >= MIN_CURVE
-            or len(np.unique(group_of[f.loci])) > 1)
+            or len(unique(group_of[f.loci])) > 1)
 
 
 #: A located corner is its array's silence's where fewer than this share of the pairs that
@@ -250,7 +250,7 @@ def _heard_share(f: Family, sensors: SensorArray, loci: Loci, heard, ka: float) 
     own = _corner_gain(f.params, w.T[rows], w.axT[rows], w.R[rows], w.axR[rows], ka)
     seen = np.concatenate([_bearing(w.T[rows], v), _bearing(w.R[rows], v)])
     share, total = 0.0, 0
-    for g in np.unique(sensors.groups[loci.tx[f.loci]]):
+    for g in unique(sensors.groups[loci.tx[f.loci]]):
         for pairs in group_pairs(sensors, int(g)):
             T, R = sensors.positions[pairs[:, 0]], sensors.positions[pairs[:, 1]]
             near = _within(_bearing(T, v), seen) & _within(_bearing(R, v), seen)
@@ -358,7 +358,7 @@ def _as_its_echoes(w: Window, vertex: Family, rows: np.ndarray, q: np.ndarray
     their beams (within :data:`POINT_SPREAD` of its detections' median)."""
     return _valid(w, vertex.kind, vertex.params, rows, q) & (
         _seen(w, vertex.kind, vertex.params, rows)
-        <= POINT_SPREAD * float(np.median(_seen(vertex.window, vertex.kind, vertex.params,
+        <= POINT_SPREAD * float(median(_seen(vertex.window, vertex.kind, vertex.params,
                                                  vertex.rows))))
 
 
@@ -411,7 +411,7 @@ def planes_own(families: list[Family]) -> tuple[list[Family], np.ndarray]:
             if len(taken) >= max(least, MIN_FAMILY):
                 out[k] = plane
                 out = [f for f in out if f is not corner]
-                left.append(w.rows[np.setdiff1d(rows, taken)])
+                left.append(w.rows[setdiff1d(rows, taken)])
                 break
     return out, np.concatenate(left) if left else np.zeros(0, np.int64)
 

@@ -9,6 +9,7 @@ from typing import Protocol
 
 import numpy as np
 
+from ..numerics import median
 from .models import corner_paths, curve_paths, dot2, fit_corner, plane_start
 
 
@@ -120,7 +121,7 @@ def starts(w: Window, seed: int, rows: np.ndarray) -> list[tuple[str, np.ndarray
     point = corner_start(w, seed, rows)
     if point is None:
         mid = 0.5 * (w.T[rows] + w.R[rows]).mean(axis=0)
-        point = mid + 0.5 * float(np.median(w.paths[rows])) * n
+        point = mid + 0.5 * float(median(w.paths[rows])) * n
     rel = point - w.x0
     reach = max(float(np.hypot(*rel)), 1e-3)
     phi = math.atan2(rel[1], rel[0])

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..numerics import median
 from ..physics import (
     J1_FIRST_ZERO,
     MAX_FOCUS_GAIN,
@@ -137,7 +138,7 @@ def as_flat_as_its_range(params: np.ndarray, x0: np.ndarray, paths: np.ndarray) 
     arriving with them), whose echo is a mirror's; not a curved wall's own circle (a
     post, a cylinder, a sinusoid's crest), whose echo the strength cannot tell from an
     edge's."""
-    return abs(float(curve_geometry(params, x0)[1])) >= 0.5 * float(np.median(paths))
+    return abs(float(curve_geometry(params, x0)[1])) >= 0.5 * float(median(paths))
 
 
 #: A circle of radius under this share of its range is point-like (:func:`convex_share`):
@@ -165,7 +166,7 @@ def convex_share(params: np.ndarray, x0: np.ndarray, q: np.ndarray, T: np.ndarra
     centre, rho, _ = curve_geometry(params, x0)
     if not np.all(np.isfinite(centre)):
         return np.ones(len(q))
-    if not len(q) or abs(rho) < POINT_LIKE * 0.5 * float(np.median(paths)):
+    if not len(q) or abs(rho) < POINT_LIKE * 0.5 * float(median(paths)):
         return None
     d1 = np.maximum(np.hypot(*(T - q).T), 1e-12)
     d2 = np.maximum(np.hypot(*(R - q).T), 1e-12)

@@ -9,6 +9,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import steps
+from ..numerics import median, unique
 from ..physics import absorption_factor, piston_pattern
 from ..scene import Scene
 from ..sensors import SensorArray
@@ -211,7 +212,7 @@ def _tangent_segments(s: SampledLoci, i: int, ks: np.ndarray,
     its tangent point: the in-beam samples of locus i that far around each sample in ``ks``."""
     half = int(np.sqrt(2.0 * max_bias_m / s.a[i]) / (2 * np.pi / LOCUS_SAMPLES))
     out = []
-    for centre_k in np.unique(ks):
+    for centre_k in unique(ks):
         idx = (centre_k + np.arange(-half, half + 1)) % LOCUS_SAMPLES
         out.append(s.p[i][idx[s.inside[i, idx]]])
     return out
@@ -337,7 +338,7 @@ def _pillars(scene: Scene, s: SampledLoci, loci: np.ndarray, found: list[np.ndar
                           radius)
         heard = s.loci.amplitude[loci[touching]]
         if (np.count_nonzero(heard - spare <= CIRCLE_ECHO_FACTOR * own) < MIN_PILLAR_LOCI
-                or np.median((heard - spare) / own) > CIRCLE_ECHO_FACTOR):
+                or median((heard - spare) / own) > CIRCLE_ECHO_FACTOR):
             return True
         d = s.T[first] - centre
         near = np.hypot(*d.T) - radius
@@ -408,13 +409,12 @@ def _facing_too_weak(scene: Scene, s: SampledLoci, loci: np.ndarray, bias: float
 
 
 def plane_echoes(scene: Scene, s: SampledLoci, loci: list[int], normal: np.ndarray) -> bool:
-    """Whether the T = R ``loci`` (two or more) are a plane's with unit ``normal`` (towards
-    the transducers; :func:`~.pillars.a_plane_not_a_corner`): heard as loud as its echo at
-    each reflection point T − ρ·n would be (a mirror's A0·ρ times the two-way beam there
-    and the absorption over 2ρ), not as a concave corner's at the first two's crossing (two
-    reflections: the reflection coefficient squared, as in :func:`_facing_too_weak`),
-    three envelope noise scales to spare. False where the amplitude cannot tell
-    (threshold detection, a uniform beam)."""
+    """Whether the T = R ``loci`` (two or more) are a plane's with unit ``normal`` (towards the
+    transducers; :func:`~.pillars.a_plane_not_a_corner`): heard as loud as its echo at each
+    reflection point T − ρ·n would be (a mirror's A0·ρ times the two-way beam there and the
+    absorption over 2ρ), not as a concave corner's at the first two's crossing (two reflections: the
+    reflection coefficient squared, as in :func:`_facing_too_weak`), three envelope noise scales to
+    spare. False where the amplitude cannot tell (threshold detection, a uniform beam)."""
     _, ka = scene.transducer.beam(scene.medium.c)
     idx = np.asarray(loci, dtype=np.int64)
     if scene.detection.mode != "envelope" or ka == 0 or np.any(s.loci.tx[idx] != s.loci.rx[idx]):
@@ -477,7 +477,7 @@ def _add_isolated(scene: Scene, sensors: SensorArray, s: SampledLoci, isolated: 
     found.append(points[keep])
     source.append(ends[keep, 0])
     env = scan_envelope(scene, sensors, s.loci, scans)
-    arcs, stubs = _isolated_points(s, isolated, bias, np.unique(ends[keep]), env)
+    arcs, stubs = _isolated_points(s, isolated, bias, unique(ends[keep]), env)
     for k in _just_after_first(s, isolated, stubs):
         arcs[k] = np.zeros((0, 2))
     stubs = [k for k in stubs if len(arcs[k])]
@@ -554,7 +554,7 @@ def tangent_map(scene: Scene, sensors: SensorArray, loci,
         keep = (in_beams(q, s.T[b], s.axes[s.loci.tx[b]], s.cut_sin2)
                 & in_beams(q, s.R[b], s.axes[s.loci.rx[b]], s.cut_sin2))
         crossed[b[keep]] = True
-        q, k, owner, mine = q[keep], k[keep], owner[keep], np.unique(mine)
+        q, k, owner, mine = q[keep], k[keep], owner[keep], unique(mine)
         ends = np.searchsorted(owner, [mine, mine + 1]).tolist()
         for i, n0, n1 in zip(mine.tolist(), *ends, strict=True):
             found.append(q[n0:n1])  # as locus_crossings(s, i, its neighbours) gives them

@@ -22,6 +22,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from ..numerics import unique
 from .families import Family, Window, _fit, _fit_corner, _inliers, _predict, outside_allowed
 
 #: Two planes of one array are a pencil's only where their normals part by at least this
@@ -67,7 +68,7 @@ def _corner_of(parts: list[Family], start: np.ndarray, make_window: MakeWindow
                ) -> Family | None:
     """The corner family of the echoes of the planes ``parts`` together, fitted from the
     vertex ``start``, where it explains them and one plane does not; else None."""
-    loci = np.unique(np.concatenate([p.loci for p in parts]))
+    loci = unique(np.concatenate([p.loci for p in parts]))
     w = make_window(loci)
     rows = np.arange(len(loci))
     plane = _fit(w, "plane", rows, parts[0].params)
@@ -111,11 +112,11 @@ def turned_corners(families: list[Family], group_of: np.ndarray, make_window: Ma
     (module docstring) replaced by that corner, in the place of its first plane
     (``group_of``: each locus's array)."""
     def array_of(f: Family) -> int:  # -1: the planes of several arrays' echoes
-        groups = np.unique(group_of[f.loci])
+        groups = unique(group_of[f.loci])
         return int(groups[0]) if len(groups) == 1 else -1
 
     out = list(families)
-    for g in np.unique([array_of(f) for f in out if f.kind == "plane"]):
+    for g in unique([array_of(f) for f in out if f.kind == "plane"]):
         while g >= 0:
             planes = [f for f in out if f.kind == "plane" and array_of(f) == g]
             found = _pencil(planes, make_window) if len(planes) >= 2 else None

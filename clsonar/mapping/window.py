@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics import median
 from .starts import MIN_CURVE
 
 #: Path residual every detection may have (m): planes, points and corners are exact models
@@ -117,7 +118,7 @@ def detection_noise(tolerance: np.ndarray) -> float:
     """The path noise σ of detections whose path ``tolerance`` is :func:`window_tolerance`'s
     (their median: a tolerance is :data:`BASE_TOLERANCE_M` plus :data:`NOISE_SIGMAS` of
     their noise), metres; 0 without noise."""
-    return float(np.median(tolerance - BASE_TOLERANCE_M)) / NOISE_SIGMAS
+    return float(median(tolerance - BASE_TOLERANCE_M)) / NOISE_SIGMAS
 
 
 __all__ = ["BASE_TOLERANCE_M", "CURVE_TOLERANCE_M", "KINDS", "MEASURED_PATH_FACTOR",

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..numerics import parametric_spline, principal_axes, spline_values
+from ..numerics import median, parametric_spline, principal_axes, spline_values
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,7 +67,7 @@ def fit_spline(curve: np.ndarray, spacing: float, noise: float) -> np.ndarray:
     if len(p) < 4:
         return p
     steps = np.hypot(*np.diff(p, axis=0).T)
-    closed = len(p) > 8 and np.hypot(*(p[0] - p[-1])) <= 2 * np.median(steps)
+    closed = len(p) > 8 and np.hypot(*(p[0] - p[-1])) <= 2 * median(steps)
     if closed and np.any(p[0] != p[-1]):
         p = np.concatenate([p, p[:1]])
         steps = np.r_[steps, np.hypot(*(p[-1] - p[-2]))]

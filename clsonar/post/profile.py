@@ -7,6 +7,7 @@ import numpy as np
 
 from ..geometry import cell_centres
 from ..mapping.along import ScanHeard
+from ..numerics import median
 from ..scene import PostSettings
 from ..scene.settings import chosen
 from .curves import MIN_CURVE_CELLS, bridge_gaps, point_means, refine_cells, trace_curves
@@ -122,7 +123,7 @@ def _closed(curve: np.ndarray) -> bool:
     if len(curve) < 4:
         return False
     steps = np.hypot(*np.diff(curve, axis=0).T)
-    return bool(np.hypot(*(curve[0] - curve[-1])) <= 2 * np.median(steps))
+    return bool(np.hypot(*(curve[0] - curve[-1])) <= 2 * median(steps))
 
 
 def _bridged(curve: np.ndarray, supported: np.ndarray, max_gap: float, vertices: np.ndarray,

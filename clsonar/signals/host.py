@@ -11,6 +11,7 @@ import numpy as np
 
 from .. import steps
 from ..echoes import EchoTable
+from ..numerics import unique
 from ..opencl import (
     PRECISIONS,
     build_program,
@@ -167,7 +168,7 @@ class Runner:
         rows = np.repeat(which, width)
         cols = np.repeat(c0, width) + (np.arange(int(width.sum()))
                                        - np.repeat(np.cumsum(np.r_[0, width[:-1]]), width))
-        items = np.unique(np.stack([rows, cols], axis=-1), axis=0)
+        items = unique(np.stack([rows, cols], axis=-1), axis=0)
         return np.ascontiguousarray(items, dtype=np.int32).reshape(-1, 2)
 
     def pair_buffer(self, slots: np.ndarray):
