@@ -81,7 +81,7 @@ def test_thin_preserves_components_and_is_idempotent(seed, density):
 
 
 def test_the_simple_pixel_table_is_the_labelled_definition():
-    """``thinning._SIMPLE`` (built by a flood fill, so the module needs no scipy.ndimage)
+    """``thinning._SIMPLE`` (Yokoi's connectivity number, so the module needs no scipy.ndimage)
     against the definition by scipy's labelling: one 8-connected foreground component
     among the neighbours, one 4-connected background component touching the pixel."""
     from clsonar.post import thinning

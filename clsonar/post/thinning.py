@@ -57,61 +57,38 @@ def thin_thesis(binary: np.ndarray, up: tuple[int, int] = (0, -1)) -> np.ndarray
     return centre & ~above & below
 
 
+def _neighbour_bits() -> np.ndarray:
+    """[256, 10] the neighbours x_1 … x_8 of each 8-bit neighbour code (bit k−1 = x_k,
+    x1 = east, counter-clockwise) in columns 1–8, x_9 = x_1 again; column 0 unused."""
+    x = (np.arange(256)[:, None] >> np.arange(8)) & 1
+    return np.concatenate([np.zeros((256, 1), dtype=x.dtype), x, x[:, :1]], axis=1)
+
+
 def _guo_hall_tables() -> tuple[np.ndarray, np.ndarray]:
     """Deletion tables of the two sub-iterations of Guo and Hall (1989), indexed by the
-    8-bit neighbour code (bit k−1 = neighbour x_k, x1 = east, counter-clockwise)."""
-    first = np.zeros(256, dtype=bool)
-    second = np.zeros(256, dtype=bool)
-    for code in range(256):
-        # x[1..8] the neighbours, x[9] = x1 again; x[0] is never read
-        x = [0] + [(code >> k) & 1 for k in range(8)] + [code & 1]
-        crossings = sum(1 for i in (1, 3, 5, 7) if not x[i] and (x[i + 1] or x[i + 2]))
-        n1 = sum(x[2 * k - 1] | x[2 * k] for k in range(1, 5))
-        n2 = sum(x[2 * k] | x[2 * k + 1] for k in range(1, 5))
-        if crossings != 1 or not 2 <= min(n1, n2) <= 3:
-            continue
-        first[code] = ((x[2] | x[3] | (1 - x[8])) & x[1]) == 0
-        second[code] = ((x[6] | x[7] | (1 - x[4])) & x[5]) == 0
+    8-bit neighbour code (:func:`_neighbour_bits`)."""
+    x = _neighbour_bits()
+    crossings = sum((1 - x[:, i]) & (x[:, i + 1] | x[:, i + 2]) for i in (1, 3, 5, 7))
+    n1 = sum(x[:, 2 * k - 1] | x[:, 2 * k] for k in range(1, 5))
+    n2 = sum(x[:, 2 * k] | x[:, 2 * k + 1] for k in range(1, 5))
+    deletable = (crossings == 1) & (np.minimum(n1, n2) >= 2) & (np.minimum(n1, n2) <= 3)
+    first = deletable & (((x[:, 2] | x[:, 3] | (1 - x[:, 8])) & x[:, 1]) == 0)
+    second = deletable & (((x[:, 6] | x[:, 7] | (1 - x[:, 4])) & x[:, 5]) == 0)
     return first, second
 
 
 _DELETE_FIRST, _DELETE_SECOND = _guo_hall_tables()
 
 
-def _components(cells: set[tuple[int, int]], steps: tuple[tuple[int, int], ...]
-                ) -> list[set[tuple[int, int]]]:
-    """The connected components of a few ``cells`` (``(row, column)``), neighbours one of
-    ``steps`` apart: a flood fill, for the 3 × 3 patches of the tables below."""
-    left, found = set(cells), []
-    while left:
-        todo, part = [left.pop()], set()
-        while todo:
-            i, j = todo.pop()
-            part.add((i, j))
-            near = {(i + di, j + dj) for di, dj in steps} & left
-            left -= near
-            todo.extend(near)
-        found.append(part)
-    return found
-
-
-_FOUR = ((0, 1), (1, 0), (0, -1), (-1, 0))
-_EIGHT = (*_FOUR, (1, 1), (1, -1), (-1, 1), (-1, -1))
-
-
 def _simple_table() -> np.ndarray:
     """Whether a foreground pixel with a given neighbour code is *simple*: deleting it keeps
     the topology (its neighbours form one 8-connected foreground component and it touches
-    one 4-connected background component)."""
-    table = np.zeros(256, dtype=bool)
-    ring = [(i, j) for i in range(3) for j in range(3) if (i, j) != (1, 1)]
-    edges = {(0, 1), (1, 0), (1, 2), (2, 1)}
-    for code in range(256):
-        fg = {c for c in ring if code & _NEIGHBOUR_BITS[c]}
-        bg = _components(set(ring) - fg, _FOUR)
-        touching = [part for part in bg if part & edges]
-        table[code] = len(_components(fg, _EIGHT)) == 1 and len(touching) == 1
-    return table
+    one 4-connected background component) — where Yokoi's 8-connectivity number
+    N = Σ_{k = 1, 3, 5, 7} (x̄_k − x̄_k·x̄_{k+1}·x̄_{k+2}) is 1, x̄ = 1 − x (Yokoi, Toriwaki &
+    Fukumura 1975; tests/test_post.py checks it against scipy's labelling of that
+    definition, code by code)."""
+    off = 1 - _neighbour_bits()
+    return sum(off[:, k] - off[:, k] * off[:, k + 1] * off[:, k + 2] for k in (1, 3, 5, 7)) == 1
 
 
 _SIMPLE = _simple_table()
