@@ -13,9 +13,13 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from clsonar.mapping.heard import amplitude_noise
-from clsonar.mapping.joins import meet
+from clsonar.mapping.joins import OWN_ECHOES_M, cut_at_vertices, meet
 from clsonar.mapping.patches import Patch, carrier_points, coordinates
+from clsonar.opencl import get_context
+from clsonar.pipeline import run
 from clsonar.scene import DetectionSettings, Scene, Signal
+from clsonar.tools.zoo.cases import draw
+from clsonar.tools.zoo.score import score
 
 
 def _patch(params: tuple[float, float, float], u: np.ndarray, hi: float) -> Patch:
@@ -56,6 +60,33 @@ def test_a_located_edge_on_a_curved_patch_ends_it_where_it_ran_past():
     crest = carrier_points(wall.params, wall.x0, np.array([0.005]))
     (kept_on,), _ = meet([wall], crest)
     assert kept_on.hi == wall.hi
+
+
+def test_a_located_edge_at_a_face_s_last_reflection_point_ends_the_stretch_past_it():
+    """A face's last echoes may be its edge's own (their reflection points on the edge): a
+    located vertex on the line within ``OWN_ECHOES_M`` of the last reflection point cuts
+    the stretch drawn beyond it, found before the faces met or after; one among the middle
+    of its points, or farther inside (a noisy edge's), cuts nothing."""
+    u = np.linspace(-0.5, 0.2, 15)
+    face = _patch((math.pi / 2, 0.0, 0.0), u, hi=0.35)  # the line y = 0, points to x = 0.2
+    at = carrier_points(face.params, face.x0, np.array([0.195]))
+    (cut,) = cut_at_vertices([face], at + np.array([0.0, 0.005]), OWN_ECHOES_M)
+    assert cut.hi == pytest.approx(0.195) and cut.lo == face.lo
+    for u_vertex, inside in ((0.195, 0.0), (0.185, OWN_ECHOES_M), (-0.15, 1.0)):
+        vertex = carrier_points(face.params, face.x0, np.array([u_vertex]))
+        (kept,) = cut_at_vertices([face], vertex, inside)
+        assert (kept.lo, kept.hi) == (face.lo, face.hi), u_vertex
+
+
+@pytest.mark.parametrize("seed, index", [(127, 4), (136, 1)])
+def test_a_face_is_not_drawn_past_its_located_edge(seed, index):
+    """The zoo's unseen seeds 127 and 136 edge arrays, noise-free: a circle fitted to a
+    face's last echoes near its edge ran 17 cm past the edge a diffraction located after
+    the faces met (127), and one fitted to a face's and its edge's echoes ran 12 cm past
+    it (136): 3.8 and 2.9 cm RMS. Both end at the edge now."""
+    case = draw(seed, "edge", index)
+    row = score(case, run(case.scene, context=get_context(None)))
+    assert row["passed"] and row["accuracy_m"] < 0.005
 
 
 def test_a_detection_s_amplitude_noise_is_the_envelope_s():

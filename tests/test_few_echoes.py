@@ -7,8 +7,9 @@ from hypothesis import strategies as st
 
 from clsonar import pipeline
 from clsonar.mapping.crossings import crossing_points
-from clsonar.mapping.few import common_tangents
+from clsonar.mapping.few import common_tangents, two_echo_corner
 from clsonar.mapping.loci import Loci
+from clsonar.mapping.methods import _loci
 from clsonar.mapping.patches import Patches
 from clsonar.mapping.reflectors import loud_crossings
 from clsonar.opencl import get_context
@@ -133,3 +134,21 @@ def test_a_wall_two_elements_heard_is_a_face_not_their_crossing():
     assert result.warnings == ("the map holds only 1 face(s) each drawn from two elements' "
                                "echoes: the 2 echoes detected are too few for a surface's "
                                "model",)
+
+
+def test_a_corner_two_elements_heard_by_its_double_bounce_is_its_vertex():
+    """The zoo's unseen seed 157 corner-07: two elements of a random-lines placement, 1.4 m
+    apart, heard a 90° corner 7.9 m away once each (its double bounce, 2.7 units, as a
+    corner there returns; the plane their loci touch would give 0.29 and 4.3), and the
+    map had only a free end's weak diffraction, 1.6 m from the corner. Their loci's
+    crossing is located as the corner's vertex; a wall's two echoes (seed 74 wall-07) are
+    no corner."""
+    case = draw(157, "corner", 7)
+    result = pipeline.run(case.scene, context=get_context())
+    row = score(case, result)
+    assert row["vertex_error_m"] < 1e-4 and row["passed"]
+    wall = draw(74, "wall", 7).scene
+    done = pipeline.run(wall, context=get_context())
+    loci = _loci(wall, done.detections)
+    assert len(loci) == 2
+    assert two_echo_corner(wall, done.sensors, loci, np.array([0, 1])) is None

@@ -24,7 +24,7 @@ from .directional import arc_maxima
 from .launch import AccumulationStats, accumulate_with_stats, backproject, occupancy_grid
 from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
 from .occupancy import OCCUPIED_LOG_ODDS
-from .reflectors import loud_crossings, reflector_points
+from .reflectors import loud_corners, loud_crossings, reflector_points
 from .tangents import tangent_map
 
 if TYPE_CHECKING:
@@ -201,6 +201,8 @@ def reflector_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     few = len(drawn.points) == len(drawn.vertices) == 0
     if few:
         drawn = loud_crossings(scene, sensors, loci, drawn)
+    else:
+        drawn = loud_corners(scene, sensors, loci, drawn)
     face_points = int(drawn.ends[-1]) if len(drawn.ends) else 0  # the patches' points first
     return Votes(points=drawn.points, tx=loci.tx[drawn.source], rx=loci.rx[drawn.source],
                  vertices=drawn.vertices, patch_ends=drawn.ends,

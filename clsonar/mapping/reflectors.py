@@ -45,7 +45,7 @@ from .families import (
     outside_allowed,
     window_tolerance,
 )
-from .few import two_echo_faces
+from .few import two_echo_corners, two_echo_faces
 from .heard import amplitude_noise, group_pairs, heard_index, loudest
 from .joins import END_AT_VERTEX_M, draw_families, draw_patches
 from .loci import Loci, _subset
@@ -540,6 +540,28 @@ def loud_crossings(scene: Scene, sensors: SensorArray, loci: Loci, drawn: Patche
     return drawn.plus(points, loud[source], points)
 
 
+def loud_corners(scene: Scene, sensors: SensorArray, loci: Loci, drawn: Patches) -> Patches:
+    """``drawn`` and the concave corners whose double bounces two loud echoes no point was
+    drawn for are (:func:`~.few.two_echo_corners`), as located vertices, each farther than
+    the pulse's resolution c·σ from what is drawn and from the others (a reflector there
+    explains the echoes: the zoo's unseen seed 125 post-02, a 7 cm post whose two echoes
+    are as loud as a corner's, crossing 1.2 cm outside its arc): :func:`loud_crossings`'
+    work where the map holds other reflectors (at most :data:`FEW_LOUD` such echoes), in
+    an open scene (a room's corners are its rings' tangent points: seed 156 room-25)."""
+    left = np.flatnonzero(loci.amplitude >= DEFAULT_MIN_ENVELOPE)
+    left = left[~np.isin(left, drawn.source)]
+    if not 2 <= len(left) <= FEW_LOUD or in_a_room(scene, sensors.positions):
+        return drawn
+    resolution = scene.medium.c * scene.transducer.pulse_sigma_s
+    points, source = two_echo_corners(scene, sensors, loci, left)
+    kept: list[int] = []
+    for k, x in enumerate(points):
+        near = np.concatenate([drawn.points, drawn.vertices.reshape(-1, 2), points[kept]])
+        if len(near) == 0 or np.hypot(*(near - x).T).min() > resolution:
+            kept.append(k)
+    return drawn.plus(points[kept], source[kept], points[kept])
+
+
 #: A face that ends at a located vertex (within :data:`~.joins.END_AT_VERTEX_M`) does not
 #: go on past it: no tangent point is drawn within :data:`PAST_END_M` beyond that end,
 #: within :data:`PAST_END_WIDTH_M` plus :data:`PAST_END_SLOPE` of the distance from its line.
@@ -575,4 +597,4 @@ def past_located_ends(points: np.ndarray, drawn: Patches) -> np.ndarray:
 
 
 __all__ = ["LINEAR_TOL_M", "WINDOW_M", "corners_own", "in_a_room", "linear_groups",
-           "loud_crossings", "reflector_points", "strongest_echo"]
+           "loud_corners", "loud_crossings", "reflector_points", "strongest_echo"]
