@@ -18,7 +18,9 @@ loci's crossing instead, the crossing is that corner's vertex (:func:`two_echo_c
 
 from __future__ import annotations
 
+import itertools
 import math
+from collections.abc import Iterator
 from dataclasses import replace
 
 import numpy as np
@@ -104,15 +106,13 @@ def two_echo_faces(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndar
     (:func:`~.patches.spread_patch`), and the two rows of each."""
     heard = heard_index(loci, sensors, scene.medium.c)
     faces, pairs = [], []
-    for a in range(len(rows)):
-        for b in range(a + 1, len(rows)):
-            pair = np.array([rows[a], rows[b]], dtype=np.int64)
-            face = two_echo_face(scene, sensors, loci, pair)
-            if face is not None:
-                amplitude = loci.amplitude[pair]
-                face = replace(face, bend=strength_bend(face, scene, sensors, amplitude))
-                faces.append(spread_patch(face, scene, sensors, heard, amplitude))
-                pairs.append(pair)
+    for pair in _pairs(rows):
+        face = two_echo_face(scene, sensors, loci, pair)
+        if face is not None:
+            amplitude = loci.amplitude[pair]
+            face = replace(face, bend=strength_bend(face, scene, sensors, amplitude))
+            faces.append(spread_patch(face, scene, sensors, heard, amplitude))
+            pairs.append(pair)
     return faces, np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
 
 
@@ -173,18 +173,22 @@ def two_echo_corner(scene: Scene, sensors: SensorArray, loci: Loci, pair: np.nda
     return x[0] if np.all(np.abs(heard - corner) <= FACE_ECHO_SHARE * corner + spare) else None
 
 
+def _pairs(rows: np.ndarray) -> Iterator[np.ndarray]:
+    """Each two of ``rows``, in order, as an int64 array."""
+    for a, b in itertools.combinations(rows.tolist(), 2):
+        yield np.array([a, b], dtype=np.int64)
+
+
 def two_echo_corners(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray]:
     """``(points [k, 2], source [k])``: the concave corners each two of the loci ``rows``
     are the double bounces of (:func:`two_echo_corner`), each credited to the nearer."""
     points, source = [], []
-    for a in range(len(rows)):
-        for b in range(a + 1, len(rows)):
-            pair = np.array([rows[a], rows[b]], dtype=np.int64)
-            x = two_echo_corner(scene, sensors, loci, pair)
-            if x is not None:
-                points.append(x)
-                source.append(pair[int(np.argmin(loci.tof_s[pair]))])
+    for pair in _pairs(rows):
+        x = two_echo_corner(scene, sensors, loci, pair)
+        if x is not None:
+            points.append(x)
+            source.append(pair[int(np.argmin(loci.tof_s[pair]))])
     return np.asarray(points, dtype=np.float64).reshape(-1, 2), np.asarray(source, np.int64)
 
 

@@ -280,39 +280,47 @@ def _plausible(T: np.ndarray, rho: np.ndarray, tol: np.ndarray) -> bool:
     return bool(np.count_nonzero(off <= 3.0 * tol) >= MIN_PILLAR_LOCI)
 
 
-def _seed_sets(middles: np.ndarray) -> Iterator[np.ndarray]:
-    """The loci a reflector is first fitted to: the neighbourhood (:data:`SEED_M`) of each
-    locus' middle-of-arc point in turn, then all of them (a pillar seen from every side
-    has its stubs all round it, farther apart than SEED_M), each set once and only with
-    :data:`MIN_PILLAR_LOCI` loci or more."""
-    tried: set[bytes] = set()
-    for near in itertools.chain(_near_rows(middles, SEED_M), [np.arange(len(middles))]):
+def _seed_sets(middles: np.ndarray, reach: float = SEED_M, whole: bool = True,
+               least: int = MIN_PILLAR_LOCI, tried: set[bytes] | None = None
+               ) -> Iterator[np.ndarray]:
+    """The loci a reflector is first fitted to: the neighbourhood (``reach``) of each
+    locus' middle-of-arc point in turn, then (``whole``) all of them (a pillar seen from
+    every side has its stubs all round it, farther apart than :data:`SEED_M`), each set
+    once (not one of ``tried``) and only with ``least`` loci or more."""
+    tried = set() if tried is None else tried
+    every = [np.arange(len(middles))] if whole else []
+    for near in itertools.chain(_near_rows(middles, reach), every):
         steps.poll()
-        if len(near) >= MIN_PILLAR_LOCI and near.tobytes() not in tried:
+        if len(near) >= least and near.tobytes() not in tried:
             tried.add(near.tobytes())
             yield near
+
+
+#: Where no seed set of :func:`_seed_sets` gives a pillar, the neighbourhoods of these
+#: reaches are tried in turn (metres), each pillar found from them over-determined (one
+#: locus more than :data:`MIN_PILLAR_LOCI`: any three loci touch some circle). A 0.48 m
+#: pillar in a room's middle heard once by each of five wall-following poses all round it
+#: has its five stubs up to a metre apart, and the loci of another pillar 1.4 m away made
+#: the whole cluster's circle implausible (the zoo's unseen seed 131 room-24).
+WIDER_SEEDS_M = (2 * SEED_M, 4 * SEED_M)
 
 
 def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
                  seen_through: SeenThrough) -> tuple[np.ndarray, float, np.ndarray] | None:
     """The pillar that explains the most of the loci: fitted (:func:`fit_pillar`) from each
-    of :func:`_seed_sets`, then again to every locus it explains (several pillars in one
-    cluster are found one by one); none that the scan saw through (``seen_through``: a
-    convex block's faces and edges, whose ranges a circle can mimic, stand beside free
-    space other elements see into)."""
-    best = None
-    for near in _seed_sets(middles):
-        if len(near) > MIN_PILLAR_LOCI and not _plausible(T[near], rho[near], tol[near]):
-            continue
-        found = fit_pillar(T[near], rho[near], middles[near], tol[near])
-        if found is None or seen_through(found[0], found[1], float(rho[near][found[2]].max())):
-            continue
-        centre, radius, _ = found
-        explained = np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
-        if best is None or explained.sum() > best[2].sum():
-            best = (centre, radius, explained)
-            if explained.all():  # no later seed set can explain more
-                break
+    of :func:`_seed_sets` (then, where none, from the :data:`WIDER_SEEDS_M` ones), then
+    again to every locus it explains (several pillars in one cluster are found one by
+    one); none that the scan saw through (``seen_through``: a convex block's faces and
+    edges, whose ranges a circle can mimic, stand beside free space other elements see
+    into)."""
+    tried: set[bytes] = set()
+    best = _best_seeded(T, rho, middles, tol, seen_through,
+                        _seed_sets(middles, tried=tried), 0)
+    for reach in WIDER_SEEDS_M if best is None else ():
+        wide = _seed_sets(middles, reach, False, MIN_PILLAR_LOCI + 1, tried)
+        best = _best_seeded(T, rho, middles, tol, seen_through, wide, MIN_PILLAR_LOCI + 1)
+        if best is not None:
+            break
     if best is None:
         return None
     found = fit_pillar(T[best[2]], rho[best[2]], middles[best[2]], tol[best[2]])
@@ -320,6 +328,27 @@ def _best_pillar(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.nd
         return None
     centre, radius, _ = found
     return centre, radius, np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
+
+
+def _best_seeded(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
+                 seen_through: SeenThrough, seeds: Iterator[np.ndarray], least: int
+                 ) -> tuple[np.ndarray, float, np.ndarray] | None:
+    """``(centre, radius, explained)`` of the circle fitted from ``seeds`` that explains
+    the most loci, at least ``least`` of them (None: none)."""
+    best = None
+    for near in seeds:
+        if len(near) > MIN_PILLAR_LOCI and not _plausible(T[near], rho[near], tol[near]):
+            continue
+        found = fit_pillar(T[near], rho[near], middles[near], tol[near])
+        if found is None or seen_through(found[0], found[1], float(rho[near][found[2]].max())):
+            continue
+        centre, radius, _ = found
+        explained = np.abs(np.hypot(*(centre - T).T) - rho - radius) <= tol
+        if explained.sum() >= least and (best is None or explained.sum() > best[2].sum()):
+            best = (centre, radius, explained)
+            if explained.all():  # no later seed set can explain more
+                break
+    return best
 
 
 def _point_residual(v: np.ndarray, T: np.ndarray, R: np.ndarray, a: np.ndarray,
@@ -553,6 +582,7 @@ __all__ = [
     "PILLAR_RADII_M",
     "PILLAR_TOL_M",
     "SEED_M",
+    "WIDER_SEEDS_M",
     "fit_circle",
     "fit_pillar",
     "pillar_arc",
