@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from clsonar.files import bundled_scenes
-from clsonar.mapping import pillars, tangents
+from clsonar.mapping import middles, pillars, tangents
 from clsonar.mapping.envelope import in_beams
 from clsonar.pipeline import run
 from clsonar.post.circles import _refine_circle
@@ -72,7 +72,7 @@ def _isolated_points_reference(s, isolated, bias, linked, env):
         elif i in linked:
             found.append(np.zeros((0, 2)))
         else:
-            found.append(tangents._middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
+            found.append(middles.middle_of_arc(s.p[i], s.inside[i], s.a[i], bias))
             if len(found[-1]):
                 stubs.append(k)
     return found, stubs

@@ -561,19 +561,27 @@ def a_plane_not_a_corner(heard: np.ndarray, plane: np.ndarray, corner: np.ndarra
     return bool(np.all(inside) and np.sum((heard - plane) ** 2) < np.sum((heard - corner) ** 2))
 
 
-def pillar_arcs(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
-                bias: float, step: float, seen_through: SeenThrough
-                ) -> dict[int, np.ndarray]:
-    """``{k: arc points}`` for the loci (T_k, ρ_k) (middle-of-arc points ``middles``, range
-    tolerances ``tol``) that a fitted pillar explains (:func:`_best_pillar`, cluster by
-    cluster, pillar after pillar): each its stretch of the pillar (:func:`pillar_arc`) in
-    place of its middle-of-arc stub."""
+def pillar_circles(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
+                   seen_through: SeenThrough) -> list[tuple[np.ndarray, float, np.ndarray]]:
+    """``[(centre, radius, loci)]``: the pillars fitted to the loci (T_k, ρ_k) (middles of
+    arc ``middles``, range tolerances ``tol``), cluster by cluster, pillar after pillar
+    (:func:`_best_pillar`), each with the indices of the loci it explains."""
 
     def best(m: np.ndarray) -> tuple[np.ndarray, float, np.ndarray] | None:
         return _best_pillar(T[m], rho[m], middles[m], tol[m], seen_through)
 
+    return [(centre, radius, ks) for (centre, radius, _), ks in _one_by_one(middles, best)]
+
+
+def pillar_arcs(T: np.ndarray, rho: np.ndarray, middles: np.ndarray, tol: np.ndarray,
+                bias: float, step: float, seen_through: SeenThrough
+                ) -> dict[int, np.ndarray]:
+    """``{k: arc points}`` for the loci (T_k, ρ_k) that a fitted pillar explains
+    (:func:`pillar_circles`): each its stretch of the pillar (:func:`pillar_arc`) in
+    place of its middle-of-arc stub."""
     return {int(k): pillar_arc(centre, radius, T[k], float(rho[k]), bias, step)
-            for (centre, radius, _), ks in _one_by_one(middles, best) for k in ks}
+            for centre, radius, ks in pillar_circles(T, rho, middles, tol, seen_through)
+            for k in ks}
 
 
 __all__ = [
@@ -587,5 +595,6 @@ __all__ = [
     "fit_pillar",
     "pillar_arc",
     "pillar_arcs",
+    "pillar_circles",
     "point_reflectors",
 ]
