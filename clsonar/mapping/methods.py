@@ -195,7 +195,8 @@ def reflector_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     other groups' tangent points (:func:`~clsonar.mapping.reflector_points`); where those
     are none, the faces two loud echoes are a plane's (counted as ``two_echo_faces``) and
     the crossings of the other loud echoes' loci (:func:`~.reflectors.loud_crossings`,
-    counted as ``crossing_points``)."""
+    counted as ``crossing_points``); else the right-angled corners whose double bounces
+    two loud echoes left over are (:func:`~.reflectors.loud_corners`, located vertices)."""
     loci = _loci(scene, detections)
     drawn = reflector_points(scene, sensors, loci)
     few = len(drawn.points) == len(drawn.vertices) == 0
