@@ -261,9 +261,24 @@ def fitpack_release() -> bool:
     """Whether the installed scipy is a release of :data:`FITPACK_SCIPY`, whose private
     FITPACK wrappers :func:`_fitpack` loads (another gets ``scipy.interpolate``'s public
     functions)."""
-    import importlib.metadata  # here, when a spline is first fitted: 15 ms at start-up
+    return installed_version("scipy").startswith(FITPACK_SCIPY)
 
-    return importlib.metadata.version("scipy").startswith(FITPACK_SCIPY)
+
+def installed_version(package: str) -> str:
+    """The installed ``package``'s version: from the one ``NAME-VERSION.dist-info`` folder
+    beside it (a wheel's layout, PEP 427: one listing of its folder, 0.1 ms), else
+    ``importlib.metadata``'s (which reads every installed distribution's metadata: 3 ms a
+    run, and 15 ms to import where nothing has)."""
+    found = importlib.util.find_spec(package)
+    if found is not None and found.origin is not None:
+        folder = os.path.dirname(os.path.dirname(found.origin))
+        names = [n for n in os.listdir(folder)
+                 if n.startswith(f"{package}-") and n.endswith(".dist-info")]
+        if len(names) == 1:
+            return names[0][len(package) + 1:-len(".dist-info")]
+    from importlib import metadata
+
+    return metadata.version(package)
 
 
 @cache

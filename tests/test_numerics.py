@@ -13,6 +13,7 @@ from scipy import optimize, special
 
 from clsonar.numerics import (
     fitpack_release,
+    installed_version,
     j1,
     median,
     minimize_bounded,
@@ -144,13 +145,11 @@ def test_the_spline_without_the_extension_files_is_scipys_public_one(monkeypatch
 def test_another_scipy_release_gets_the_public_functions(monkeypatch) -> None:
     """The private wrappers are called only for the releases whose splprep/splev call them
     so (FITPACK_SCIPY); any other release's private layout is not trusted."""
-    import importlib.metadata
-
     import clsonar.numerics as numerics
 
-    monkeypatch.setattr(importlib.metadata, "version", lambda name: "1.99.0")
+    monkeypatch.setattr(numerics, "installed_version", lambda name: "1.99.0")
     assert numerics._fitpack.__wrapped__() is None
-    monkeypatch.setattr(importlib.metadata, "version", lambda name: "1.17.9")
+    monkeypatch.setattr(numerics, "installed_version", lambda name: "1.17.9")
     assert numerics._fitpack.__wrapped__() is not None
 
 
@@ -194,3 +193,10 @@ def test_unique_union_and_difference_are_numpys(ints: list[int], others: list[in
     _same(setdiff1d(i, j), np.setdiff1d(i, j))
     rows = np.resize(i, (len(i) // 2, 2)) if len(i) >= 2 else np.zeros((0, 2), np.int64)
     _same(unique(rows, axis=0), np.unique(rows, axis=0))
+
+
+@pytest.mark.parametrize("package", ["scipy", "numpy", "pyopencl"])
+def test_an_installed_version_is_importlib_metadata_s(package: str) -> None:
+    """numerics.installed_version reads the package's dist-info folder's name: the version
+    importlib.metadata gives (which reads every installed distribution's metadata)."""
+    assert installed_version(package) == importlib.metadata.version(package)
