@@ -14,7 +14,7 @@ TEXT`` (exit status 0). Four are given:
   at which stage);
 - the map holds only faces drawn from two elements' echoes each and the points where two
   loud echoes' loci cross: too few echoes were heard for any reflector's model
-  (:func:`clsonar.mapping.reflectors.loud_crossings`).
+  (:func:`clsonar.mapping.few.loud_crossings`).
 """
 
 from __future__ import annotations

@@ -187,3 +187,14 @@ def test_a_corner_refitted_far_from_where_it_was_located_is_not_the_corner():
     assert row["passed"]
     assert row["vertex_error_m"] is not None and row["vertex_error_m"] <= 0.02
     assert row["accuracy_m"] is not None and row["accuracy_m"] <= 0.005
+
+
+def test_an_exactly_fitted_corner_of_four_echoes_shadows_its_other_double_bounces():
+    """The zoo's unseen seed 158 corner-03 (random lines, noise-free): an 87° corner whose
+    family of 4 echoes fits to 29 µm, and 14 more of its double bounces, off the right
+    angle's paths, drawn as tangent points along a line across its mouth: 3.2 cm RMS. A
+    corner fitted as exactly as noise-free detections are shadows them as one of 10
+    echoes does (reflectors.EXACT_CORNER_ROWS)."""
+    case = draw(158, "corner", 3)
+    row = score(case, run(case.scene, context=get_context(None)))
+    assert row["passed"] and row["accuracy_m"] < 0.001

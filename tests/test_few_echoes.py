@@ -7,11 +7,10 @@ from hypothesis import strategies as st
 
 from clsonar import pipeline
 from clsonar.mapping.crossings import crossing_points
-from clsonar.mapping.few import common_tangents, two_echo_corner
+from clsonar.mapping.few import common_tangents, loud_crossings, two_echo_corner
 from clsonar.mapping.loci import Loci
 from clsonar.mapping.methods import _loci
 from clsonar.mapping.patches import Patches
-from clsonar.mapping.reflectors import loud_crossings
 from clsonar.opencl import get_context
 from clsonar.scene import scene_from_dict
 from clsonar.sensors import place_sensors

@@ -1,5 +1,5 @@
 """A face heard by two elements only (``mapping.mode = "reflectors"``, where no reflector's
-model explains the few echoes heard, :func:`~.reflectors.loud_crossings`).
+model explains the few echoes heard, :func:`loud_crossings`).
 
 Two elements at T₁ and T₂ that each heard a plane straight back (T = R) have loci, circles
 of radii ρ₁ and ρ₂, both tangent to it: the plane is one of the circles' common tangents,
@@ -28,10 +28,13 @@ import numpy as np
 from ..physics import absorption_factor
 from ..scene import Scene
 from ..sensors import SensorArray
+from ..survey import DEFAULT_MIN_ENVELOPE, in_a_room
+from .crossings import crossing_points
 from .envelope import in_beams
 from .heard import heard_index
+from .joins import draw_patches
 from .loci import Loci, _subset
-from .patches import Patch, coordinates, spread_patch, strength_bend
+from .patches import Patch, Patches, coordinates, spread_patch, strength_bend
 from .strength import mirror_echo, two_way
 from .tangents import (
     HEARD_NOISE_SCALES,
@@ -192,5 +195,63 @@ def two_echo_corners(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.nd
     return np.asarray(points, dtype=np.float64).reshape(-1, 2), np.asarray(source, np.int64)
 
 
-__all__ = ["CORNER_PRECISION_M", "circle_crossings", "common_tangents", "two_echo_corner",
-           "two_echo_corners", "two_echo_face", "two_echo_faces"]
+#: The most loud echoes whose loci's crossings are a map (:func:`loud_crossings`).
+FEW_LOUD = 12
+
+
+def loud_crossings(scene: Scene, sensors: SensorArray, loci: Loci, drawn: Patches) -> Patches:
+    """``drawn``'s vertices with the faces of which two echoes as loud as a room scan's
+    floor (:data:`~clsonar.survey.DEFAULT_MIN_ENVELOPE`) are a plane's
+    (:func:`two_echo_faces`), and, each as a point found, where two other such loci
+    cross inside both joint beam regions (:func:`~.crossings.crossing_points`): what a map has where
+    :func:`reflector_points` drew nothing, too few echoes heard for any reflector's model
+    (a thin post two elements of a sparse array heard, a sinusoid's crest heard by two
+    pairs). A weak echo's locus is left out: a diffraction's or a multipath's, it would
+    cross a loud one's where no reflector is. More than :data:`FEW_LOUD` loud echoes that
+    no model explains are no longer a few: their crossings would be guesses among many
+    (and cost the square of their number), so the map stays empty."""
+    loud = np.flatnonzero(loci.amplitude >= DEFAULT_MIN_ENVELOPE)
+    if len(loud) > FEW_LOUD:
+        return drawn
+    faces, pairs = two_echo_faces(scene, sensors, loci, loud)
+    points, source = crossing_points(scene, sensors, _subset(loci, loud),
+                                     np.searchsorted(loud, pairs))
+    if faces:
+        drawn = draw_patches(scene, faces, drawn.vertices)
+    return drawn.plus(points, loud[source], points)
+
+
+def loud_corners(scene: Scene, sensors: SensorArray, loci: Loci, drawn: Patches) -> Patches:
+    """``drawn`` and the concave corners whose double bounces two loud echoes no point was
+    drawn for are (:func:`two_echo_corners`), as located vertices, each farther than
+    the pulse's resolution c·σ from what is drawn and from the others (a reflector there
+    explains the echoes: the zoo's unseen seed 125 post-02, a 7 cm post whose two echoes
+    are as loud as a corner's, crossing 1.2 cm outside its arc): :func:`loud_crossings`'
+    work where the map holds other reflectors (at most :data:`FEW_LOUD` such echoes), in
+    an open scene (a room's corners are its rings' tangent points: seed 156 room-25)."""
+    left = np.flatnonzero(loci.amplitude >= DEFAULT_MIN_ENVELOPE)
+    left = left[~np.isin(left, drawn.source)]
+    if not 2 <= len(left) <= FEW_LOUD or in_a_room(scene, sensors.positions):
+        return drawn
+    resolution = scene.medium.c * scene.transducer.pulse_sigma_s
+    points, source = two_echo_corners(scene, sensors, loci, left)
+    kept: list[int] = []
+    for k, x in enumerate(points):
+        near = np.concatenate([drawn.points, drawn.vertices.reshape(-1, 2), points[kept]])
+        if len(near) == 0 or np.hypot(*(near - x).T).min() > resolution:
+            kept.append(k)
+    return drawn.plus(points[kept], source[kept], points[kept])
+
+
+__all__ = [
+    "CORNER_PRECISION_M",
+    "FEW_LOUD",
+    "circle_crossings",
+    "common_tangents",
+    "loud_corners",
+    "loud_crossings",
+    "two_echo_corner",
+    "two_echo_corners",
+    "two_echo_face",
+    "two_echo_faces",
+]

@@ -21,10 +21,11 @@ from ..signals import Detections
 from .arcs import arc_middles, cell_points, closed_arc_map
 from .crossings import arc_transversal_medians, triangulated_points
 from .directional import arc_maxima
+from .few import loud_corners, loud_crossings
 from .launch import AccumulationStats, accumulate_with_stats, backproject, occupancy_grid
 from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
 from .occupancy import OCCUPIED_LOG_ODDS
-from .reflectors import loud_corners, loud_crossings, reflector_points
+from .reflectors import reflector_points
 from .tangents import tangent_map
 
 if TYPE_CHECKING:
@@ -194,9 +195,9 @@ def reflector_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     models, planes and circles drawn as points, points and corners located as vertices;
     other groups' tangent points (:func:`~clsonar.mapping.reflector_points`); where those
     are none, the faces two loud echoes are a plane's (counted as ``two_echo_faces``) and
-    the crossings of the other loud echoes' loci (:func:`~.reflectors.loud_crossings`,
+    the crossings of the other loud echoes' loci (:func:`~.few.loud_crossings`,
     counted as ``crossing_points``); else the right-angled corners whose double bounces
-    two loud echoes left over are (:func:`~.reflectors.loud_corners`, located vertices)."""
+    two loud echoes left over are (:func:`~.few.loud_corners`, located vertices)."""
     loci = _loci(scene, detections)
     drawn = reflector_points(scene, sensors, loci)
     few = len(drawn.points) == len(drawn.vertices) == 0
