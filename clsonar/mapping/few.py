@@ -25,7 +25,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..physics import absorption_factor
 from ..scene import Scene
 from ..sensors import SensorArray
 from ..survey import DEFAULT_MIN_ENVELOPE, in_a_room
@@ -34,8 +33,9 @@ from .envelope import in_beams
 from .heard import heard_index
 from .joins import draw_patches
 from .loci import Loci, _subset
+from .models import circles_meet
 from .patches import Patch, Patches, coordinates, spread_patch, strength_bend
-from .strength import mirror_echo, two_way
+from .strength import corner_echo
 from .tangents import (
     HEARD_NOISE_SCALES,
     envelope_noise,
@@ -121,15 +121,11 @@ def two_echo_faces(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndar
 
 def circle_crossings(T: np.ndarray, rho: np.ndarray) -> np.ndarray:
     """[k, 2] the points where the circles (``T[0]``, ``rho[0]``) and (``T[1]``, ``rho[1]``)
-    cross (none where they do not meet, or share a centre)."""
-    d = T[1] - T[0]
-    dist = float(np.hypot(*d))
+    cross (none where they do not meet, or share a centre; :func:`~.models.circles_meet`)."""
+    dist = float(np.hypot(*(T[1] - T[0])))
     if dist == 0.0 or dist > rho[0] + rho[1] or dist < abs(float(rho[0] - rho[1])):
         return np.zeros((0, 2))
-    along = (rho[0] ** 2 - rho[1] ** 2 + dist**2) / (2 * dist)
-    across = math.sqrt(max(float(rho[0] ** 2 - along**2), 0.0))
-    u = d / dist
-    return T[0] + along * u + np.array([across, -across])[:, None] * np.array([-u[1], u[0]])
+    return circles_meet(T, rho)
 
 
 #: A concave corner is located from two echoes only where their loci's crossing moves by
@@ -169,9 +165,7 @@ def two_echo_corner(scene: Scene, sensors: SensorArray, loci: Loci, pair: np.nda
     u = (x[0] - T) / np.maximum(rho, 1e-12)[:, None]
     if float(tol.max()) > CORNER_PRECISION_M * abs(float(u[0, 0] * u[1, 1] - u[0, 1] * u[1, 0])):
         return None
-    mirror = mirror_echo(scene) * scene.echo.reflection_coefficient
-    corner = mirror * absorption_factor(2.0 * rho, scene.echo.absorption_db_per_m) * two_way(
-        np.tile(x[0], (2, 1)), T, axes, T, axes, ka)
+    corner = corner_echo(scene, x[0], T, axes, rho, ka)
     spare = HEARD_NOISE_SCALES * envelope_noise(scene)
     return x[0] if np.all(np.abs(heard - corner) <= FACE_ECHO_SHARE * corner + spare) else None
 
@@ -200,16 +194,16 @@ FEW_LOUD = 12
 
 
 def loud_crossings(scene: Scene, sensors: SensorArray, loci: Loci, drawn: Patches) -> Patches:
-    """``drawn``'s vertices with the faces of which two echoes as loud as a room scan's
-    floor (:data:`~clsonar.survey.DEFAULT_MIN_ENVELOPE`) are a plane's
-    (:func:`two_echo_faces`), and, each as a point found, where two other such loci
-    cross inside both joint beam regions (:func:`~.crossings.crossing_points`): what a map has where
-    :func:`reflector_points` drew nothing, too few echoes heard for any reflector's model
-    (a thin post two elements of a sparse array heard, a sinusoid's crest heard by two
-    pairs). A weak echo's locus is left out: a diffraction's or a multipath's, it would
-    cross a loud one's where no reflector is. More than :data:`FEW_LOUD` loud echoes that
-    no model explains are no longer a few: their crossings would be guesses among many
-    (and cost the square of their number), so the map stays empty."""
+    """``drawn``'s vertices with the faces of which two echoes as loud as a room scan's floor
+    (:data:`~clsonar.survey.DEFAULT_MIN_ENVELOPE`) are a plane's (:func:`two_echo_faces`), and, each
+    as a point found, where two other such loci cross inside both joint beam regions
+    (:func:`~.crossings.crossing_points`): what a map has where
+    :func:`~.reflectors.reflector_points` drew nothing, too few echoes heard for any reflector's
+    model (a thin post two elements of a sparse array heard, a sinusoid's crest heard by two pairs).
+    A weak echo's locus is left out: a diffraction's or a multipath's, it would cross a loud one's
+    where no reflector is. More than :data:`FEW_LOUD` loud echoes that no model explains are no
+    longer a few: their crossings would be guesses among many (and cost the square of their number),
+    so the map stays empty."""
     loud = np.flatnonzero(loci.amplitude >= DEFAULT_MIN_ENVELOPE)
     if len(loud) > FEW_LOUD:
         return drawn

@@ -411,11 +411,12 @@ def cut_at_vertices(patches: list[Patch], vertices: np.ndarray, inside: float
     edge-01: a circle fitted to a face and its edge's echoes, 12 cm past the edge)."""
     cut = []
     for p in patches:
-        scale = 1.0 if p.straight else abs(float(curve_geometry(p.params, p.x0)[1]))
-        for v in vertices if flat(p) else ():
-            foot, off = _foot(p, v)
-            if abs(off) <= VERTEX_ON_LINE_M:
-                p = _cut(p, foot, inside / max(scale, 1e-12))
+        if flat(p):
+            scale = 1.0 if p.straight else abs(float(curve_geometry(p.params, p.x0)[1]))
+            for v in vertices:
+                foot, off = _foot(p, v)
+                if abs(off) <= VERTEX_ON_LINE_M:
+                    p = _cut(p, foot, inside / max(scale, 1e-12))
         cut.append(p)
     return cut
 

@@ -22,7 +22,7 @@ def arcs_around(env: tuple[np.ndarray, ...], bias: float) -> tuple[np.ndarray, n
 
 
 def middle_of_arc(samples: np.ndarray, inside: np.ndarray, a: float,
-                   bias: float) -> np.ndarray:
+                  bias: float) -> np.ndarray:
     """The samples within ±sqrt(2·a·bias) of arc around the middle of the in-beam run."""
     idx = np.flatnonzero(inside)
     if len(idx) == 0:

@@ -82,6 +82,17 @@ def plane_points(phi: float, d: float, T: np.ndarray, R: np.ndarray
     return path, T + share[:, None] * (mirror - T)
 
 
+def circles_meet(T: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """[2, 2] where the circles (``T[0]``, ``rho[0]``) and (``T[1]``, ``rho[1]``) cross
+    (where they do not meet, the point between them on the line of centres, twice)."""
+    d = T[1] - T[0]
+    dist = max(float(np.hypot(*d)), 1e-12)
+    along = (rho[0] ** 2 - rho[1] ** 2 + dist**2) / (2 * dist)
+    across = math.sqrt(max(float(rho[0] ** 2 - along**2), 0.0))
+    u = d / dist
+    return T[0] + along * u + np.array([across, -across])[:, None] * np.array([-u[1], u[0]])
+
+
 def circle_points(centre: np.ndarray, rho: float, sign: float, T: np.ndarray,
                   R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(path [n], q [n, 2])`` for the circle of ``centre`` and signed radius ``rho``
@@ -406,7 +417,7 @@ def plane_start(x0: np.ndarray, T: np.ndarray, R: np.ndarray, paths: np.ndarray,
 
 
 __all__ = ["CORNER_STEPS", "CURVE_STEPS", "FRAME_M", "PSI_PLANE", "SPECULAR_STEPS", "Fit",
-           "PathModel", "apart", "circle_points", "corner_images", "corner_paths",
+           "PathModel", "apart", "circle_points", "circles_meet", "corner_images", "corner_paths",
            "curve_frame", "curve_geometry", "curve_paths", "dot2", "ellipse_axes", "fit_corner",
            "fit_curve",
            "fit_point", "gram", "least_squares", "plane_points", "plane_start", "point_paths",

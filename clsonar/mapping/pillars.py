@@ -18,6 +18,7 @@ import numpy as np
 
 from .. import steps
 from ..numerics import minimize_bounded, unique
+from .models import circles_meet
 from .strength import EDGE_SHARE
 
 #: Candidate loci whose middle-of-arc points lie within this of each other are fitted
@@ -537,14 +538,8 @@ PLANE_AND_EDGE = 1.0 + EDGE_SHARE
 def loci_crossing(T: np.ndarray, rho: np.ndarray, near: np.ndarray) -> np.ndarray:
     """The crossing of the circles (``T[0]``, ``rho[0]``) and (``T[1]``, ``rho[1]``) nearer
     ``near`` (where they only touch, the point between them on the line of centres): a
-    point reflector heard by both would lie there."""
-    d = T[1] - T[0]
-    dist = max(float(np.hypot(*d)), 1e-12)
-    along = (rho[0] ** 2 - rho[1] ** 2 + dist**2) / (2 * dist)
-    across = math.sqrt(max(float(rho[0] ** 2 - along**2), 0.0))
-    u = d / dist
-    v = np.array([-u[1], u[0]])
-    points = T[0] + along * u + np.array([across, -across])[:, None] * v
+    point reflector heard by both would lie there (:func:`~.models.circles_meet`)."""
+    points = circles_meet(T, rho)
     return points[int(np.argmin(np.hypot(*(points - near).T)))]
 
 

@@ -446,14 +446,14 @@ EXACT_CORNER_ROWS = 4
 
 def _unshadowed(scene: Scene, sensors: SensorArray, loci: Loci, families: list[Family],
                 rest: np.ndarray, resolution: float) -> np.ndarray:
-    """The rows of ``rest`` (detections no family explains) that no located corner
-    predicts within the pulse's ``resolution`` (:func:`near_vertex`): a
-    double bounce that an overlapping echo shifted, or its other order, is left out as
-    the window search shadows one (the zoo's seed 6 corner-00: five echoes of an 85°
-    corner, within 2 mm of its located vertex's paths, drawn as a 30 cm stroke across its
-    mouth by tangent points). Only about a corner that :data:`SHADOWING_ROWS` echoes or
-    more located, not about a located point: beside a sinusoid's crest, or a trough that
-    three echoes named a corner, a leftover echo's tangent point is its flank's."""
+    """The rows of ``rest`` (detections no family explains) that no located corner predicts within
+    the pulse's ``resolution`` (:func:`near_vertex`): a double bounce that an overlapping echo
+    shifted, or its other order, is left out as the window search shadows one (the zoo's seed 6
+    corner-00: five echoes of an 85° corner, within 2 mm of its located vertex's paths, drawn as a
+    30 cm stroke across its mouth by tangent points). Only about a corner that
+    :data:`SHADOWING_ROWS` echoes or more located (or :data:`EXACT_CORNER_ROWS`, fitted exactly),
+    not about a located point: beside a sinusoid's crest, or a trough that three echoes named a
+    corner, a leftover echo's tangent point is its flank's."""
     vertices = [f for f in families if f.kind == "corner" and (
         len(f.rows) >= SHADOWING_ROWS
         or (len(f.rows) >= EXACT_CORNER_ROWS and f.rms <= BASE_TOLERANCE_M))]

@@ -236,6 +236,17 @@ def edge_distance(ratio: np.ndarray, T: np.ndarray, R: np.ndarray, q: np.ndarray
     return np.where(first == 0, 0.0, np.where(first == len(grid), float(reach), 0.5 * (lo + hi)))
 
 
+def corner_echo(scene: Scene, vertex: np.ndarray, T: np.ndarray, axes: np.ndarray,
+                rho: np.ndarray, ka: float) -> np.ndarray:
+    """[k] The echo a concave right-angled corner at ``vertex`` returns to the transducers
+    at ``T`` [k, 2] with unit ``axes`` [k, 2], each its own receiver, ``rho`` [k] away: its
+    double bounce, a mirror's A0·ρ with the absorption over 2ρ, times the reflection
+    coefficient (the second bounce) and the two-way beam towards the vertex."""
+    mirror = mirror_echo(scene) * absorption_factor(2.0 * rho, scene.echo.absorption_db_per_m)
+    return mirror * scene.echo.reflection_coefficient * two_way(
+        np.tile(vertex, (len(T), 1)), T, axes, T, axes, ka)
+
+
 def circle_echo(scene: Scene, T: np.ndarray, axes: np.ndarray, centre: np.ndarray,
                 radius: float) -> np.ndarray:
     """[k] The echo amplitude a circle (``centre``, ``radius``: a pillar) returns to the
@@ -262,6 +273,7 @@ __all__ = [
     "as_flat_as_its_range",
     "circle_echo",
     "convex_share",
+    "corner_echo",
     "edge_distance",
     "face_end_echo",
     "loud_beams",

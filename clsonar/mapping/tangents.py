@@ -39,7 +39,7 @@ from .pillars import (
     point_reflectors,
 )
 from .points import densified, nonzero_cells
-from .strength import circle_echo, loud_beams, mirror_echo, quieter_than_a_plane
+from .strength import circle_echo, corner_echo, loud_beams, mirror_echo, quieter_than_a_plane
 
 #: Most radial error a pair of loci may contribute: two circles of radius r tangent to a
 #: plane at feet δ apart cross δ²/(8r) in front of it, so pairs need δ ≤ sqrt(8·r·bias).
@@ -448,10 +448,9 @@ def plane_and_corner(scene: Scene, s: SampledLoci, idx: np.ndarray, normal: np.n
     _, ka = scene.transducer.beam(scene.medium.c)
     T, axes, rho = s.T[idx], s.axes[s.loci.tx[idx]], s.a[idx]
     q = T - rho[:, None] * normal
-    corner = np.tile(loci_crossing(T, rho, q.mean(axis=0)), (len(idx), 1))
     mirror = mirror_echo(scene) * absorption_factor(2.0 * rho, scene.echo.absorption_db_per_m)
     return (mirror * two_way(q, T, axes, T, axes, ka),
-            mirror * scene.echo.reflection_coefficient * two_way(corner, T, axes, T, axes, ka))
+            corner_echo(scene, loci_crossing(T, rho, q.mean(axis=0)), T, axes, rho, ka))
 
 
 def _two_pose_faces(scene: Scene, sensors: SensorArray, s: SampledLoci, points: np.ndarray,
