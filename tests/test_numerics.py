@@ -15,6 +15,7 @@ from clsonar.numerics import (
     fitpack_release,
     installed_version,
     j1,
+    lstsq,
     median,
     minimize_bounded,
     parametric_spline,
@@ -200,3 +201,26 @@ def test_an_installed_version_is_importlib_metadata_s(package: str) -> None:
     """numerics.installed_version reads the package's dist-info folder's name: the version
     importlib.metadata gives (which reads every installed distribution's metadata)."""
     assert installed_version(package) == importlib.metadata.version(package)
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.integers(1, 40), st.integers(1, 3), st.integers(0, 2**32 - 1), st.booleans(),
+       st.sampled_from([1e-6, 1.0, 1e6]))
+def test_lstsq_is_numpys(m: int, n: int, seed: int, repeated: bool, scale: float) -> None:
+    """numerics.lstsq gives np.linalg.lstsq's solution to the bit: over- and
+    under-determined, of full rank or with a column repeated (rank-deficient), at any
+    scale."""
+    rng = np.random.default_rng(seed)
+    a = rng.normal(size=(m, n)) * scale
+    if repeated and n > 1:
+        a[:, -1] = a[:, 0]
+    b = rng.normal(size=m)
+    _same(lstsq(a, b), np.linalg.lstsq(a, b, rcond=None)[0])
+    column = np.asfortranarray(a)  # as the Gauss–Newton Jacobians are laid out
+    _same(lstsq(column, b), np.linalg.lstsq(column, b, rcond=None)[0])
+
+
+def test_lstsq_fails_as_numpy_does() -> None:
+    """A NaN makes LAPACK's SVD fail: numpy's LinAlgError, as np.linalg.lstsq raises."""
+    with pytest.raises(np.linalg.LinAlgError, match="SVD did not converge"):
+        lstsq(np.full((3, 2), np.nan), np.ones(3))

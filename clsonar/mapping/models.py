@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..numerics import median
+from ..numerics import lstsq, median
 
 #: Below this |ψ| (1/m) the curve model is the plane itself (a circle of radius 10⁶ m
 #: leaves its tangent by 0.5 µm over 1 m).
@@ -320,7 +320,7 @@ def _damped_step(H: np.ndarray, g: np.ndarray, lam: float) -> np.ndarray:
     try:
         return np.linalg.solve(A, g)
     except np.linalg.LinAlgError:
-        return np.linalg.lstsq(A, g, rcond=None)[0]
+        return lstsq(A, g)
 
 
 #: Finite-difference steps of the curve model's (φ, d, ψ) and of a point's or corner's

@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 import numpy as np
 
 from .. import steps
-from ..numerics import minimize_bounded, unique
+from ..numerics import lstsq, minimize_bounded, unique
 from .models import circles_meet
 from .strength import EDGE_SHARE
 
@@ -193,7 +193,8 @@ def _halved(residual: Callable[[np.ndarray], np.ndarray], x: np.ndarray, step: n
 def _least_squares_step(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
     """The least-squares solution s of J·s = r: for two unknowns by the normal equations
     (Cramer's rule: a tenth of ``numpy.linalg.lstsq``'s cost, and this runs thousands of
-    times a map), by ``lstsq`` for more or where J is (nearly) of rank one."""
+    times a map), by ``lstsq`` (:func:`~clsonar.numerics.lstsq`, NumPy's to the bit) for
+    more or where J is (nearly) of rank one."""
     if jac.shape[1] == 2:  # the sums by numpy (BLAS), the rest in floats: the same IEEE
         jx, jy = jac[:, 0], jac[:, 1]
         a, b, c = float(jx.dot(jx)), float(jx.dot(jy)), float(jy.dot(jy))
@@ -201,7 +202,7 @@ def _least_squares_step(jac: np.ndarray, r: np.ndarray) -> np.ndarray:
         if det > 1e-10 * a * c:  # J's columns far from parallel: a well-posed 2 × 2 solve
             gx, gy = float(jx.dot(r)), float(jy.dot(r))
             return np.array([(c * gx - b * gy) / det, (a * gy - b * gx) / det])
-    return np.linalg.lstsq(jac, r, rcond=None)[0]
+    return lstsq(jac, r)
 
 
 #: Gauss–Newton steps of :func:`_gauss_newton`, and the step (metres) at which it stops: a
@@ -276,7 +277,7 @@ def _plausible(T: np.ndarray, rho: np.ndarray, tol: np.ndarray) -> bool:
     w = |C|² − R²: one least-squares solve) explains :data:`MIN_PILLAR_LOCI` of them within
     three times their tolerance — the quick test before the least-squares fit."""
     a = np.column_stack([-2.0 * T, -2.0 * rho, np.ones(len(T))])
-    x = np.linalg.lstsq(a, rho * rho - np.sum(T * T, axis=1), rcond=None)[0]
+    x = lstsq(a, rho * rho - np.sum(T * T, axis=1))
     off = np.abs(np.hypot(*(x[:2] - T).T) - rho - x[2])
     return bool(np.count_nonzero(off <= 3.0 * tol) >= MIN_PILLAR_LOCI)
 
