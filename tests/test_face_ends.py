@@ -336,7 +336,8 @@ def test_a_face_every_pair_beyond_heard_fading_ends_where_its_echo_says():
     heard it weak (falling towards half a mirror's): the face ends where a face ending
     there gives the weak pairs' echoes (the median of theirs), no nearer than the
     farthest pair's reflection point; at that point with the edges' estimate model (no
-    such fall); not at all (inf) where the farthest pair heard it fully."""
+    such fall); not at all (inf) where the farthest pair heard it fully; at the farthest
+    pair's reflection point where it heard it raised."""
     from clsonar import physics
     from clsonar.mapping.patches import _fading_end
     from clsonar.mapping.strength import face_end_echo
@@ -351,13 +352,33 @@ def test_a_face_every_pair_beyond_heard_fading_ends_where_its_echo_says():
     ratio = face_end_echo(T, T, np.tile(q + edge * t, (5, 1)), t, k,
                           scene.echo.reflection_coefficient)
     weak = ratio < 0.85
-    end = _fading_end(scene, q, t, along, ratio, weak, T, T, 0.5)
+    none = np.zeros(5, dtype=bool)
+    end = _fading_end(scene, q, t, along, ratio, weak, none, T, T, 0.5)
     assert weak[-1] and end == pytest.approx(edge, abs=1e-5)
     estimate = replace(scene, echo=EchoModel(edge_model="estimate"))
-    assert _fading_end(estimate, q, t, along, ratio, weak, T, T, 0.5) == 0.03
+    assert _fading_end(estimate, q, t, along, ratio, weak, none, T, T, 0.5) == 0.03
     full = weak.copy()
     full[-1] = False
-    assert _fading_end(scene, q, t, along, ratio, full, T, T, 0.5) == math.inf
+    assert _fading_end(scene, q, t, along, ratio, full, none, T, T, 0.5) == math.inf
+    # the farthest raised instead (the edge's diffraction in phase): the face ends there
+    raised = ~full & (np.arange(5) == 4)
+    assert _fading_end(scene, q, t, along, ratio, full, raised, T, T, 0.5) == 0.03
+
+
+def test_a_face_whose_farthest_pair_beyond_heard_it_raised_ends_there():
+    """The zoo's unseen seed 172 wall-04 (three arrays, noise-free): beyond a family's last
+    reflection point, 6 cm from the wall's free end, its array's pairs heard 0.90, 1.14
+    and (the farthest) 1.15 of its echo, none silent, and the face was drawn over its
+    region of constant depth 7 cm past the end (0.89 cm RMS). A raised echo is the edge's
+    diffraction in phase, a Fresnel zone or so from the edge: the face ends there."""
+    from clsonar import pipeline
+    from clsonar.opencl import get_context
+    from clsonar.tools.zoo.cases import draw
+    from clsonar.tools.zoo.score import score
+
+    case = draw(172, "wall", 4)
+    row = score(case, pipeline.run(case.scene, context=get_context()))
+    assert row["passed"] and row["accuracy_m"] <= 0.001
 
 
 def test_a_noisy_face_whose_last_pairs_heard_it_fading_is_drawn_to_its_edge():

@@ -151,3 +151,47 @@ def test_a_corner_two_elements_heard_by_its_double_bounce_is_its_vertex():
     loci = _loci(wall, done.detections)
     assert len(loci) == 2
     assert two_echo_corner(wall, done.sensors, loci, np.array([0, 1])) is None
+
+
+def test_an_echo_from_where_two_drawn_faces_cross_is_their_vertex():
+    """few.faces_corners: two straight faces drawn 1 m short of where their lines cross
+    (a right-angled corner at (0.2, 3.0)), and one element's echo from that point, too
+    weak for a tangent point: the crossing is a located vertex. Not with the echo 1 cm
+    off in path, nor with a vertex drawn there already, nor for faces 10° apart."""
+    from clsonar.mapping.few import faces_corners
+
+    corner = np.array([0.2, 3.0])
+    scene, sensors, T = _two_elements(corner, (-0.2, 0.3), (0.0, 0.0))
+    left = np.linspace(-1.8, -0.8, 21)[:, None] * np.array([[1.0, 0.0]]) + corner
+    up = np.linspace(1.2, 2.0, 17)[:, None] * np.array([[0.0, 1.0]]) + corner
+    points = np.concatenate([left, up])
+    ends = np.array([len(left), len(points)])
+    source = np.zeros(len(points), np.int64)  # every point credited to locus 0
+    drawn = Patches(points, source, np.zeros((0, 2)), ends)
+    path = 2 * np.hypot(*(corner - T[1]))
+    for off, found in ((0.0, 1), (0.01, 0)):
+        loci = Loci(np.array([0, 1]), np.array([0, 1]),
+                    np.array([1.0, (path + off) / scene.medium.c]), np.array([2.0, 0.27]))
+        out = faces_corners(scene, sensors, loci, drawn)
+        assert len(out.vertices) == found
+        if found:
+            np.testing.assert_allclose(out.vertices[0], corner, atol=1e-9)
+            assert out.source[-1] == 1
+    loci = Loci(np.array([0, 1]), np.array([0, 1]), np.array([1.0, path / scene.medium.c]),
+                np.array([2.0, 0.27]))
+    there = Patches(points, source, corner[None], ends)
+    assert len(faces_corners(scene, sensors, loci, there).vertices) == 1
+    turn = np.radians(10.0)
+    tilted = np.linspace(1.2, 2.0, 17)[:, None] * np.array([[-np.cos(turn), np.sin(turn)]])
+    shallow = Patches(np.concatenate([left, tilted + corner]), source, np.zeros((0, 2)), ends)
+    assert len(faces_corners(scene, sensors, loci, shallow).vertices) == 0
+
+
+def test_a_corner_whose_walls_were_drawn_short_is_located_by_its_double_bounce():
+    """The zoo's unseen seed 171 corner-07 (random lines, noise-free): both walls of a
+    right-angled corner 2.1 m away were drawn, each about 1 m short of it, and one element
+    heard its double bounce at 0.27 units: the vertex was 95 cm from the map. The walls'
+    lines cross where that echo came from: the vertex, 0.001 cm off."""
+    case = draw(171, "corner", 7)
+    row = score(case, pipeline.run(case.scene, context=get_context()))
+    assert row["passed"] and row["vertex_error_m"] < 0.001

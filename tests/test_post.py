@@ -281,3 +281,22 @@ def test_a_patch_of_one_point_is_kept_and_longer_patches_lose_lone_points():
     keep = np.array([True, True, False, True, True])  # the patch's 2nd point out of sight
     out = with_patches(Profile(()), points, ends, keep, 0.02)
     assert [c.tolist() for c in out.curves] == [[[0.0, 0.0]], [[1.2, 0.0], [2.0, 0.0]]]
+
+
+@pytest.mark.parametrize("cell, kept", [(0.005, False), (0.01, False), (0.02, True)])
+def test_a_short_diagonal_curve_is_a_speck_only_on_small_cells(cell, kept):
+    """Three diagonal cells beside a long curve: 2.8 cells long, a speck on a map of 0.5
+    or 1 cm cells, but 5.7 cm of surface on one of 2 cm cells (a pillar's stub, the zoo's
+    unseen seed 170 room-16), which is kept (post.profile.MIN_CURVE_M). Five cells in a
+    row (4 cells long), or four on a diagonal (4.2), are no speck at any cell size."""
+    from clsonar.post.profile import _traced
+
+    t = np.zeros((30, 30), dtype=bool)
+    t[2, 2:28] = True  # a long curve
+    for k in range(3):
+        t[10 + k, 10 + k] = True
+    curves = _traced(t, cell)
+    assert len(curves) == (2 if kept else 1)
+    t[13, 13] = True
+    t[20, 5:10] = True
+    assert len(_traced(t, cell)) == 3

@@ -405,9 +405,9 @@ def test_a_convex_edge_is_located_with_the_defaults_from_2_to_4_m(distance):
 @given(st.lists(st.integers(-20, 20), min_size=1, max_size=40),
        st.lists(st.integers(-50, 50), min_size=1, max_size=40), st.sampled_from([1, 2, 4]))
 def test_nearest_index_is_the_argmin_of_the_distances(values, queries, scale):
-    """Issue 19: patches.nearest_index (binary search) picks the same index as the
+    """Issue 19: numerics.nearest_index (binary search) picks the same index as the
     [queries × values] argmin, ties included (half-integer queries meet exact ties)."""
-    from clsonar.mapping.patches import nearest_index
+    from clsonar.numerics import nearest_index
 
     v = np.asarray(values, dtype=np.float64) / scale
     q = np.asarray(queries, dtype=np.float64) / (2 * scale)

@@ -1096,6 +1096,20 @@ def test_a_pillar_s_echoes_from_two_poses_are_no_face_tangent_to_it():
     assert row["passed"] and row["accuracy_m"] < 0.002
 
 
+def test_a_pillar_s_stubs_on_a_map_of_2_cm_cells_are_mapped():
+    """The zoo's unseen seed 170 room-16 (rings round a rectangular room with two pillars,
+    2 cm cells): eight of the pillars' stubs, each one locus' 10 cm of arc, thinned to
+    three diagonal cells and were left out as specks: 93 % complete. A curve 4 cm long is
+    no speck (post.profile.MIN_CURVE_M): 100 %."""
+    from clsonar.opencl import get_context
+    from clsonar.tools.zoo.cases import draw
+    from clsonar.tools.zoo.score import score
+
+    case = draw(170, "room", 16)
+    row = score(case, clsonar.pipeline.run(case.scene, context=get_context(None)))
+    assert row["passed"] and row["completeness_3cm"] > 0.99
+
+
 def test_an_element_before_its_ring_turns_keeps_its_envelope_point(room_scene):
     """Rings written by hand turn with their path (the zoo's unseen seed 62 room-28): at
     the last pose before a bend, the element facing a wall has its neighbour after the

@@ -200,6 +200,6 @@ def test_short_curves_are_the_profile_only_where_the_map_has_no_other():
     thin = np.zeros((20, 40), dtype=bool)
     thin[5, 2:2 + LEAST_CURVE_CELLS + 1] = True  # a speck of three cells
     thin[15, 30] = True  # a lone cell
-    assert [len(c) for c in _traced(thin)] == [LEAST_CURVE_CELLS + 1]
+    assert [len(c) for c in _traced(thin, 0.01)] == [LEAST_CURVE_CELLS + 1]
     thin[10, 10:10 + MIN_CURVE_CELLS] = True  # a curve: the speck is left out
-    assert [len(c) for c in _traced(thin)] == [MIN_CURVE_CELLS]
+    assert [len(c) for c in _traced(thin, 0.01)] == [MIN_CURVE_CELLS]

@@ -21,7 +21,7 @@ from ..signals import Detections
 from .arcs import arc_middles, cell_points, closed_arc_map
 from .crossings import arc_transversal_medians, triangulated_points
 from .directional import arc_maxima
-from .few import loud_corners, loud_crossings
+from .few import faces_corners, loud_corners, loud_crossings
 from .launch import AccumulationStats, accumulate_with_stats, backproject, occupancy_grid
 from .loci import Loci, as_loci, count_viewpoints, merge_reciprocal
 from .occupancy import OCCUPIED_LOG_ODDS
@@ -197,14 +197,16 @@ def reflector_votes(scene: Scene, sensors: SensorArray, echoes: EchoTable,
     are none, the faces two loud echoes are a plane's (counted as ``two_echo_faces``) and
     the crossings of the other loud echoes' loci (:func:`~.few.loud_crossings`,
     counted as ``crossing_points``); else the right-angled corners whose double bounces
-    two loud echoes left over are (:func:`~.few.loud_corners`, located vertices)."""
+    two loud echoes left over are (:func:`~.few.loud_corners`, located vertices), and the
+    crossings of two drawn faces' lines that an echo left over came from
+    (:func:`~.few.faces_corners`)."""
     loci = _loci(scene, detections)
     drawn = reflector_points(scene, sensors, loci)
     few = len(drawn.points) == len(drawn.vertices) == 0
     if few:
         drawn = loud_crossings(scene, sensors, loci, drawn)
     else:
-        drawn = loud_corners(scene, sensors, loci, drawn)
+        drawn = faces_corners(scene, sensors, loci, loud_corners(scene, sensors, loci, drawn))
     face_points = int(drawn.ends[-1]) if len(drawn.ends) else 0  # the patches' points first
     return Votes(points=drawn.points, tx=loci.tx[drawn.source], rx=loci.rx[drawn.source],
                  vertices=drawn.vertices, patch_ends=drawn.ends,

@@ -29,7 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import steps
-from ..numerics import median, percentile, unique
+from ..numerics import median, nearest_index, percentile, unique
 from ..physics import wavenumber
 from ..scene import Scene
 from ..sensors import SensorArray
@@ -212,6 +212,7 @@ def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
         found.append((u[keep], ratio[keep], loud[keep], spread[keep], T[keep], R[keep]))
     u, ratio, loud, spread, T, R = (np.concatenate(parts) for parts in zip(*found, strict=True))
     weak = loud & _weakened(ratio, spread, middle)
+    raised = loud & _raised(p, found[0][1], found[0][3], ratio, spread)
     gauged = math.isfinite(p.bend) and flat(p)
     # a circle the detections cannot tell from its tangent (its ψ within 3σ of 0)
     line = p.straight or abs(float(p.params[2])) <= p.bend
@@ -226,7 +227,7 @@ def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
         if math.isinf(stop) and gauged and line:
             reach = first - lo if sign < 0 else hi - last
             stop = _fading_end(scene, q, outward(p, end), along, ratio[side], weak[side],
-                               T[side], R[side], reach)
+                               raised[side], T[side], R[side], reach)
         if stop == 0 or math.isinf(stop):
             ends.append(end + sign * stop)
         elif line:
@@ -301,8 +302,8 @@ def _end(along: np.ndarray, ratio: np.ndarray, loud: np.ndarray, gauged: bool,
 
 
 def _fading_end(scene: Scene, q: np.ndarray, t: np.ndarray, along: np.ndarray,
-                ratio: np.ndarray, weak: np.ndarray, T: np.ndarray, R: np.ndarray,
-                reach: float) -> float:
+                ratio: np.ndarray, weak: np.ndarray, raised: np.ndarray, T: np.ndarray,
+                R: np.ndarray, reach: float) -> float:
     """Where a face ends that every pair beyond its reflection points heard (``along``
     their reflection points' distances from its end ``q``, along its outward tangent
     ``t``), the farthest ``weak``: its echo falls towards half a mirror's as the face
@@ -310,13 +311,18 @@ def _fading_end(scene: Scene, q: np.ndarray, t: np.ndarray, along: np.ndarray,
     a face ending there echoes its ``ratio`` of a mirror's (:func:`~.strength.edge_distance`,
     at most ``reach`` past ``q``; at its reflection point with the edges' echo model the
     estimate, which has no such fall); the median of theirs, no nearer than the farthest
-    pair's reflection point, which lies on the face. Inf where the farthest pair beyond
-    is not weak (the face may go on). The zoo's unseen seed 59 edge-02 (σ 0.3): two pairs
-    beyond heard 0.83 and 0.72 of a mirror's, none was silent, and the face was drawn
-    19 cm past its edge."""
+    pair's reflection point, which lies on the face. Where the farthest is ``raised``
+    instead (:func:`_raised`: the edge's diffraction in phase, a Fresnel zone or so from
+    the edge), the face ends at its reflection point, as at a face's own raised last echo
+    (:func:`weakened_ends`). Inf where the farthest pair beyond is neither (the face may
+    go on). The zoo's unseen seed 59 edge-02 (σ 0.3): pairs beyond heard 0.83 and 0.72 of
+    a mirror's, and the face was drawn 19 cm past its edge; seed 172 wall-04: 0.90, 1.14
+    and, the farthest, 1.15, and it was drawn 7 cm past a free end."""
     last = int(np.argmax(along))
-    if along[last] <= 0 or not weak[last]:
+    if along[last] <= 0 or not (weak[last] or raised[last]):
         return math.inf
+    if not weak[last]:
+        return float(along[last])
     k = np.flatnonzero(weak & (along > 0))
     s = _to_edge(scene, ratio[k], T[k], R[k], q + along[k][:, None] * t, t,
                  max(reach - float(along[last]), 0.0))
@@ -358,6 +364,19 @@ def _spread(scene: Scene, echo: np.ndarray) -> np.ndarray:
     """Three σ of a detection's amplitude noise (:func:`amplitude_noise`) over ``echo``:
     of its ratio to the surface's echo."""
     return 3.0 * amplitude_noise(scene) / np.maximum(echo, 1e-300)
+
+
+def _raised(p: Patch, own: np.ndarray, own_spread: np.ndarray, ratio: np.ndarray,
+            spread: np.ndarray) -> np.ndarray:
+    """Echoes (``ratio`` of the surface's, noise ``spread``) over :data:`END_RAISED` of the
+    face's own (``own``, noise ``own_spread``) beyond noise, where a mirror's echo is the
+    surface's within 5 % (κ·r ≤ 0.1) and its own are steady (no sinusoid's stretch)."""
+    middle = float(median(own))
+    low, high = percentile(own, [10, 90])
+    if (0.5 * float(median(p.paths)) <= 0.1 * abs(curve_geometry(p.params, p.x0)[1])
+            and high - low <= 0.05 * middle + 2.0 * float(median(own_spread))):
+        return ratio - spread > middle * END_RAISED
+    return np.zeros(len(ratio), dtype=bool)
 
 
 def _weakened(ratio: np.ndarray, spread: np.ndarray, middle: float) -> np.ndarray:
@@ -488,12 +507,7 @@ def weakened_ends(p: Patch, scene: Scene, sensors: SensorArray, amplitude: np.nd
     ratio, spread = amplitude / echo, _spread(scene, echo)
     middle = float(median(ratio))
     weak = _weakened(ratio, spread, middle)
-    off = weak.copy()
-    # raised: where a mirror's echo is the surface's within 5 % (κ·r ≤ 0.1), and steady
-    low, high = percentile(ratio, [10, 90])  # (not a sinusoid's stretch named a plane)
-    if (0.5 * float(median(p.paths)) <= 0.1 * abs(curve_geometry(p.params, p.x0)[1])
-            and high - low <= 0.05 * middle + 2.0 * float(median(spread))):
-        off |= ratio - spread > middle * END_RAISED
+    off = weak | _raised(p, ratio, spread, ratio, spread)
     ends: list[float | None] = []
     for i, reach in ((int(np.argmin(p.u)), p.lo - span[0]), (int(np.argmax(p.u)), span[1] - p.hi)):
         if not off[i]:
@@ -578,23 +592,7 @@ def draw_patch(p: Patch, step: float) -> tuple[np.ndarray, np.ndarray]:
     return carrier_points(p.params, p.x0, u), p.loci[nearest_index(p.u, u)]
 
 
-def nearest_index(values: np.ndarray, queries: np.ndarray) -> np.ndarray:
-    """For each of ``queries``, the index of the nearest of ``values`` (ties: the lowest
-    index), as ``np.abs(queries[:, None] - values).argmin(axis=1)`` gives it, by binary
-    search instead of the [queries × values] matrix (a joined wall seen by a 1000-element
-    array: 2400 × 10⁵ distances, 2 GB)."""
-    order = np.argsort(values, kind="stable")
-    v = np.asarray(values, dtype=np.float64)[order]
-    k = np.searchsorted(v, queries, side="left")  # v[k] is the first ≥ the query
-    right = np.minimum(k, len(v) - 1)
-    left = np.searchsorted(v, v[np.maximum(k - 1, 0)], side="left")  # its run's first
-    d_right = np.where(k < len(v), np.abs(v[right] - queries), np.inf)
-    d_left = np.where(k > 0, np.abs(queries - v[left]), np.inf)
-    take_left = (d_left < d_right) | ((d_left == d_right) & (order[left] < order[right]))
-    return np.where(take_left, order[left], order[right])
-
-
 __all__ = ["BISECTIONS", "PATCH_BIAS_M", "STEP_CELLS", "Beams", "Patch", "Patches",
            "carrier_points", "clamp_to_silence", "coordinates", "draw_patch",
-           "extents", "flat", "nearest_index", "outward", "patch_of", "spread_patch",
+           "extents", "flat", "outward", "patch_of", "spread_patch",
            "strength_bend", "trusted_reach"]

@@ -48,7 +48,7 @@ from .heard import amplitude_noise, group_pairs, heard_index, loudest
 from .joins import END_AT_VERTEX_M, draw_families
 from .loci import Loci, _subset
 from .models import corner_images, corner_paths, dot2
-from .owners import a_corners_echoes, as_plane, fits_as_well, widened
+from .owners import a_corners_echoes, as_plane, drawn_faces_echoes, fits_as_well, widened
 from .patches import Patches
 from .starts import MIN_CURVE
 from .strength import mirror_echo, strongest_echo, two_way
@@ -510,6 +510,7 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
         explained[f.loci] = True
     drawn = draw_families(scene, sensors, loci, families, np.flatnonzero(~explained))
     others = np.flatnonzero(~np.isin(sensors.groups[loci.tx], list(arrays)))
+    left = left[~_drawn_faces_echoes(scene, sensors, loci, left, drawn)]
     rest = np.sort(np.concatenate([others, left]))
     rest = rest[loci.amplitude[rest] >= DEFAULT_MIN_ENVELOPE]
     if len(rest):
@@ -519,6 +520,20 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
         keep = ~past_located_ends(points, drawn)
         drawn = drawn.plus(points[keep], rest[source[keep]], vertices)
     return drawn
+
+
+def _drawn_faces_echoes(scene: Scene, sensors: SensorArray, loci: Loci, rows: np.ndarray,
+                        drawn: Patches) -> np.ndarray:
+    """Which of the detections ``rows`` a drawn face reflects
+    (:func:`~.owners.drawn_faces_echoes`), within their tolerance or the pulse's
+    resolution (c·σ: echoes nearer in path merge), whichever is wider."""
+    c = scene.medium.c
+    P, A = sensors.positions, sensors.axes
+    tx, rx = loci.tx[rows], loci.rx[rows]
+    tolerance = np.maximum(c * scene.transducer.pulse_sigma_s, window_tolerance(
+        loci.amplitude[rows], scene.signal.noise_std, c, scene.transducer.pulse_sigma_s))
+    return drawn_faces_echoes(P[tx], P[rx], A[tx], A[rx], loci.tof_s[rows] * c, tolerance,
+                              drawn.points, drawn.ends, scene.transducer.beam(c)[0])
 
 
 #: A face that ends at a located vertex (within :data:`~.joins.END_AT_VERTEX_M`) does not
