@@ -47,6 +47,17 @@ def test_a_face_reflects_the_echo_at_its_specular_path(xt, sep, y, off):
     assert bool(got[0]) == (abs(off) < 0.01), off
 
 
+def test_patches_drawn_empty_are_no_faces():
+    """A patch clipped to no points (its end where it starts), even the last: the other
+    faces are tested as ever."""
+    T, R, axT, axR, path = _pair(0.0, 0.1, 2.0)
+    points, _ = _face(-2.0, 2.0)
+    n = len(points)
+    for ends in (np.array([0, n]), np.array([n, n])):  # an empty first, an empty last
+        assert drawn_faces_echoes(T, R, axT, axR, path, np.array([0.01]), points, ends,
+                                  CUT_SIN2)[0]
+
+
 def test_a_face_that_stops_short_of_the_specular_point_does_not_reflect_it():
     T, R, axT, axR, path = _pair(0.0, 0.1, 2.0)
     points, ends = _face(0.2, 2.0)  # the specular point is at x = 0.05

@@ -186,7 +186,8 @@ def drawn_faces_echoes(T: np.ndarray, R: np.ndarray, axT: np.ndarray, axR: np.nd
     q = faces[:n]
     inner = np.ones(n, dtype=bool)
     inner[0] = inner[-1] = False
-    inner[ends[:-1]] = inner[ends[:-1] - 1] = False  # every patch's first and last point
+    starts = np.minimum(ends[:-1], n - 1)  # (a patch clipped to nothing ends where it starts)
+    inner[starts] = inner[starts - 1] = False  # every patch's first and last point
     for a in range(0, len(paths), FACE_ECHO_CHUNK):
         b = slice(a, a + FACE_ECHO_CHUNK)
         t, r = T[b, None, :], R[b, None, :]
