@@ -34,7 +34,7 @@ from .envelope import in_beams
 from .heard import heard_index
 from .joins import MEET_MIN_ANGLE_RAD, draw_patches
 from .loci import Loci, _subset
-from .models import circles_meet
+from .models import circles_meet, lines_cross
 from .patches import Patch, Patches, coordinates, spread_patch, strength_bend
 from .strength import corner_echo
 from .tangents import (
@@ -282,11 +282,9 @@ def faces_corners(scene: Scene, sensors: SensorArray, loci: Loci, drawn: Patches
     cut_sin2 = scene.transducer.beam(c)[0]
     found: list[np.ndarray] = []
     for (p, u), (q, v) in itertools.combinations(lines, 2):
-        cross = float(u[0] * v[1] - u[1] * v[0])
-        if abs(cross) < math.sin(MEET_MIN_ANGLE_RAD):
+        x = lines_cross(p, u, q, v, MEET_MIN_ANGLE_RAD)
+        if x is None:
             continue
-        d = q - p
-        x = p + u * float(d[0] * v[1] - d[1] * v[0]) / cross
         near = np.concatenate([drawn.points, drawn.vertices.reshape(-1, 2), *found])
         if len(near) and np.hypot(*(near - x).T).min() <= c * sigma:
             continue

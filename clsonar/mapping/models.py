@@ -93,6 +93,17 @@ def circles_meet(T: np.ndarray, rho: np.ndarray) -> np.ndarray:
     return T[0] + along * u + np.array([across, -across])[:, None] * np.array([-u[1], u[0]])
 
 
+def lines_cross(p: np.ndarray, u: np.ndarray, q: np.ndarray, v: np.ndarray,
+                least_rad: float) -> np.ndarray | None:
+    """Where the line through ``p`` along the unit ``u`` crosses the one through ``q``
+    along the unit ``v`` (None where they cross at under ``least_rad`` radians)."""
+    across = u[0] * v[1] - u[1] * v[0]
+    if abs(across) < math.sin(least_rad):
+        return None
+    d = q - p
+    return p + (d[0] * v[1] - d[1] * v[0]) / across * u
+
+
 def circle_points(centre: np.ndarray, rho: float, sign: float, T: np.ndarray,
                   R: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(path [n], q [n, 2])`` for the circle of ``centre`` and signed radius ``rho``
@@ -420,5 +431,6 @@ __all__ = ["CORNER_STEPS", "CURVE_STEPS", "FRAME_M", "PSI_PLANE", "SPECULAR_STEP
            "PathModel", "apart", "circle_points", "circles_meet", "corner_images", "corner_paths",
            "curve_frame", "curve_geometry", "curve_paths", "dot2", "ellipse_axes", "fit_corner",
            "fit_curve",
-           "fit_point", "gram", "least_squares", "plane_points", "plane_start", "point_paths",
+           "fit_point", "gram", "least_squares", "lines_cross", "plane_points", "plane_start",
+           "point_paths",
            "project_paths"]

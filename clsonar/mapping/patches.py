@@ -212,7 +212,8 @@ def clamp_to_silence(p: Patch, scene: Scene, sensors: SensorArray, heard: Heard,
         found.append((u[keep], ratio[keep], loud[keep], spread[keep], T[keep], R[keep]))
     u, ratio, loud, spread, T, R = (np.concatenate(parts) for parts in zip(*found, strict=True))
     weak = loud & _weakened(ratio, spread, middle)
-    raised = loud & _raised(p, found[0][1], found[0][3], ratio, spread)
+    _, own_ratio, _, own_spread, _, _ = found[0]
+    raised = loud & _raised(p, own_ratio, own_spread, ratio, spread)
     gauged = math.isfinite(p.bend) and flat(p)
     # a circle the detections cannot tell from its tangent (its ψ within 3σ of 0)
     line = p.straight or abs(float(p.params[2])) <= p.bend

@@ -510,9 +510,10 @@ def reflector_points(scene: Scene, sensors: SensorArray, loci: Loci) -> Patches:
         explained[f.loci] = True
     drawn = draw_families(scene, sensors, loci, families, np.flatnonzero(~explained))
     others = np.flatnonzero(~np.isin(sensors.groups[loci.tx], list(arrays)))
+    loud = loci.amplitude >= DEFAULT_MIN_ENVELOPE
+    left = left[loud[left]]
     left = left[~_drawn_faces_echoes(scene, sensors, loci, left, drawn)]
-    rest = np.sort(np.concatenate([others, left]))
-    rest = rest[loci.amplitude[rest] >= DEFAULT_MIN_ENVELOPE]
+    rest = np.sort(np.concatenate([others[loud[others]], left]))
     if len(rest):
         points, source, vertices = tangent_map(
             scene, sensors, _subset(loci, rest),

@@ -17,6 +17,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..mapping.along import ScanHeard
+from ..mapping.models import lines_cross
 from ..mapping.openings import OpenGap
 from ..scene import PostSettings
 from ..scene.settings import chosen
@@ -195,12 +196,8 @@ def heard_further(wall: Wall, heard: ScanHeard, max_gap: float) -> Wall:
 
 
 def _intersection(a: Wall, b: Wall) -> np.ndarray | None:
-    cross = a.direction[0] * b.direction[1] - a.direction[1] * b.direction[0]
-    if abs(cross) < math.sin(math.radians(MIN_VERTEX_DEG)):
-        return None
-    d = b.centre - a.centre
-    t = (d[0] * b.direction[1] - d[1] * b.direction[0]) / cross
-    return a.at(t)
+    return lines_cross(a.centre, a.direction, b.centre, b.direction,
+                       math.radians(MIN_VERTEX_DEG))
 
 
 #: A wall's extension to a crossing "passes" another wall's line only this far from it.
