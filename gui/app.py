@@ -54,7 +54,7 @@ from .editor import Document
 from .params import ParamsPanel
 from .plots import PlotsPanel
 from .stages import NO_RUN, STAGE_VIEWS, StagesPanel
-from .worker import Job
+from .worker import GuiThreadCollector, Job
 
 APP_NAME = "clsonar-gui"
 ORGANISATION = "clsonar"
@@ -101,6 +101,7 @@ class MainWindow(QMainWindow):
         self.last_stages: list[str] = []  # the stages the last finished job ran
         self._post_again = False
         self._generation = 0  # bumped when another scene is opened: older runs are dropped
+        self.collector = GuiThreadCollector(self)  # stopped when the window closes
 
         self.doc = Document(new_scene(), None, self.recovery_dir)
         self.doc.setParent(self)
@@ -361,6 +362,7 @@ class MainWindow(QMainWindow):
             self.job.wait()
         self.doc.discard_recovery()
         self.save_layout()
+        self.collector.stop()
         event.accept()
 
     # ------------------------------------------------------------------ running
@@ -570,6 +572,7 @@ def main(argv: list[str] | None = None) -> int:
         window.show()
         status = app.exec()
     # delete the window while Qt still runs, not in the interpreter's final collection
+    window.collector.stop()
     window.deleteLater()
     QApplication.sendPostedEvents(None, QEvent.Type.DeferredDelete)
     return status

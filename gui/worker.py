@@ -12,13 +12,14 @@ delivered on the GUI thread; nothing the function raises can crash the GUI.
 
 from __future__ import annotations
 
+import gc
 import threading
 import time
 import traceback
 from collections.abc import Callable
 from typing import Any
 
-from PySide6.QtCore import QObject, QThread, Signal
+from PySide6.QtCore import QObject, QThread, QTimer, Signal
 
 from .. import steps
 from ..errors import ClsonarError
@@ -86,3 +87,61 @@ class Job(QThread):
                 self.cancelled.emit()
             else:
                 self.succeeded.emit(result)
+
+
+class GuiThreadCollector(QObject):
+    """Python's cyclic garbage collection on the GUI thread only, while a window lives.
+
+    Python collects in whichever thread happens to allocate when a generation's threshold
+    is crossed: a :class:`Job` running the pipeline, or a library's own thread (Dask's
+    event loop after a sweep). The collection frees what garbage cycles hold, Qt objects
+    among them (a closed dialog, a replaced plot item), and a Qt object deleted off the GUI
+    thread while that thread paints can crash the process (a segmentation fault in CI, in
+    the GUI tests after the Dask ones). So, as pyqtgraph's ``GarbageCollector`` does,
+    automatic collection is off while any collector is started, and a timer collects on the
+    GUI thread each ``interval_ms`` with Python's own thresholds. When the last one stops,
+    collection is as it was before the first started.
+    """
+
+    _started = 0
+    _was_enabled = True
+
+    def __init__(self, parent: QObject, interval_ms: int = 1000) -> None:
+        super().__init__(parent)
+        self._running = False
+        self._timer = QTimer(self)
+        self._timer.timeout.connect(collect_by_thresholds)
+        self._timer.start(interval_ms)
+        cls = GuiThreadCollector
+        if cls._started == 0:
+            cls._was_enabled = gc.isenabled()
+            gc.disable()
+        cls._started += 1
+        self._running = True
+
+    def stop(self) -> None:
+        """Stop collecting here (idempotent); automatic collection resumes after the last."""
+        if not self._running:
+            return
+        self._running = False
+        self._timer.stop()
+        collect_by_thresholds()  # what this window left, on this thread
+        cls = GuiThreadCollector
+        cls._started -= 1
+        if cls._started == 0 and cls._was_enabled:
+            gc.enable()
+
+
+def collect_by_thresholds() -> None:
+    """One step of Python's automatic collection, done by hand: each generation whose count
+    passed its threshold is collected (with the younger ones)."""
+    counts, thresholds = gc.get_count(), gc.get_threshold()
+    if thresholds[0] == 0:  # collection was turned off (gc.set_threshold(0))
+        return
+    generation = -1
+    for g in range(3):
+        if counts[g] <= thresholds[g]:
+            break
+        generation = g
+    if generation >= 0:
+        gc.collect(generation)

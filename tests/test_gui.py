@@ -7,6 +7,7 @@ prompt, dock layout, export, the worker's cancel and errors; and that the core i
 
 from __future__ import annotations
 
+import gc
 import importlib.resources
 import json
 import pkgutil
@@ -19,7 +20,7 @@ import pyqtgraph as pg
 import pytest
 from clsonar.gui import edits
 from clsonar.gui.app import MainWindow, main
-from clsonar.gui.worker import Job
+from clsonar.gui.worker import GuiThreadCollector, Job
 from PySide6.QtCore import QEvent, QPointF, QSettings, Qt
 from PySide6.QtGui import QMouseEvent
 from PySide6.QtWidgets import QApplication, QMessageBox
@@ -55,6 +56,15 @@ def every_mouse_move():
     pg.setConfigOptions(mouseRateLimit=0)
     yield
     pg.setConfigOptions(mouseRateLimit=old)
+
+
+@pytest.fixture(autouse=True)
+def collection_restored():
+    """Once a test's windows are closed (pytest-qt closes them before fixtures tear down),
+    Python's automatic garbage collection is on again: the later tests' cycles are
+    collected."""
+    yield
+    assert gc.isenabled() and GuiThreadCollector._started == 0
 
 
 @pytest.fixture
@@ -567,3 +577,37 @@ def test_recovery_file_holds_every_edit_and_survives_a_full_disk(window, tmp_pat
     w.doc.apply(third, "place transducer")
     assert load_scene(str(w.doc.recovery_file)) == third
     assert [p.name for p in (tmp_path / "recovery").iterdir()] == [w.doc.recovery_file.name]
+
+
+def test_garbage_is_collected_on_the_gui_thread_only(qtbot, window):
+    """While a window is open, garbage cycles made in a job's thread (enough to cross
+    Python's threshold many times) are collected by the window's timer on the GUI thread,
+    never in the job's thread (a Qt object freed there can crash the process); once the
+    window closes, collection is automatic again."""
+    threads: list[int] = []
+
+    def record(phase, info):
+        if phase == "start":
+            threads.append(threading.get_ident())
+
+    def make_cycles(progress):
+        for _ in range(5 * gc.get_threshold()[0]):
+            cycle: list = []
+            cycle.append(cycle)
+        return threading.get_ident()
+
+    assert not gc.isenabled()
+    gc.callbacks.append(record)
+    try:
+        job = Job(make_cycles)
+        with qtbot.waitSignal(job.succeeded, timeout=10_000) as blocker:
+            job.start()
+        job.wait()
+        worker = blocker.args[0]
+        qtbot.waitUntil(lambda: len(threads) > 0, timeout=5_000)
+    finally:
+        gc.callbacks.remove(record)
+    assert worker != threading.get_ident()
+    assert set(threads) == {threading.get_ident()}
+    window.close()
+    assert gc.isenabled()
