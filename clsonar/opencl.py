@@ -19,6 +19,8 @@ from __future__ import annotations
 import hashlib
 import os
 import re
+import sys
+import types
 import warnings
 from dataclasses import dataclass
 from functools import cache
@@ -29,6 +31,7 @@ import numpy as np
 
 from .errors import DeviceError
 from .files import write_atomic
+from .numerics import installed_version
 
 KERNEL_PACKAGE = "clsonar.kernels"
 
@@ -44,11 +47,46 @@ _PROBE_SOURCE = "__kernel void probe(__global float *a) { a[get_global_id(0)] *=
 
 def _cl():
     """Import pyopencl lazily, so ``import clsonar`` works (and says why) without it."""
+    if "pyopencl" not in sys.modules:
+        _versions_from_folders()
     try:
         import pyopencl as cl
     except ImportError as e:  # pragma: no cover - depends on the installation
         raise DeviceError(f"pyopencl cannot be imported ({e}); pip install pyopencl") from None
+    for package in VERSIONED:  # the attribute an import of the real module would have set
+        if not hasattr(sys.modules.get(package), "version") and f"{package}.version" in sys.modules:
+            vars(sys.modules[package])["version"] = sys.modules[f"{package}.version"]
     return cl
+
+
+#: The packages under pyopencl whose ``version`` module asks :mod:`importlib.metadata`.
+VERSIONED = ("pytools", "pyopencl")
+_RELEASE = re.compile(r"^([0-9.]+)([a-z0-9]*?)$")  # their modules' own pattern
+
+
+def _versions_from_folders() -> None:
+    """``pytools.version`` and ``pyopencl.version`` made before pyopencl imports them, with
+    the same three names (``VERSION_TEXT``, ``VERSION_STATUS``, ``VERSION``) from each
+    wheel's ``dist-info`` folder name (:func:`~clsonar.numerics.installed_version`). Their
+    own modules call ``importlib.metadata.version``, whose import (with ``email``,
+    ``socket``, ``zipfile`` and ``csv``) and search of every installed distribution cost
+    20–30 ms of a 0.5 s run; tests/test_speed_startup.py holds the names to theirs. A
+    version of another form is left to the package's own module."""
+    for package in VERSIONED:
+        name = f"{package}.version"
+        if package in sys.modules or name in sys.modules:
+            continue
+        try:
+            text = installed_version(package)
+        except ImportError:  # not installed: its import says so
+            continue
+        match = _RELEASE.match(text)
+        if match is None:
+            continue
+        module = types.ModuleType(name, f"{package}'s version, from its dist-info folder")
+        vars(module).update(VERSION_TEXT=text, VERSION_STATUS=match.group(2),
+                            VERSION=tuple(int(nr) for nr in match.group(1).split(".")))
+        sys.modules[name] = module
 
 
 @dataclass(frozen=True)

@@ -60,6 +60,24 @@ def test_the_command_line_imports_neither_scipy_nor_matplotlib_nor_pyopencl():
     assert _fresh(f"import clsonar.cli; {_MODULES}") == ["clsonar", "numpy"]
 
 
+def test_pyopencl_and_pytools_versions_from_their_folders_are_importlib_metadata_s():
+    """The ``version`` modules clsonar makes for pyopencl and pytools hold what their own
+    modules would (the same three names from ``importlib.metadata``), and are the
+    packages' ``version`` attributes as an import would have made them."""
+    code = ("import json, re, sys; from clsonar import opencl; cl = opencl._cl()\n"
+            "from importlib import metadata\n"
+            "out = {}\n"
+            "for p in opencl.VERSIONED:\n"
+            "    m = sys.modules[p + '.version']\n"
+            "    text = metadata.version(p)\n"
+            "    g = re.match(r'^([0-9.]+)([a-z0-9]*?)$', text)\n"
+            "    out[p] = [m is getattr(sys.modules[p], 'version'), m.VERSION_TEXT == text,\n"
+            "              m.VERSION_STATUS == g.group(2),\n"
+            "              m.VERSION == tuple(int(n) for n in g.group(1).split('.'))]\n"
+            "print(json.dumps(out))")
+    assert _fresh(code) == {p: [True] * 4 for p in ("pytools", "pyopencl")}
+
+
 def test_the_command_line_starts_numpy_with_one_blas_thread_unless_told():
     code = ("import os, json, clsonar.cli, numpy; "
             "print(json.dumps(os.environ['OPENBLAS_NUM_THREADS']))")
@@ -73,12 +91,14 @@ def test_a_room_run_with_png_none_imports_no_scipy_package_nor_matplotlib(tmp_pa
     """Only scipy's FITPACK extensions are loaded (numerics._extension), never the
     ``scipy`` or ``scipy.interpolate`` package; nor are the pictures (``clsonar.pictures``,
     ``clsonar.canvas``) that no file needs, nor ``numpy.ma`` (clsonar.numerics' unique and
-    median: NumPy's plain forms import it, 7 ms)."""
+    median: NumPy's plain forms import it, 7 ms), nor ``importlib.metadata`` (pyopencl's
+    and pytools' versions come from their folders: opencl._versions_from_folders)."""
     code = ("import json, sys; from clsonar.cli import main\n"
             f"assert main(['run', {ROOM!r}, '--out', {str(tmp_path)!r}, '-q', "
             "'--png', 'none']) == 0\n"
             "print(json.dumps(sorted({'scipy', 'scipy.interpolate', 'matplotlib', "
-            "'pyopencl', 'clsonar.pictures', 'clsonar.canvas', 'numpy.ma'} & set(sys.modules))))")
+            "'pyopencl', 'clsonar.pictures', 'clsonar.canvas', 'numpy.ma', "
+            "'importlib.metadata'} & set(sys.modules))))")
     assert _fresh(code) == ["pyopencl"]
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         "echoes.csv", "profile.csv", "report.json", "stages.npz"]
