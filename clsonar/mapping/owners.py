@@ -1,7 +1,8 @@
 """Detections that a family of another window owns (``mapping.mode = "reflectors"``): a
 plane widened by the rows no family explained that its plane predicts (:func:`widened`),
 a family whose every echo is a located corner's double bounce
-(:func:`a_corners_echoes`), and the leftover echoes a drawn face reflects
+(:func:`a_corners_echoes`), point families of other windows that one point explains
+(:func:`one_point_each`), and the leftover echoes a drawn face reflects
 (:func:`drawn_faces_echoes`)."""
 
 from __future__ import annotations
@@ -67,6 +68,42 @@ def widened(f: Family, w: Window, free: np.ndarray) -> tuple[Family, np.ndarray]
     bend = _measured_bend(both, every, {}, {"curve": fit.params}, detection_noise(both.tolerance))
     q = _predict(both, "plane", fit.params, every)[1]
     return Family("plane", fit.params, both.x0, every, q, fit.rms, both, bend), taken
+
+
+#: Point families located at most this far apart are tried as one (:func:`one_point_each`),
+#: metres.
+SAME_POINT_M = 0.1
+
+
+def one_point_each(families: list[Family]) -> list[Family]:
+    """``families`` with the point families (edges, posts) that other windows or arrays
+    located at one point, each pair whose echoes together one point explains (each
+    family's as well as its own fit did, inside both beams: :func:`_explains`), as one
+    family fitted to all of them, largest first. Each window's fit is as good as the
+    spread of its own pairs allows: with noise, a convex edge seen by a short stretch of
+    an array is placed by its loci's crossings, cm across the line of sight, and two such
+    stretches (or arrays) together span more (the zoo's seed 163 edge-02, σ 0.3: two arrays' point
+    families 0.9 and 2.0 cm from the edge, together 0.35 cm)."""
+    points = sorted((k for k, f in enumerate(families) if f.kind == "point"),
+                    key=lambda k: -len(families[k].rows))
+    out = list(families)
+    gone: set[int] = set()
+    for i in points:
+        for j in points:
+            if i == j or i in gone or j in gone or math.dist(
+                    out[i].params, out[j].params) > SAME_POINT_M:
+                continue
+            f, g = out[i], out[j]  # a locus in both (windows overlap) counted once
+            both = _joined(f, g.window, g.rows[~np.isin(g.loci, f.loci)])
+            every = np.arange(len(both.paths))
+            fit = _fit(both, "point", every, f.params)
+            if all(len(rows) == 0 or _explains(both, rows, fit.params, as_well_limit(
+                    h.rms, detection_noise(both.tolerance[rows])), "point")
+                   for h, rows in ((f, every[:len(f.rows)]), (g, every[len(f.rows):]))):
+                q = _predict(both, "point", fit.params, every)[1]
+                out[i] = Family("point", fit.params, both.x0, every, q, fit.rms, both)
+                gone.add(j)
+    return [f for k, f in enumerate(out) if k not in gone]
 
 
 def _joined(f: Family, w: Window, found: np.ndarray) -> Window:
@@ -160,11 +197,12 @@ def fits_as_well(f: Family, corner: Family, resolution: float,
         both, own, params, as_well_limit(corner.rms, detection_noise(both.tolerance[own])))
 
 
-def _explains(w: Window, rows: np.ndarray, params: np.ndarray, bar: float) -> bool:
-    """Whether the corner ``params`` predicts ``rows`` with an RMS within ``bar``, its
-    vertex inside both beams of each."""
-    path, q = _predict(w, "corner", params, rows)
-    return bool(np.all(_valid(w, "corner", params, rows, q))) and math.sqrt(
+def _explains(w: Window, rows: np.ndarray, params: np.ndarray, bar: float,
+              kind: str = "corner") -> bool:
+    """Whether the corner (or point) ``params`` predicts ``rows`` with an RMS within
+    ``bar``, its vertex inside both beams of each."""
+    path, q = _predict(w, kind, params, rows)
+    return bool(np.all(_valid(w, kind, params, rows, q))) and math.sqrt(
         float(np.mean((path - w.paths[rows]) ** 2))) <= bar
 
 

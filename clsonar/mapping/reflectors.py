@@ -48,7 +48,14 @@ from .heard import amplitude_noise, group_pairs, heard_index, loudest
 from .joins import END_AT_VERTEX_M, draw_families
 from .loci import Loci, _subset
 from .models import corner_images, corner_paths, dot2
-from .owners import a_corners_echoes, as_plane, drawn_faces_echoes, fits_as_well, widened
+from .owners import (
+    a_corners_echoes,
+    as_plane,
+    drawn_faces_echoes,
+    fits_as_well,
+    one_point_each,
+    widened,
+)
 from .patches import Patches
 from .starts import MIN_CURVE
 from .strength import mirror_echo, strongest_echo, two_way
@@ -185,7 +192,8 @@ def _families(scene: Scene, sensors: SensorArray, loci: Loci,
                               lambda r: _window(scene, sensors, loci, r,
                                                 sensors.positions[loci.tx[r]].mean(axis=0),
                                                 math.inf))
-    families, dropped = planes_own(vertices_own(corners_own(families, resolution), resolution))
+    families, dropped = planes_own(vertices_own(one_point_each(corners_own(
+        families, resolution)), resolution))
     families, rest = _widened(scene, sensors, loci, families, union1d(rest, dropped))
     return families, _unshadowed(scene, sensors, loci, families, rest, resolution)
 
