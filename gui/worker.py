@@ -108,6 +108,7 @@ class GuiThreadCollector(QObject):
 
     def __init__(self, parent: QObject, interval_ms: int = 1000) -> None:
         super().__init__(parent)
+        self._running = False
         self._timer = QTimer(self)
         self._timer.timeout.connect(collect_by_thresholds)
         self._timer.start(interval_ms)
@@ -116,28 +117,19 @@ class GuiThreadCollector(QObject):
             cls._was_enabled = gc.isenabled()
             gc.disable()
         cls._started += 1
-        # released once: by stop(), or when Qt deletes it unstopped (its parent deleted)
-        self._running = running = [True]
-        self.destroyed.connect(lambda *_: _release(running))
+        self._running = True
 
     def stop(self) -> None:
         """Stop collecting here (idempotent); automatic collection resumes after the last."""
-        if self._running[0]:
-            self._timer.stop()
-            collect_by_thresholds()  # what this window left, on this thread
-            _release(self._running)
-
-
-def _release(running: list[bool]) -> None:
-    """One collector fewer (once per collector): after the last, collection is as it was
-    before the first started."""
-    if not running[0]:
-        return
-    running[0] = False
-    cls = GuiThreadCollector
-    cls._started -= 1
-    if cls._started == 0 and cls._was_enabled:
-        gc.enable()
+        if not self._running:
+            return
+        self._running = False
+        self._timer.stop()
+        collect_by_thresholds()  # what this window left, on this thread
+        cls = GuiThreadCollector
+        cls._started -= 1
+        if cls._started == 0 and cls._was_enabled:
+            gc.enable()
 
 
 def collect_by_thresholds() -> None:

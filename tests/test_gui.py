@@ -611,15 +611,3 @@ def test_garbage_is_collected_on_the_gui_thread_only(qtbot, window):
     assert set(threads) == {threading.get_ident()}
     window.close()
     assert gc.isenabled()
-
-
-def test_a_window_deleted_unclosed_gives_collection_back(qtbot, tmp_path, monkeypatch):
-    """A window Qt deletes without its being closed (its collector deleted with it) turns
-    automatic collection back on too: no process is left with none."""
-    monkeypatch.setattr(MainWindow, "ask", lambda self, title, text: False)
-    settings = QSettings(str(tmp_path / "settings.ini"), QSettings.Format.IniFormat)
-    w = MainWindow(None, settings=settings, recovery_dir=tmp_path / "recovery")
-    assert not gc.isenabled() and GuiThreadCollector._started == 1
-    w.deleteLater()
-    QApplication.sendPostedEvents(None, QEvent.Type.DeferredDelete)
-    assert gc.isenabled() and GuiThreadCollector._started == 0
