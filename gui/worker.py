@@ -120,7 +120,12 @@ class GuiThreadCollector(QObject):
         self._running = True
 
     def stop(self) -> None:
-        """Stop collecting here (idempotent); automatic collection resumes after the last."""
+        """Stop collecting here (idempotent); automatic collection resumes after the last.
+        The window calls it when it closes (and ``main`` before deleting it), never from
+        Qt's ``destroyed``: collection turned on inside a widget tree's destruction, with
+        the counts grown all the while the window lived, runs at the next allocation there
+        and deadlocks in ``QObject::disconnect`` (seen in CI). Here what the window left
+        is collected first."""
         if not self._running:
             return
         self._running = False
