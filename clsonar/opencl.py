@@ -47,15 +47,18 @@ _PROBE_SOURCE = "__kernel void probe(__global float *a) { a[get_global_id(0)] *=
 
 def _cl():
     """Import pyopencl lazily, so ``import clsonar`` works (and says why) without it."""
-    if "pyopencl" not in sys.modules:
+    first = "pyopencl" not in sys.modules
+    if first:
         _versions_from_folders()
     try:
         import pyopencl as cl
     except ImportError as e:  # pragma: no cover - depends on the installation
         raise DeviceError(f"pyopencl cannot be imported ({e}); pip install pyopencl") from None
-    for package in VERSIONED:  # the attribute an import of the real module would have set
-        if not hasattr(sys.modules.get(package), "version") and f"{package}.version" in sys.modules:
-            vars(sys.modules[package])["version"] = sys.modules[f"{package}.version"]
+    if first:
+        for package in VERSIONED:  # the attribute an import of the real module would set
+            if not hasattr(sys.modules.get(package), "version") \
+                    and f"{package}.version" in sys.modules:
+                vars(sys.modules[package])["version"] = sys.modules[f"{package}.version"]
     return cl
 
 

@@ -108,7 +108,6 @@ class GuiThreadCollector(QObject):
 
     def __init__(self, parent: QObject, interval_ms: int = 1000) -> None:
         super().__init__(parent)
-        self._running = False
         self._timer = QTimer(self)
         self._timer.timeout.connect(collect_by_thresholds)
         self._timer.start(interval_ms)

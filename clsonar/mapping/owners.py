@@ -82,8 +82,8 @@ def one_point_each(families: list[Family]) -> list[Family]:
     family fitted to all of them, largest first. Each window's fit is as good as the
     spread of its own pairs allows: with noise, a convex edge seen by a short stretch of
     an array is placed by its loci's crossings, cm across the line of sight, and two such
-    stretches (or arrays) together span more (the zoo's seed 163 edge-02, σ 0.3: two arrays' point
-    families 0.9 and 2.0 cm from the edge, together 0.35 cm)."""
+    stretches (or arrays) together span more (the zoo's unseen seed 163 edge-02, σ 0.3:
+    two arrays' point families 0.9 and 2.0 cm from the edge, together 0.28 cm)."""
     points = sorted((k for k, f in enumerate(families) if f.kind == "point"),
                     key=lambda k: -len(families[k].rows))
     out = list(families)
@@ -247,4 +247,5 @@ def drawn_faces_echoes(T: np.ndarray, R: np.ndarray, axT: np.ndarray, axR: np.nd
     return out
 
 
-__all__ = ["a_corners_echoes", "as_plane", "drawn_faces_echoes", "fits_as_well", "widened"]
+__all__ = ["SAME_POINT_M", "a_corners_echoes", "as_plane", "drawn_faces_echoes", "fits_as_well",
+           "one_point_each", "widened"]
